@@ -10,3 +10,7 @@ Layout (dependencies point one way, top to bottom):
 """
 
 __version__ = "0.1.0"
+
+from rventry_env.envs import register_envs as _register_envs
+
+_register_envs()

@@ -11,6 +11,7 @@ Only operations that differ between the two libraries belong here.
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -38,6 +39,23 @@ NUMPY = SimpleNamespace(
     fmax=np.maximum,
     fmin=np.minimum,
     where=_np_where,
+)
+
+
+# Plain Python floats: one vehicle stepped without NumPy's per-call overhead.
+MATH = SimpleNamespace(
+    name="math",
+    sqrt=math.sqrt,
+    exp=math.exp,
+    log=math.log,
+    sin=math.sin,
+    cos=math.cos,
+    tanh=math.tanh,
+    arctan2=math.atan2,
+    fabs=abs,
+    fmax=max,
+    fmin=min,
+    where=lambda cond, a, b: a if cond else b,
 )
 
 
@@ -72,14 +90,29 @@ def casadi_ns() -> SimpleNamespace:
 
 
 def dot3(a, b):
-    """a . b for 3-tuples of components, skipping literal zeros (cheaper NumPy)."""
-    terms = [x * y for x, y in zip(a, b) if not (is_zero(x) or is_zero(y))]
-    if not terms:
+    """a . b for 3-tuples of components."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def sparse(b) -> tuple:
+    """The (index, value) pairs of ``b`` that are not literal zeros.
+
+    Constant vectors such as the spin axis (0, 0, w) or point-mass gravity in A
+    (g, 0, 0) would waste whole array operations on zeros; find the pattern once
+    and dot against it with :func:`sparse_dot`.
+    """
+    return tuple((j, bj) for j, bj in enumerate(b) if not is_zero(bj))
+
+
+def sparse_dot(a, nz: tuple):
+    """a . b where ``nz = sparse(b)``."""
+    if not nz:
         return 0.0
-    out = terms[0]
-    for t in terms[1:]:
-        out = out + t
+    j, bj = nz[0]
+    out = a[j] * bj
+    for j, bj in nz[1:]:
+        out = out + a[j] * bj
     return out
 
 
-__all__ = ["NUMPY", "casadi_ns", "dot3", "is_zero"]
+__all__ = ["NUMPY", "MATH", "casadi_ns", "dot3", "sparse", "sparse_dot", "is_zero"]

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
-from rventry_env.core.backend import dot3, is_zero
+from rventry_env.core.backend import dot3, sparse, sparse_dot
 from rventry_env.core.euler_parameters import dcm
 
 STATE_NAMES = ("r", "eA1", "eA2", "eA3", "etaA", "v", "eB1", "eB2", "eB3", "etaB")
@@ -69,15 +69,15 @@ def apparent_force(r, v, c_ae, c_ba, accel_b, omega_e=ZERO3, alpha_e=ZERO3):
     ``accel_b`` is the applied f/m in B components.
     """
     f1, f2, f3 = accel_b
-    rotating = not all(is_zero(w) for w in omega_e)
-    accelerating = not all(is_zero(a) for a in alpha_e)
-    if not (rotating or accelerating):
+    w_nz = sparse(omega_e)
+    al_nz = sparse(alpha_e)
+    if not (w_nz or al_nz):
         return f1, f2, f3
     # specific-force terms in A components, gathered before one C_BA product
     t1, t2, t3 = 0.0, 0.0, 0.0
-    if rotating:
-        w_a = tuple(dot3(c_ae[i], omega_e) for i in range(3))
-        w_sq = dot3(omega_e, omega_e)
+    if w_nz:
+        w_a = tuple(sparse_dot(c_ae[i], w_nz) for i in range(3))
+        w_sq = sum(w * w for _, w in w_nz)
         # -(w x (w x r)) = r (|w|^2 a1 - w_A w_A1), A components
         t1 = r * (w_sq - w_a[0] * w_a[0])
         t2 = -r * w_a[1] * w_a[0]
@@ -86,9 +86,9 @@ def apparent_force(r, v, c_ae, c_ba, accel_b, omega_e=ZERO3, alpha_e=ZERO3):
         w_b3 = dot3(c_ba[2], w_a)
         f2 = f2 - 2 * v * w_b3
         f3 = f3 + 2 * v * w_b2
-    if accelerating:
-        al_a2 = dot3(c_ae[1], alpha_e)
-        al_a3 = dot3(c_ae[2], alpha_e)
+    if al_nz:
+        al_a2 = sparse_dot(c_ae[1], al_nz)
+        al_a3 = sparse_dot(c_ae[2], al_nz)
         t2 = t2 - r * al_a3
         t3 = t3 + r * al_a2
     t = (t1, t2, t3)
@@ -143,7 +143,7 @@ def rv_euler_rates(r, e_a, v, e_b, accel_b, omega_e=ZERO3, alpha_e=ZERO3, c_ae=N
     :param c_ba: C_BA if the caller already has it.
     :return: :class:`RvEulerRates`.
     """
-    if c_ae is None and not all(is_zero(w) for w in (*omega_e, *alpha_e)):
+    if c_ae is None and (sparse(omega_e) or sparse(alpha_e)):
         c_ae = dcm(*e_a)  # only the rotating-frame terms need C_AE
     if c_ba is None:
         c_ba = dcm(*e_b)
@@ -174,7 +174,7 @@ def two_body_rhs(x: Sequence, mu: float):
     """Example 1: the two-body problem in rv-Euler parameters (Eqs. ``Ex1-EOM-rvEuler``)."""
     e_b = tuple(x[6:10])
     c_ba = dcm(*e_b)
-    accel = gravity_two_body_b(x[0], c_ba, mu)
+    accel = gravity_two_body_b(x[0], c_ba, mu)  # E = N here: no apparent-force terms
     return rv_euler_rates(x[0], tuple(x[1:5]), x[5], e_b, accel, c_ba=c_ba).as_tuple()
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
-from rventry_env.core.backend import NUMPY, dot3
+from rventry_env.core.backend import NUMPY, dot3, sparse, sparse_dot
 from rventry_env.core.eom import STATE_NAMES, rv_euler_rates
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.physics.model import EntryModel
@@ -91,8 +91,8 @@ def entry_forces(x: Sequence, model: EntryModel, ns=NUMPY) -> EntryForces:
         lv = tuple(l0[i] - d * u[i] for i in range(3))
         ln = ns.sqrt(dot3(lv, lv))
         aero = tuple(-drag * u[i] + lift * lv[i] / ln for i in range(3))
-    g_a = model.gravity.acceleration_a(r, e3_a, ns)
-    accel_b = tuple(aero[i] + dot3(c_ba[i], g_a) for i in range(3))
+    g_nz = sparse(model.gravity.acceleration_a(r, e3_a, ns))  # point mass: (g, 0, 0)
+    accel_b = tuple(aero[i] + sparse_dot(c_ba[i], g_nz) for i in range(3))
     return EntryForces(h, rho, q, mach, cl, cd, lift, drag, accel_b, c_ae, c_ba)
 
 

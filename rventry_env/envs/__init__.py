@@ -1,0 +1,20 @@
+"""Gymnasium environments: ``RvEntry-v0`` (single) and its numpy-batched vector version."""
+
+from __future__ import annotations
+
+ENV_ID = "RvEntry-v0"
+MAX_EPISODE_STEPS = 2000
+
+
+def register_envs() -> None:
+    """Register ``RvEntry-v0`` with Gymnasium (idempotent)."""
+    from gymnasium.envs.registration import register, registry
+
+    if ENV_ID in registry:
+        return
+    register(
+        id=ENV_ID,
+        entry_point="rventry_env.envs.rv_entry:RvEntryEnv",
+        vector_entry_point="rventry_env.envs.vector:RvEntryVectorEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )

@@ -1,0 +1,105 @@
+"""Pieces shared by the single and the vector environment: set-up, dispersion draws, info."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from rventry_env.core import conversions as cv
+from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.physics.aerodynamics import ScaledAerodynamics
+from rventry_env.physics.atmosphere import ScaledAtmosphere
+from rventry_env.physics.entry import N_STATE
+from rventry_env.physics.model import EntryModel
+
+
+def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) -> EntryTask:
+    task = EntryTask() if task is None else task
+    if not isinstance(task, EntryTask):
+        raise TypeError(f"task must be an EntryTask, got {type(task).__name__}")
+    changes = {}
+    if dt is not None:
+        changes["dt"] = float(dt)
+    if substeps is not None:
+        changes["substeps"] = substeps
+    return replace(task, **changes) if changes else task
+
+
+def make_model(model: EntryModel | None) -> EntryModel:
+    model = EntryModel() if model is None else model
+    if not isinstance(model, EntryModel):
+        raise TypeError(f"model must be an EntryModel built from rventry_env.physics parts, got {type(model).__name__}")
+    return model
+
+
+def dispersed_model(model: EntryModel, density, lift, drag) -> EntryModel:
+    """The model with density and C_L / C_D scale factors (scalars or one per vehicle)."""
+    veh = model.vehicle
+    return model.replace(
+        atmosphere=ScaledAtmosphere(model.atmosphere, density),
+        vehicle=replace(veh, aerodynamics=ScaledAerodynamics(veh.aerodynamics, lift, drag)),
+    )
+
+
+def check_state(state, radius: float) -> np.ndarray:
+    """Validate a user-supplied initial state (12 components, PROBLEM.md order)."""
+    x = np.asarray(state, dtype=float)
+    if x.shape != (N_STATE,):
+        raise ValueError(f"an initial state must have shape ({N_STATE},) in PROBLEM.md order, got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"the initial state contains NaN or inf: {x}")
+    if x[0] <= radius:
+        raise ValueError(f"the initial radius {x[0]:.1f} m is not above the surface ({radius:.1f} m)")
+    if x[5] <= 0:
+        raise ValueError(f"the initial speed must be positive, got {x[5]}")
+    for name, q in (("eA", x[1:5]), ("eB", x[6:10])):
+        n = np.linalg.norm(q)
+        if abs(n - 1) > 1e-6:
+            raise ValueError(f"the initial {name} Euler parameters must have unit norm, got norm {n:.9f}")
+    return x
+
+
+def draw_dispersion(rng: np.random.Generator, dispersion: Dispersion) -> np.ndarray:
+    """One draw of the 9 dispersion variables, in Dispersion field order (always 9 numbers,
+    so single and vector environments stay in step draw for draw)."""
+    half = np.array([getattr(dispersion, f) for f in Dispersion.__dataclass_fields__])
+    return rng.uniform(-1.0, 1.0, size=half.shape) * half
+
+
+def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Initial states ``(..., 12)`` perturbed by draws ``d (..., 9)`` (see :class:`Dispersion`)."""
+    x = np.array(x0, dtype=float, copy=True)
+    dh, dv, dgam, dpsi, dalpha, dsigma = (d[..., i] for i in range(3, 9))
+    if np.any(dh) or np.any(dv) or np.any(dgam) or np.any(dpsi):
+        # keep the physical lift direction: the new frames come from the east-down rule,
+        # so carry the bank across as the conventional angle mu, not as sigma
+        mu = cv.conventional_bank(x, x[..., 11])
+        s = cv.spherical_from_rv_euler(x)
+        s[..., 0] += dh
+        s[..., 3] += dv
+        s[..., 4] += np.radians(dgam)
+        s[..., 5] += np.radians(dpsi)
+        x[..., :10] = cv.rv_euler_from_spherical(s)
+        x[..., 11] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., 11])
+    x[..., 10] += np.radians(dalpha)
+    x[..., 11] += np.radians(dsigma)
+    return x
+
+
+def position_velocity_e(c_ae, c_ba, r, v):
+    """(r_E, v_E) components from cached DCMs: r a1 and v b1 in E (PROBLEM.md)."""
+    a1 = c_ae[0]
+    b1 = tuple(c_ba[0][0] * c_ae[0][j] + c_ba[0][1] * c_ae[1][j] + c_ba[0][2] * c_ae[2][j] for j in range(3))
+    return tuple(r * a for a in a1), tuple(v * b for b in b1), a1
+
+
+def latitude_longitude(a1, ns):
+    """Geocentric latitude and longitude (rad) of the unit position a1 (E components)."""
+    lat = ns.arctan2(a1[2], ns.sqrt(a1[0] * a1[0] + a1[1] * a1[1]))
+    lon = ns.arctan2(a1[1], a1[0])
+    return lat, lon
+
+
+RAD2DEG = 180.0 / math.pi

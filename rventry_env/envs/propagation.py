@@ -1,0 +1,270 @@
+"""One control step of the entry dynamics, for one vehicle or a batch.
+
+The same code steps a single vehicle on Python floats (``MATH`` namespace, used by
+:class:`~rventry_env.envs.rv_entry.RvEntryEnv`) and a batch on NumPy arrays
+(``NUMPY``, used by :class:`~rventry_env.envs.vector.RvEntryVectorEnv`), so the two
+environments cannot drift apart. The physics is :func:`rventry_env.physics.entry_rhs`.
+
+Integration (see DESIGN notes in the env docstring):
+
+* the action is held over the control step ``dt``; ``substeps`` classical RK4
+  steps of ``h = dt / substeps`` integrate it; both Euler-parameter sets are
+  renormalized after every substep;
+* alpha saturates at [0, alpha_max]: within a substep where alpha + u h would leave
+  the interval, the applied rate is reduced so that alpha lands exactly on the
+  bound at the substep's end, and held there afterwards. The *commanded* rate is
+  what the cost charges;
+* the running cost of Eq. ``Ex2-Cost`` is integrated exactly (alpha is linear in
+  time within a substep);
+* impact (r = R_e) is located inside the substep by root-finding on the RK4 map
+  tau -> r(RK4(x, tau)) (Illinois regula falsi to 1e-6 m), and the state returned
+  is the state at impact;
+* path constraints (load factor, dynamic pressure) are sampled at every RK4 node.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, is_dataclass, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from rventry_env.core.integrate import rk4_step
+from rventry_env.physics.entry import EntryForces, entry_forces, entry_rhs
+from rventry_env.physics.model import EntryModel
+from rventry_env.envs.task import EntryTask
+
+IMPACT_TOLERANCE_M = 1e-6
+
+# termination codes (0 = still flying)
+FLYING, IMPACT, SKIP_OUT, NON_FINITE, STALL = 0, 1, 2, 3, 4
+FAILURE_NAMES = {SKIP_OUT: "skip-out", NON_FINITE: "non-finite state", STALL: "stall"}
+
+
+def take_model(model: Any, idx) -> Any:
+    """The model restricted to vehicles ``idx``: every per-vehicle array parameter is indexed."""
+    if idx is None:
+        return model
+    if isinstance(model, np.ndarray) and model.ndim >= 1:
+        return model[idx]
+    if is_dataclass(model) and not isinstance(model, type):
+        changes = {}
+        for f in fields(model):
+            if not f.init:
+                continue
+            old = getattr(model, f.name)
+            new = take_model(old, idx)
+            if new is not old:
+                changes[f.name] = new
+        return replace(model, **changes) if changes else model
+    return model
+
+
+def _take(x: tuple, idx) -> tuple:
+    return x if idx is None else tuple(c[idx] for c in x)
+
+
+def running_cost(alpha0, u_alpha_applied, u_alpha_cmd, u_sigma_cmd, tau, task: EntryTask):
+    """Integral of Eq. ``Ex2-Cost``'s integrand over [0, tau] with alpha = alpha0 + u t (exact)."""
+    p = task.problem
+    d0 = alpha0 - p.alpha_bar
+    ua = u_alpha_applied
+    int_da2 = d0 * d0 * tau + d0 * ua * tau * tau + ua * ua * tau * tau * tau / 3.0
+    ctrl = p.k2 * (u_alpha_cmd / p.u_alpha_max) ** 2 + p.k3 * (u_sigma_cmd / p.u_sigma_max) ** 2
+    return p.k1 * int_da2 / (p.alpha_max * p.alpha_max) + ctrl * tau
+
+
+def path_violation(forces: EntryForces, task: EntryTask, model: EntryModel, ns):
+    """(load-factor excess, dynamic-pressure deficit), each relative and >= 0."""
+    load = forces.aero_accel / (model.planet.g0 * task.problem.a_max_g)
+    q_short = 1.0 - forces.dynamic_pressure / task.problem.q_min
+    return ns.fmax(load - 1.0, 0.0), ns.fmax(q_short, 0.0)
+
+
+class StepOutcome(NamedTuple):
+    x: tuple  # state components at the end of the step (or at the event)
+    forces: EntryForces  # forces at ``x``
+    elapsed: Any  # time advanced (s): dt, or less if the episode ended inside the step
+    status: Any  # FLYING / IMPACT / SKIP_OUT / NON_FINITE / STALL
+    cost: Any  # running cost accrued over the step
+    path_penalty: Any  # integral of weighted path-constraint violations over the step
+    max_load_g: Any
+    min_q: Any
+    alpha_saturated: Any
+
+
+@dataclass
+class Propagator:
+    """Steps vehicles through one control step. ``ns`` picks floats (MATH) or arrays (NUMPY)."""
+
+    task: EntryTask
+    ns: Any
+
+    def forces(self, x: tuple, model: EntryModel) -> EntryForces:
+        return entry_forces(x, model, self.ns)
+
+    def step(self, x: tuple, forces: EntryForces, u_alpha, u_sigma, model: EntryModel) -> StepOutcome:
+        """Advance ``x`` (with ``forces`` evaluated at ``x``) by one control step.
+
+        :param u_alpha: commanded angle-of-attack rate (rad/s), already within bounds.
+        :param u_sigma: commanded bank-angle rate (rad/s), already within bounds.
+        """
+        ns, task = self.ns, self.task
+        p = task.problem
+        radius = model.planet.radius
+        g0 = model.planet.g0
+        h = task.dt / task.substeps
+        w = task.weights
+        batched = ns.name == "numpy"
+
+        status = np.zeros(np.shape(x[0]), dtype=np.int8) if batched else FLYING
+        cost = 0.0 * x[0]
+        path = 0.0 * x[0]
+        elapsed = 0.0 * x[0]
+        max_load = forces.aero_accel / g0
+        min_q = forces.dynamic_pressure
+        saturated = False if not batched else np.zeros(np.shape(x[0]), dtype=bool)
+
+        for _ in range(task.substeps):
+            alpha0 = x[10]
+            alpha_end = ns.fmin(ns.fmax(alpha0 + u_alpha * h, 0.0), p.alpha_max)
+            ua = (alpha_end - alpha0) / h
+            saturated = saturated | (ns.fabs(ua - u_alpha) > 1e-12)
+            u = (ua, u_sigma)
+
+            def rhs(_t, y, u=u):
+                return entry_rhs(y, u, model, ns)
+
+            k1 = entry_rhs(x, u, model, ns, forces=forces)
+            x_new = _renormalize(rk4_step(rhs, 0.0, x, h, k1=k1), ns)
+            tau = h + 0.0 * x[0]
+
+            hit = x_new[0] < radius
+            if batched:
+                hit &= status == FLYING
+            if np.any(hit):
+                idx = np.nonzero(hit)[0] if batched else None
+                x_hit, tau_hit = self._locate_impact(
+                    _take(x, idx), _take(k1, idx), (ua[idx], u_sigma[idx]) if batched else u, h,
+                    take_model(model, idx), radius,
+                )  # fmt: skip
+                if batched:
+                    x_new = tuple(np.where(hit, _scatter(c, idx, ch), c) for c, ch in zip(x_new, x_hit))
+                    tau = np.where(hit, _scatter(tau, idx, tau_hit), tau)
+                else:
+                    x_new, tau = x_hit, tau_hit
+
+            flying = status == FLYING
+            step_cost = running_cost(alpha0, ua, u_alpha, u_sigma, tau, task)
+            f_new = entry_forces(x_new, model, ns)
+            new_status = _classify(x_new, f_new, hit, task, radius, ns, batched)
+            if batched:
+                # vehicles that already ended stay frozen; a non-finite step keeps the last finite state
+                keep = ~flying | (new_status == NON_FINITE)
+                x = tuple(np.where(keep, a, b) for a, b in zip(x, x_new))
+                f_ok = _where_forces(keep, forces, f_new)
+                tau = np.where(flying, tau, 0.0)
+                tau = np.where(new_status == NON_FINITE, 0.0, tau)
+                step_cost = np.where(flying & (new_status != NON_FINITE), step_cost, 0.0)
+                status = np.where(flying, new_status, status).astype(np.int8)
+                forces = f_ok
+            else:
+                if new_status == NON_FINITE:
+                    tau, step_cost = 0.0, 0.0
+                else:
+                    x, forces = x_new, f_new
+                status = new_status
+            cost = cost + step_cost
+            elapsed = elapsed + tau
+            load_x, q_x = path_violation(forces, task, model, ns)
+            path = path + tau * (w.load_violation * load_x + w.q_violation * q_x)
+            max_load = ns.fmax(max_load, forces.aero_accel / g0)
+            min_q = ns.fmin(min_q, forces.dynamic_pressure)
+            if not np.any(status == FLYING):
+                break
+        return StepOutcome(x, forces, elapsed, status, cost, path, max_load, min_q, saturated)
+
+    def _locate_impact(self, x0: tuple, k1: tuple, u: tuple, h: float, model: EntryModel, radius: float):
+        """tau in (0, h] with r(RK4(x0, tau)) = radius, and the state there (Illinois regula falsi)."""
+        ns = self.ns
+
+        def rhs(_t, y):
+            return entry_rhs(y, u, model, ns)
+
+        def state_at(tau):
+            return _renormalize(rk4_step(rhs, 0.0, x0, tau, k1=k1), ns)
+
+        a, fa = 0.0 * x0[0], x0[0] - radius
+        xb = state_at(h + 0.0 * x0[0])
+        b, fb = h + 0.0 * x0[0], xb[0] - radius
+        xc, c = xb, b
+        for _ in range(60):
+            if np.all(ns.fabs(fb) <= IMPACT_TOLERANCE_M):
+                break
+            c = b - fb * (b - a) / (fb - fa)
+            xc = state_at(c)
+            fc = xc[0] - radius
+            same = fc * fb > 0  # root not between b and c: keep a, halve its weight (Illinois)
+            fa = ns.where(same, fa * 0.5, fb)
+            a = ns.where(same, a, b)
+            b, fb = c, fc
+        return xc, c
+
+
+def _scatter(full, idx, values):
+    out = np.array(full, dtype=float, copy=True)
+    out[idx] = values
+    return out
+
+
+def _renormalize(x: tuple, ns) -> tuple:
+    na = ns.sqrt(x[1] * x[1] + x[2] * x[2] + x[3] * x[3] + x[4] * x[4])
+    nb = ns.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9])
+    return (x[0], x[1] / na, x[2] / na, x[3] / na, x[4] / na, x[5],
+            x[6] / nb, x[7] / nb, x[8] / nb, x[9] / nb, x[10], x[11])  # fmt: skip
+
+
+def _classify(x, forces, hit, task: EntryTask, radius, ns, batched):
+    """Status after a substep: impact, skip-out above the ceiling, non-finite, stall, or flying."""
+    h = x[0] - radius
+    if batched:
+        finite = np.isfinite(np.stack(x)).all(axis=0) & np.isfinite(forces.aero_accel)
+        status = np.full(h.shape, FLYING, dtype=np.int8)
+        status = np.where(x[5] < task.min_speed, STALL, status)
+        status = np.where(h > task.ceiling_altitude, SKIP_OUT, status)
+        status = np.where(hit, IMPACT, status)
+        return np.where(finite, status, NON_FINITE).astype(np.int8)
+    if not (all(math.isfinite(c) for c in x) and math.isfinite(forces.aero_accel)):
+        return NON_FINITE
+    if hit:
+        return IMPACT
+    if h > task.ceiling_altitude:
+        return SKIP_OUT
+    if x[5] < task.min_speed:
+        return STALL
+    return FLYING
+
+
+def _where_forces(keep, old: EntryForces, new: EntryForces) -> EntryForces:
+    def pick(a, b):
+        if isinstance(a, tuple):
+            return tuple(pick(ai, bi) for ai, bi in zip(a, b))
+        return np.where(keep, a, b)
+
+    return EntryForces(*(pick(a, b) for a, b in zip(old, new)))
+
+
+__all__ = [
+    "Propagator",
+    "StepOutcome",
+    "running_cost",
+    "path_violation",
+    "take_model",
+    "FLYING",
+    "IMPACT",
+    "SKIP_OUT",
+    "NON_FINITE",
+    "STALL",
+    "FAILURE_NAMES",
+]

@@ -1,0 +1,334 @@
+"""``RvEntry-v0``: guide a hypersonic glide vehicle to a vertical impact on a target."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from rventry_env.core.backend import MATH
+from rventry_env.envs import common
+from rventry_env.envs.observation import features, observation_box, observe, terminal_metrics, terminal_penalty
+from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT, Propagator
+from rventry_env.envs.render import Track, render_tracks
+from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.physics.model import EntryModel
+
+_RESET_OPTIONS = {"state", "dispersion"}
+
+
+class RvEntryEnv(gym.Env):
+    """
+    ## Description
+
+    The entry problem of Miller & Rao's Example 2 as a control task. A CAV-H glide
+    vehicle starts at 37 km altitude flying east at 7138 m/s over (0 deg, 0 deg)
+    and must hit a target 2800 km downrange (25.15 deg E, 0 deg N) *vertically*, at
+    1219 m/s, with zero angle of attack, while spending as little control effort as
+    the paper's cost (Eq. ``Ex2-Cost``) allows and respecting its path constraints
+    (load factor <= 12 g, dynamic pressure >= 12 kPa).
+
+    The dynamics are the rv-Euler equations of motion (Eqs. ``Ex2-EOM`` to
+    ``Ex2-EOM-Ftot``) on a rotating spherical Earth, evaluated by
+    :func:`rventry_env.physics.entry_rhs` -- the same function the collocation
+    reference and the identification tool use. The state has no singularity in
+    vertical flight, which is what makes the vertical-impact task well posed.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``: the angle-of-attack and bank-angle *rates*
+    as fractions of their limits, held constant over the control step ``dt``:
+
+    | index | action | maps to |
+    |---|---|---|
+    | 0 | angle-of-attack rate | u_alpha = a0 * u_alpha_max (10 deg/s) |
+    | 1 | bank-angle rate | u_sigma = a1 * u_sigma_max (30 deg/s) |
+
+    Out-of-range actions are clipped to [-1, 1] (the rate limits of Eq.
+    ``Ex2-path``) and ``info["action_clipped"]`` says so. An action of the wrong
+    shape or with NaN/inf raises ``ValueError``. alpha saturates at [0, alpha_max]:
+    in a substep where the commanded rate would carry alpha past a bound the
+    applied rate is reduced so alpha lands on the bound, and held there
+    (``info["alpha_saturated"]``); the cost charges the *commanded* rate.
+
+    ## Observation Space
+
+    ``Box(low, high, (26,), float32)``, every feature bounded by construction or by
+    the episode-end rules:
+
+    | index | name | meaning | min | max |
+    |---|---|---|---|---|
+    {obs_table}
+
+    mu is the conventional bank angle (0 = lift up, positive = lift to the right),
+    gamma the flight-path angle relative to the Earth. A feature outside its bound
+    (possible only from an unusual user-supplied state) is clipped and
+    ``info["observation_clipped"]`` is set.
+
+    ## Rewards
+
+    Each step pays minus the paper's running cost (Eq. ``Ex2-Cost``, k1 = k2 = k3
+    = 1) integrated exactly over the step, minus a path penalty (10 x relative
+    excess of the load factor over 12 g, 10 x relative deficit of q under 12 kPa,
+    per second, sampled at every RK4 node). The terminal step also pays minus
+
+        0.2 x miss [km] + 0.2 x vertical error [deg] + 0.02 x |v - 1219 m/s| + 0.1 x |alpha(t_f)| [deg]
+
+    and, if the episode ended without impact, a failure penalty of 200. All
+    weights are :class:`~rventry_env.envs.task.RewardWeights` fields. Along the
+    optimal collocation reference the summed reward is -J* with a near-zero
+    terminal penalty.
+
+    ## Starting State
+
+    The paper's Table ``tab:Ex2-BCs``: r = R_e + 37 km, eA = (0, 0, 0, 1),
+    v = 7138 m/s, eB = (0, 0, sqrt(2)/2, sqrt(2)/2); alpha and sigma (free in the
+    paper) default to the shipped collocation reference's initial values.
+    Dispersions (constructor ``dispersion=`` or ``reset(options={"dispersion": ...})``,
+    a :class:`~rventry_env.envs.task.Dispersion`, a dict of its fields or
+    ``"standard"``) draw uniformly from ``self.np_random``: density and C_L/C_D
+    scale factors, initial altitude, speed, flight-path angle, heading, alpha,
+    sigma. ``reset(options={"state": x})`` starts from any valid 12-state.
+
+    ## Episode End
+
+    ``terminated`` on impact (r = R_e, located inside the step by root-finding on
+    the RK4 map; the returned state is the state at impact), on skip-out (altitude
+    above 80 km), on a non-finite state, or on stall (v < 50 m/s); the last three
+    set ``info["failure"]``. ``truncated`` at the time limit, ``max_episode_steps``
+    = 2000 in the registration (2000 s at the default dt).
+
+    ## Info
+
+    Every step: ``r_ecef_m``, ``v_ecef_mps``, ``latitude_deg``, ``longitude_deg``,
+    ``altitude_m``, ``speed_mps``, ``dynamic_pressure_pa``, ``load_factor_g``,
+    ``cost`` (running cost J so far), ``time_s``, ``action_clipped``,
+    ``alpha_saturated``. The last step also: ``miss_km``, ``vertical_error_deg``,
+    ``speed_error_mps``, ``alpha_final_deg``, ``max_load_factor_g``,
+    ``min_dynamic_pressure_pa``, ``constraint_violation`` (load > 12 g or q < 12 kPa
+    by more than 0.1 %), ``terminal_penalty``, ``failure`` ("" on impact) and
+    ``is_success``: impact with miss <= 5 km, vertical error <= 5 deg,
+    |speed error| <= 100 m/s and no constraint violation
+    (:class:`~rventry_env.envs.task.SuccessThresholds`).
+
+    ## Arguments
+
+    ``gym.make("RvEntry-v0", model=None, task=None, dt=None, substeps=None,
+    dispersion=None, render_mode=None)``
+
+    * ``model``: an :class:`~rventry_env.physics.EntryModel` (gravity, atmosphere,
+      vehicle/aerodynamics, wind parts); default PROBLEM.md's.
+    * ``task``: an :class:`~rventry_env.envs.task.EntryTask` (problem constants,
+      reward weights, success thresholds, dt, substeps, ceiling).
+    * ``dt``: control step, default 1 s; ``substeps``: RK4 substeps per control
+      step, default 2.
+    * ``dispersion``: see Starting State.
+    * ``render_mode``: ``"rgb_array"`` draws altitude and speed against time and
+      the ground track toward the target.
+
+    ``env.unwrapped.state`` is the float64 (12,) state in PROBLEM.md order;
+    ``env.unwrapped.dt`` the control step.
+
+    ## Vectorized environment
+
+    ``gym.make_vec("RvEntry-v0", num_envs=N, vectorization_mode="vector_entry_point")``
+    returns :class:`~rventry_env.envs.vector.RvEntryVectorEnv`, which steps all
+    copies in one array operation through the same propagation code.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(
+        self,
+        model: EntryModel | None = None,
+        task: EntryTask | None = None,
+        dt: float | None = None,
+        substeps: int | None = None,
+        dispersion: Dispersion | dict | str | None = None,
+        render_mode: str | None = None,
+    ):
+        self.model = common.make_model(model)
+        self.task = common.make_task(task, dt, substeps)
+        self.dispersion = Dispersion.parse(dispersion)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.dt = self.task.dt
+        self._radius = self.model.planet.radius
+        self._g0 = self.model.planet.g0
+        self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
+        self._nominal = self.task.problem.initial_state(self.model)
+        low, high = observation_box(self.task, self._radius)
+        self._obs_low, self._obs_high = low, high
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self._prop = Propagator(self.task, MATH)
+        self._x: tuple | None = None
+        self._ended = False
+
+    # ------------------------------------------------------------------ state
+    @property
+    def state(self) -> np.ndarray:
+        """The 12-component state, float64, PROBLEM.md order (a copy)."""
+        if self._x is None:
+            raise RuntimeError("the environment has no state before reset()")
+        return np.array(self._x, dtype=np.float64)
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = {} if options is None else dict(options)
+        unknown = set(options) - _RESET_OPTIONS
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {sorted(_RESET_OPTIONS)}")
+        dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
+        x0 = common.check_state(options["state"], self._radius) if "state" in options else self._nominal
+        d = common.draw_dispersion(self.np_random, dispersion)
+        if not dispersion.is_zero:
+            x0 = common.apply_state_dispersion(x0, d)
+            self._episode_model = common.dispersed_model(self.model, 1 + d[0], 1 + d[1], 1 + d[2])
+        else:
+            self._episode_model = self.model
+        self.dispersion_draw = d
+        self._x = tuple(float(c) for c in x0)
+        self._forces = self._prop.forces(self._x, self._episode_model)
+        self._t = 0.0
+        self._steps = 0
+        self._cost = 0.0
+        self._max_load = self._forces.aero_accel / self._g0
+        self._min_q = self._forces.dynamic_pressure
+        self._ended = False
+        self._track = Track() if self.render_mode else None
+        obs, clipped = self._observe()
+        info = self._info(False, False, clipped)
+        self._record()
+        return obs, info
+
+    def step(self, action):
+        if self._x is None:
+            raise RuntimeError("call reset() before step()")
+        if self._ended:
+            raise RuntimeError("step() called after the episode terminated; call reset() to start a new episode")
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise ValueError(f"action must have shape (2,) [alpha rate, bank rate], got shape {a.shape}")
+        a0, a1 = float(a[0]), float(a[1])
+        if not (math.isfinite(a0) and math.isfinite(a1)):
+            raise ValueError(f"action contains NaN or inf: {a.tolist()}")
+        clipped = not (-1.0 <= a0 <= 1.0 and -1.0 <= a1 <= 1.0)
+        a0, a1 = min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)
+        p = self.task.problem
+        out = self._prop.step(self._x, self._forces, a0 * p.u_alpha_max, a1 * p.u_sigma_max, self._episode_model)
+        self._x, self._forces = out.x, out.forces
+        self._t += out.elapsed
+        self._steps += 1
+        self._cost += out.cost
+        self._max_load = max(self._max_load, out.max_load_g)
+        self._min_q = min(self._min_q, out.min_q)
+        reward = -(out.cost + out.path_penalty)
+        terminated = out.status != FLYING
+        limit = self.spec.max_episode_steps if self.spec is not None else None
+        last = terminated or (limit is not None and self._steps >= limit)
+        info_obs, obs_clipped = self._observe()
+        info = self._info(clipped, out.alpha_saturated, obs_clipped)
+        if last:
+            penalty = self._finish(info, out.status, terminated)
+            reward -= penalty
+        self._ended = terminated
+        self._record()
+        return info_obs, float(reward), bool(terminated), False, info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn('render() needs render_mode="rgb_array" at construction')
+            return None
+        if self._track is None:
+            raise RuntimeError("call reset() before render()")
+        p = self.task.problem
+        return render_tracks([self._track], p.target_latitude, p.target_longitude)
+
+    # ------------------------------------------------------------------ helpers
+    def _observe(self):
+        raw = observe(self._x, self._forces, self._t, self.task, self._target, self._radius, self._g0, MATH)
+        obs = np.array(raw, dtype=np.float32)
+        clipped = bool(np.any(obs < self._obs_low) or np.any(obs > self._obs_high))
+        if clipped:
+            obs = np.clip(obs, self._obs_low, self._obs_high)
+        return obs, clipped
+
+    def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
+        f = self._forces
+        r_e, v_e, a1 = common.position_velocity_e(f.c_ae, f.c_ba, self._x[0], self._x[5])
+        lat, lon = common.latitude_longitude(a1, MATH)
+        return {
+            "r_ecef_m": np.array(r_e),
+            "v_ecef_mps": np.array(v_e),
+            "latitude_deg": lat * common.RAD2DEG,
+            "longitude_deg": lon * common.RAD2DEG,
+            "altitude_m": self._x[0] - self._radius,
+            "speed_mps": self._x[5],
+            "dynamic_pressure_pa": f.dynamic_pressure,
+            "load_factor_g": f.aero_accel / self._g0,
+            "cost": self._cost,
+            "time_s": self._t,
+            "action_clipped": action_clipped,
+            "alpha_saturated": bool(alpha_saturated),
+            "observation_clipped": obs_clipped,
+        }
+
+    def _finish(self, info: dict, status: int, terminated: bool) -> float:
+        """Add the terminal metrics to ``info``; return the terminal penalty."""
+        m = terminal_metrics(self._x, self._forces, self.task, self._target, self._radius, MATH)
+        tol = self.task.success.constraint_tolerance
+        p = self.task.problem
+        violation = self._max_load > p.a_max_g * (1 + tol) or self._min_q < p.q_min * (1 - tol)
+        failure = FAILURE_NAMES.get(status, "") if terminated else "time limit"
+        s = self.task.success
+        success = (
+            status == IMPACT
+            and m.miss_km <= s.miss_km
+            and m.vertical_error_deg <= s.vertical_error_deg
+            and abs(m.speed_error_mps) <= s.speed_error_mps
+            and not violation
+        )
+        penalty = 0.0
+        if terminated:
+            penalty = terminal_penalty(m, self.task, MATH)
+            if status != IMPACT:
+                penalty = self.task.weights.failure + (penalty if math.isfinite(penalty) else 0.0)
+        info.update(
+            miss_km=m.miss_km,
+            vertical_error_deg=m.vertical_error_deg,
+            speed_error_mps=m.speed_error_mps,
+            alpha_final_deg=m.alpha_final_deg,
+            max_load_factor_g=self._max_load,
+            min_dynamic_pressure_pa=self._min_q,
+            constraint_violation=bool(violation),
+            terminal_penalty=penalty,
+            failure=failure,
+            is_success=bool(success),
+        )
+        return penalty
+
+    def _record(self):
+        if self._track is not None:
+            f = self._forces
+            lat, lon = common.latitude_longitude(f.c_ae[0], MATH)
+            self._track.append(self._t, self._x[0] - self._radius, self._x[5], lat, lon)
+
+
+def _obs_table() -> str:
+    from rventry_env.envs.task import EntryTask as _T
+
+    rows = features(_T(), 6378137.0)
+    return "\n    ".join(f"| {i} | {f.name} | {f.meaning} | {f.low:g} | {f.high:.3g} |" for i, f in enumerate(rows))
+
+
+RvEntryEnv.__doc__ = RvEntryEnv.__doc__.replace("{obs_table}", _obs_table())

@@ -1,0 +1,183 @@
+"""The entry task: the paper's Example 2 problem plus the RL terminal terms.
+
+Everything the environment, the collocation reference and the evaluation agree on
+lives here as configurable defaults (PROBLEM.md). SI units and radians; the
+``*_deg`` / ``*_km`` names are the user-facing thresholds and weights.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rventry_env.physics.model import EntryModel
+
+SQRT_HALF = math.sqrt(0.5)
+
+
+@dataclass(frozen=True)
+class EntryProblem:
+    """The optimal-control problem of the paper's Example 2 (PROBLEM.md defaults).
+
+    Initial state: Table ``tab:Ex2-BCs``. ``initial_alpha`` / ``initial_sigma``
+    ``None`` means "take the shipped collocation reference's values".
+    """
+
+    initial_altitude: float = 37e3
+    initial_speed: float = 7138.0
+    initial_e_a: tuple = (0.0, 0.0, 0.0, 1.0)
+    initial_e_b: tuple = (0.0, 0.0, SQRT_HALF, SQRT_HALF)
+    initial_alpha: float | None = None
+    initial_sigma: float | None = None
+    target_longitude: float = math.radians(25.15)
+    target_latitude: float = 0.0
+    final_speed: float = 1219.0
+    final_alpha: float = 0.0
+    # cost, Eq. Ex2-Cost
+    k1: float = 1.0
+    k2: float = 1.0
+    k3: float = 1.0
+    alpha_bar: float = math.radians(11.86)
+    alpha_max: float = math.radians(25.0)
+    u_alpha_max: float = math.radians(10.0)
+    u_sigma_max: float = math.radians(30.0)
+    # path constraints, Eq. Ex2-path
+    a_max_g: float = 12.0
+    q_min: float = 12e3
+
+    def target_unit_vector(self) -> np.ndarray:
+        """The target's direction in E (planet-fixed), Eq. ``Ex2-endpoint``."""
+        cl = math.cos(self.target_latitude)
+        return np.array(
+            [cl * math.cos(self.target_longitude), cl * math.sin(self.target_longitude), math.sin(self.target_latitude)]
+        )
+
+    def initial_state(self, model: EntryModel) -> np.ndarray:
+        """The nominal 12-component initial state (float64)."""
+        alpha, sigma = self.initial_alpha, self.initial_sigma
+        if alpha is None or sigma is None:
+            from rventry_env.reference import load_reference  # the reference's own free initial values
+
+            ref_alpha, ref_sigma = load_reference().x[0, 10:12]
+            alpha = ref_alpha if alpha is None else alpha
+            sigma = ref_sigma if sigma is None else sigma
+        return np.array(
+            [model.planet.radius + self.initial_altitude, *self.initial_e_a, self.initial_speed,
+             *self.initial_e_b, alpha, sigma],
+            dtype=float,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Reward weights. Each step pays -(running cost of Eq. Ex2-Cost over the step);
+    the terminal step also pays -(terminal penalty); path violations are charged
+    each step.
+
+    Terminal penalty = miss_per_km * miss [km] + vertical_per_deg * vertical error [deg]
+    + speed_per_mps * |v - v_f| [m/s] + alpha_per_deg * |alpha(t_f)| [deg].
+    Linear, so a gradient survives far from the target and nothing explodes.
+    Path penalty per second = load_violation * max(0, n/n_max - 1)
+    + q_violation * max(0, 1 - q/q_min), sampled at every RK4 node.
+    ``failure`` is added when an episode ends without impact (skip-out, non-finite
+    state, stall).
+    """
+
+    miss_per_km: float = 0.2
+    vertical_per_deg: float = 0.2
+    speed_per_mps: float = 0.02
+    alpha_per_deg: float = 0.1
+    load_violation: float = 10.0
+    q_violation: float = 10.0
+    failure: float = 200.0
+
+
+@dataclass(frozen=True)
+class SuccessThresholds:
+    """When an impact counts as a success (issue 5's dispersed-case criteria)."""
+
+    miss_km: float = 5.0
+    vertical_error_deg: float = 5.0
+    speed_error_mps: float = 100.0
+    # a path constraint counts as violated beyond this relative margin
+    constraint_tolerance: float = 1e-3
+
+
+@dataclass(frozen=True)
+class Dispersion:
+    """Half-widths of uniform dispersions drawn at each reset from ``np_random``.
+
+    Model dispersions scale the density and the lift and drag coefficients by
+    (1 + U(-x, x)); state dispersions add U(-x, x) to the initial altitude,
+    speed, flight-path angle, heading, alpha and sigma.
+    """
+
+    density: float = 0.0
+    lift: float = 0.0
+    drag: float = 0.0
+    altitude_m: float = 0.0
+    speed_mps: float = 0.0
+    flight_path_deg: float = 0.0
+    heading_deg: float = 0.0
+    alpha_deg: float = 0.0
+    sigma_deg: float = 0.0
+
+    @classmethod
+    def standard(cls) -> "Dispersion":
+        """Issue 5's dispersed set: density 5 %, aero 3 %, altitude 0.5 km, speed 20 m/s, gamma 0.2 deg."""
+        return cls(density=0.05, lift=0.03, drag=0.03, altitude_m=500.0, speed_mps=20.0, flight_path_deg=0.2)
+
+    @classmethod
+    def parse(cls, value) -> "Dispersion":
+        """A Dispersion from None, a Dispersion, ``"standard"``/``"none"`` or a dict of fields."""
+        if value is None or value == "none":
+            return cls()
+        if isinstance(value, Dispersion):
+            return value
+        if value == "standard":
+            return cls.standard()
+        if isinstance(value, dict):
+            unknown = set(value) - set(cls.__dataclass_fields__)
+            if unknown:
+                raise ValueError(f"unknown dispersion field(s) {sorted(unknown)}; known: {sorted(cls.__dataclass_fields__)}")
+            out = cls(**{k: float(v) for k, v in value.items()})
+        else:
+            raise ValueError(f"cannot make a Dispersion from {value!r}")
+        for k, v in out.__dict__.items():
+            if not math.isfinite(v) or v < 0:
+                raise ValueError(f"dispersion {k} must be a finite half-width >= 0, got {v}")
+        if out.density >= 1 or out.lift >= 1 or out.drag >= 1:
+            raise ValueError("relative dispersions must be below 1 (100 %)")
+        return out
+
+    @property
+    def is_zero(self) -> bool:
+        return all(v == 0 for v in self.__dict__.values())
+
+
+@dataclass(frozen=True)
+class EntryTask:
+    """Problem, reward weights, success thresholds and episode limits together.
+
+    :param dt: control step (s); the action is held over it.
+    :param substeps: RK4 substeps per control step.
+    :param ceiling_altitude: skip-out: an episode ends (failure) above this altitude (m).
+    :param min_speed: stall: an episode ends (failure) below this speed (m/s); the
+        equations are singular at v = 0.
+    """
+
+    problem: EntryProblem = field(default_factory=EntryProblem)
+    weights: RewardWeights = field(default_factory=RewardWeights)
+    success: SuccessThresholds = field(default_factory=SuccessThresholds)
+    dt: float = 1.0
+    substeps: int = 2
+    ceiling_altitude: float = 80e3
+    min_speed: float = 50.0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {self.dt}")
+        if int(self.substeps) != self.substeps or self.substeps < 1:
+            raise ValueError(f"substeps must be a positive integer, got {self.substeps}")

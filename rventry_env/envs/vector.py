@@ -1,0 +1,322 @@
+"""``RvEntryVectorEnv``: N copies of ``RvEntry-v0`` stepped in one array operation."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from rventry_env.core.backend import NUMPY
+from rventry_env.envs import MAX_EPISODE_STEPS, common
+from rventry_env.envs.observation import observation_box, observe, terminal_metrics, terminal_penalty
+from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT, Propagator
+from rventry_env.envs.render import Track, render_tracks
+from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.physics.model import EntryModel
+
+TERMINAL_KEYS = (
+    "miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "max_load_factor_g",
+    "min_dynamic_pressure_pa", "constraint_violation", "terminal_penalty", "failure", "is_success",
+)  # fmt: skip
+RENDER_COPIES = 16
+
+
+class RvEntryVectorEnv(VectorEnv):
+    """N independent copies of :class:`~rventry_env.envs.rv_entry.RvEntryEnv`, batched.
+
+    Every copy runs the single environment's propagation code on arrays (state
+    layout: 12 component arrays of length N), so a step of all copies is one pass
+    of array arithmetic with no Python loop over copies. The spaces, rewards,
+    episode ends and info keys are those of the single environment.
+
+    Seeding follows :class:`gymnasium.vector.SyncVectorEnv`: ``reset(seed=s)``
+    seeds copy i with ``s + i`` and each copy draws its dispersions from its own
+    generator, so copy i reproduces a single ``RvEntry-v0`` reset with seed
+    ``s + i`` draw for draw.
+
+    Infos are dicts of arrays; the terminal keys (``miss_km`` ... ``is_success``)
+    come with the usual ``_key`` masks marking the copies whose episode ended.
+
+    :param num_envs: number of copies N.
+    :param max_episode_steps: time limit in control steps (truncation).
+    :param model: an :class:`~rventry_env.physics.EntryModel`.
+    :param task: an :class:`~rventry_env.envs.task.EntryTask`.
+    :param dt: control step (s). :param substeps: RK4 substeps per control step.
+    :param dispersion: see the single environment.
+    :param render_mode: ``"rgb_array"``: one picture with the tracks of the first 16 copies.
+    :param autoreset_mode: ``AutoresetMode.NEXT_STEP`` (Gymnasium's default: the step
+        after an episode ends returns the reset observation, zero reward, and ignores
+        the action) or ``AutoresetMode.SAME_STEP`` (the ending step already returns
+        the reset observation; the final one is in ``infos["final_obs"]`` and the
+        final info in ``infos["final_info"]``).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4, "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int = MAX_EPISODE_STEPS,
+        model: EntryModel | None = None,
+        task: EntryTask | None = None,
+        dt: float | None = None,
+        substeps: int | None = None,
+        dispersion: Dispersion | dict | str | None = None,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+    ):
+        if int(num_envs) != num_envs or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs}")
+        if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps}")
+        autoreset_mode = AutoresetMode(autoreset_mode)
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode}")
+        self.metadata = {**self.metadata, "autoreset_mode": autoreset_mode}
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = max_episode_steps
+        self.model = common.make_model(model)
+        self.task = common.make_task(task, dt, substeps)
+        self.dispersion = Dispersion.parse(dispersion)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.dt = self.task.dt
+        self._radius = self.model.planet.radius
+        self._g0 = self.model.planet.g0
+        self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
+        self._nominal = self.task.problem.initial_state(self.model)
+        low, high = observation_box(self.task, self._radius)
+        self._obs_low, self._obs_high = low, high
+        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._prop = Propagator(self.task, NUMPY)
+        self._rngs: list[np.random.Generator] | None = None
+        self._x: tuple | None = None
+
+    # ------------------------------------------------------------------ state
+    @property
+    def state(self) -> np.ndarray:
+        """States of all copies, float64, shape (N, 12), PROBLEM.md order (a copy)."""
+        if self._x is None:
+            raise RuntimeError("the environment has no state before reset()")
+        return np.stack(self._x, axis=-1)
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None):
+        n = self.num_envs
+        if seed is None:
+            if self._rngs is None:
+                self._rngs = [seeding.np_random(None)[0] for _ in range(n)]
+        else:
+            seeds = [seed + i for i in range(n)] if isinstance(seed, int) else list(seed)
+            if len(seeds) != n:
+                raise ValueError(f"reset(seed=...) needs one seed per copy ({n}), got {len(seeds)}")
+            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        super().reset(seed=seed if isinstance(seed, int) else None)
+        options = {} if options is None else dict(options)
+        unknown = set(options) - {"state", "dispersion"}
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: ['dispersion', 'state']")
+        if "dispersion" in options:
+            self.dispersion = Dispersion.parse(options["dispersion"])
+        if "state" in options:
+            states = np.asarray(options["state"], dtype=float)
+            states = np.broadcast_to(states, (n, states.shape[-1])) if states.ndim == 1 else states
+            if states.shape[0] != n:
+                raise ValueError(f"options['state'] must be one state (12,) or one per copy ({n}, 12), got {states.shape}")
+            self._initial = np.stack([common.check_state(s, self._radius) for s in states])
+        else:
+            self._initial = np.broadcast_to(self._nominal, (n, self._nominal.size))
+        self._density = np.ones(n)
+        self._lift = np.ones(n)
+        self._drag = np.ones(n)
+        self._x = tuple(np.empty(n) for _ in range(12))
+        self._t = np.zeros(n)
+        self._steps = np.zeros(n, dtype=np.int64)
+        self._cost = np.zeros(n)
+        self._max_load = np.zeros(n)
+        self._min_q = np.zeros(n)
+        self._prev_done = np.zeros(n, dtype=bool)
+        self.dispersion_draw = np.zeros((n, 9))
+        self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
+        self._reset_copies(np.arange(n))
+        obs, clipped = self._observe()
+        return obs, self._info(np.zeros(n, bool), np.zeros(n, bool), clipped)
+
+    def step(self, actions):
+        if self._x is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != (self.num_envs, 2):
+            raise ValueError(f"actions must have shape ({self.num_envs}, 2), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            bad = np.argwhere(~np.isfinite(a).all(axis=1))[:, 0]
+            raise ValueError(f"actions contain NaN or inf (copies {bad[:10].tolist()})")
+        action_clipped = np.any((a < -1.0) | (a > 1.0), axis=1)
+        a = np.clip(a, -1.0, 1.0)
+        p = self.task.problem
+        out = self._prop.step(self._x, self._forces, a[:, 0] * p.u_alpha_max, a[:, 1] * p.u_sigma_max, self._model)
+        self._x, self._forces = out.x, out.forces
+        self._t = self._t + out.elapsed
+        self._steps += 1
+        self._cost = self._cost + out.cost
+        self._max_load = np.maximum(self._max_load, out.max_load_g)
+        self._min_q = np.minimum(self._min_q, out.min_q)
+        reward = -(out.cost + out.path_penalty)
+        terminated = out.status != FLYING
+        truncated = ~terminated
+        if self.max_episode_steps is not None:
+            truncated &= self._steps >= self.max_episode_steps
+        else:
+            truncated[:] = False
+        ended = terminated | truncated
+        obs, obs_clipped = self._observe()
+        infos = self._info(action_clipped, out.alpha_saturated, obs_clipped)
+        if np.any(ended):
+            reward = reward - self._finish(infos, out.status, terminated, ended)
+        self._record()
+
+        mode = self.metadata["autoreset_mode"]
+        if mode == AutoresetMode.NEXT_STEP:
+            restart = self._prev_done
+            if np.any(restart):
+                idx = np.nonzero(restart)[0]
+                self._reset_copies(idx)
+                obs_r, clip_r = self._observe()
+                obs[idx] = obs_r[idx]
+                fresh = self._info(np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool), clip_r)
+                for k, v in fresh.items():
+                    infos[k][idx] = v[idx]
+                for k in TERMINAL_KEYS:
+                    infos["_" + k][idx] = False
+                reward[idx] = 0.0
+                terminated[idx] = False
+                truncated[idx] = False
+            self._prev_done = terminated | truncated
+        else:  # SAME_STEP
+            if np.any(ended):
+                idx = np.nonzero(ended)[0]
+                infos["final_obs"] = obs.copy()
+                infos["_final_obs"] = ended.copy()
+                infos["final_info"] = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in infos.items()}
+                infos["_final_info"] = ended.copy()
+                self._reset_copies(idx)
+                obs_r, _ = self._observe()
+                obs[idx] = obs_r[idx]
+        return obs, reward.astype(np.float64), terminated, truncated, infos
+
+    def render(self):
+        if self.render_mode is None:
+            return None
+        p = self.task.problem
+        return (render_tracks(self._tracks, p.target_latitude, p.target_longitude, "RvEntry-v0 (vector)"),)
+
+    # ------------------------------------------------------------------ helpers
+    def _reset_copies(self, idx: np.ndarray) -> None:
+        """Draw and apply the start of a new episode for copies ``idx`` (each from its own generator)."""
+        d = np.stack([common.draw_dispersion(self._rngs[i], self.dispersion) for i in idx])
+        x0 = self._initial[idx]
+        if not self.dispersion.is_zero:
+            x0 = common.apply_state_dispersion(x0, d)
+        self.dispersion_draw[idx] = d
+        self._density[idx] = 1 + d[:, 0]
+        self._lift[idx] = 1 + d[:, 1]
+        self._drag[idx] = 1 + d[:, 2]
+        self._model = (
+            self.model if self.dispersion.is_zero and np.all(self._density == 1) and np.all(self._lift == 1)
+            and np.all(self._drag == 1)
+            else common.dispersed_model(self.model, self._density, self._lift, self._drag)
+        )  # fmt: skip
+        for c in range(12):
+            self._x[c][idx] = x0[:, c]
+        self._forces = self._prop.forces(self._x, self._model)
+        self._t[idx] = 0.0
+        self._steps[idx] = 0
+        self._cost[idx] = 0.0
+        self._max_load[idx] = self._forces.aero_accel[idx] / self._g0
+        self._min_q[idx] = self._forces.dynamic_pressure[idx]
+        if self._tracks is not None:
+            for i in idx:
+                if i < len(self._tracks):
+                    self._tracks[i] = Track()
+            self._record(only=[i for i in idx if i < len(self._tracks)])
+
+    def _observe(self):
+        raw = observe(self._x, self._forces, self._t, self.task, self._target, self._radius, self._g0, NUMPY)
+        obs = np.stack(raw, axis=-1).astype(np.float32)
+        out = (obs < self._obs_low) | (obs > self._obs_high)
+        clipped = out.any(axis=1)
+        if np.any(clipped):
+            obs = np.clip(obs, self._obs_low, self._obs_high)
+        return obs, clipped
+
+    def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
+        f = self._forces
+        r_e, v_e, a1 = common.position_velocity_e(f.c_ae, f.c_ba, self._x[0], self._x[5])
+        lat, lon = common.latitude_longitude(a1, NUMPY)
+        n = self.num_envs
+        infos = {
+            "r_ecef_m": np.stack(r_e, axis=-1),
+            "v_ecef_mps": np.stack(v_e, axis=-1),
+            "latitude_deg": lat * common.RAD2DEG,
+            "longitude_deg": lon * common.RAD2DEG,
+            "altitude_m": self._x[0] - self._radius,
+            "speed_mps": self._x[5].copy(),
+            "dynamic_pressure_pa": np.array(f.dynamic_pressure, dtype=float),
+            "load_factor_g": f.aero_accel / self._g0,
+            "cost": self._cost.copy(),
+            "time_s": self._t.copy(),
+            "action_clipped": np.asarray(action_clipped, bool),
+            "alpha_saturated": np.broadcast_to(np.asarray(alpha_saturated, bool), (n,)).copy(),
+            "observation_clipped": obs_clipped,
+        }
+        for k in TERMINAL_KEYS:
+            infos[k] = np.full(n, "", dtype=object) if k == "failure" else np.zeros(n, dtype=float)
+            infos["_" + k] = np.zeros(n, dtype=bool)
+        infos["constraint_violation"] = np.zeros(n, dtype=bool)
+        infos["is_success"] = np.zeros(n, dtype=bool)
+        return infos
+
+    def _finish(self, infos: dict, status, terminated, ended) -> np.ndarray:
+        """Fill the terminal keys for copies whose episode ended; return the terminal penalties."""
+        m = terminal_metrics(self._x, self._forces, self.task, self._target, self._radius, NUMPY)
+        tol = self.task.success.constraint_tolerance
+        p = self.task.problem
+        s = self.task.success
+        violation = (self._max_load > p.a_max_g * (1 + tol)) | (self._min_q < p.q_min * (1 - tol))
+        impact = status == IMPACT
+        success = (
+            impact & (m.miss_km <= s.miss_km) & (m.vertical_error_deg <= s.vertical_error_deg)
+            & (np.abs(m.speed_error_mps) <= s.speed_error_mps) & ~violation
+        )  # fmt: skip
+        with np.errstate(invalid="ignore"):
+            terms = terminal_penalty(m, self.task, NUMPY)
+        terms = np.where(np.isfinite(terms), terms, 0.0)
+        penalty = np.where(terminated, np.where(impact, terms, terms + self.task.weights.failure), 0.0)
+        failure = np.array([FAILURE_NAMES.get(int(c), "") for c in status], dtype=object)
+        failure = np.where(terminated, failure, "time limit")
+        values = {
+            "miss_km": m.miss_km, "vertical_error_deg": m.vertical_error_deg, "speed_error_mps": m.speed_error_mps,
+            "alpha_final_deg": m.alpha_final_deg, "max_load_factor_g": self._max_load,
+            "min_dynamic_pressure_pa": self._min_q, "constraint_violation": violation, "terminal_penalty": penalty,
+            "failure": failure, "is_success": success,
+        }  # fmt: skip
+        for k, v in values.items():
+            infos[k] = np.where(ended, v, infos[k])
+            infos["_" + k] = ended.copy()
+        return np.where(ended, penalty, 0.0)
+
+    def _record(self, only=None):
+        if self._tracks is None:
+            return
+        f = self._forces
+        lat, lon = common.latitude_longitude(f.c_ae[0], NUMPY)
+        for i in range(len(self._tracks)) if only is None else only:
+            self._tracks[i].append(self._t[i], self._x[0][i] - self._radius, self._x[5][i], lat[i], lon[i])
