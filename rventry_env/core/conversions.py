@@ -60,8 +60,14 @@ def _unit(x, what: str, tol: float = 1e-12):
 
 
 def _normal_part(x, axis):
-    """The part of x normal to the unit vector ``axis``."""
-    return x - np.sum(x * axis, axis=-1, keepdims=True) * axis
+    """The part of x normal to the unit vector ``axis``.
+
+    Computed as (axis x x) x axis, which equals x - (x . axis) axis but stays
+    orthogonal to ``axis`` to rounding even when x is nearly parallel to it. The
+    subtraction form loses that near vertical flight: with v within 1e-8 rad of r,
+    b2 came out 1e-9 off normal to b1 and the Cartesian round trip moved v by 1e-9.
+    """
+    return np.cross(np.cross(axis, x), axis)
 
 
 def _pick(primary, fallback, tol: float = 1e-9):
@@ -183,6 +189,8 @@ def spherical_from_cartesian(r_e, v_e, *, on_singular: str = "raise", tol: float
 
 
 def _spherical_from_directions(r, v, a1, b1, on_singular, tol):
+    if on_singular not in ("raise", "nan"):  # checked here so every public entry point checks it
+        raise ValueError(f"on_singular must be 'raise' or 'nan', got {on_singular!r}")
     cos_lat = np.hypot(a1[..., 0], a1[..., 1])
     lat = np.arctan2(a1[..., 2], cos_lat)
     pole = cos_lat < tol
