@@ -21,7 +21,7 @@ from __future__ import annotations
 from typing import NamedTuple, Sequence
 
 from rventry_env.core.backend import dot3, sparse, sparse_dot
-from rventry_env.core.euler_parameters import dcm
+from rventry_env.core.euler_parameters import dcm, dcm_column
 
 STATE_NAMES = ("r", "eA1", "eA2", "eA3", "etaA", "v", "eB1", "eB2", "eB3", "etaB")
 ZERO3 = (0.0, 0.0, 0.0)
@@ -54,13 +54,35 @@ def omega_a(r, v, e_b):
     return k * (etab * eb2 - eb1 * eb3), k * (etab * eb3 + eb1 * eb2)
 
 
-def apparent_force(r, v, c_ae, c_ba, accel_b, omega_e=ZERO3, alpha_e=ZERO3):
+def frame_rates_in_a(e_a, omega_e=ZERO3, alpha_e=ZERO3, c_ae=None):
+    """omega_E and alpha_E (given in E components) carried into A: (C_AE omega_E, C_AE alpha_E).
+
+    Only the columns of C_AE that meet a non-zero component are formed, so the
+    planet's spin (0, 0, w) costs one column, not the whole matrix.
+    """
+    out = []
+    for vec in (omega_e, alpha_e):
+        nz = sparse(vec)
+        if not nz:
+            out.append(ZERO3)
+            continue
+        acc = None
+        for j, wj in nz:
+            col = tuple(c_ae[i][j] for i in range(3)) if c_ae is not None else dcm_column(*e_a, j)
+            term = tuple(ci * wj for ci in col)
+            acc = term if acc is None else tuple(a + t for a, t in zip(acc, term))
+        out.append(acc)
+    return out[0], out[1]
+
+
+def apparent_force(r, v, c_ba, accel_b, omega_e_a=ZERO3, alpha_e_a=ZERO3):
     """Apparent specific force f~/m in B components, Eq. ``F-apparent-3``.
 
-    ``f~/m = f/m - 2 omega_e x v - alpha_e x r - omega_e x (omega_e x r)``. The
-    paper writes each term with rows of C_BE = C_BA C_AE; here the frame rates are
-    first carried into A (w_A = C_AE w_E), which is the same product regrouped and
-    costs a third of the multiplications:
+    ``f~/m = f/m - 2 omega_E x v - alpha_E x r - omega_E x (omega_E x r)``. The
+    paper writes each term with rows of C_BE = C_BA C_AE; here the frame's angular
+    velocity and acceleration come already in A components (``omega_e_a = C_AE
+    omega_E``, see :func:`frame_rates_in_a`), which is the same product regrouped
+    and costs a third of the multiplications:
 
     * Coriolis 2 v [0; C_BE(3,:) w; -C_BE(2,:) w] = 2 v [0; w_B3; -w_B2], w_B = C_BA w_A;
     * Euler r C_BA [0; C_AE(3,:) alpha; -C_AE(2,:) alpha] = r C_BA [0; alpha_A3; -alpha_A2];
@@ -69,15 +91,15 @@ def apparent_force(r, v, c_ae, c_ba, accel_b, omega_e=ZERO3, alpha_e=ZERO3):
     ``accel_b`` is the applied f/m in B components.
     """
     f1, f2, f3 = accel_b
-    w_nz = sparse(omega_e)
-    al_nz = sparse(alpha_e)
+    w_nz = sparse(omega_e_a)
+    al_nz = sparse(alpha_e_a)
     if not (w_nz or al_nz):
         return f1, f2, f3
     # specific-force terms in A components, gathered before one C_BA product
     t1, t2, t3 = 0.0, 0.0, 0.0
     if w_nz:
-        w_a = tuple(sparse_dot(c_ae[i], w_nz) for i in range(3))
-        w_sq = sum(w * w for _, w in w_nz)
+        w_a = omega_e_a
+        w_sq = dot3(w_a, w_a)
         # -(w x (w x r)) = r (|w|^2 a1 - w_A w_A1), A components
         t1 = r * (w_sq - w_a[0] * w_a[0])
         t2 = -r * w_a[1] * w_a[0]
@@ -87,10 +109,8 @@ def apparent_force(r, v, c_ae, c_ba, accel_b, omega_e=ZERO3, alpha_e=ZERO3):
         f2 = f2 - 2 * v * w_b3
         f3 = f3 + 2 * v * w_b2
     if al_nz:
-        al_a2 = sparse_dot(c_ae[1], al_nz)
-        al_a3 = sparse_dot(c_ae[2], al_nz)
-        t2 = t2 - r * al_a3
-        t3 = t3 + r * al_a2
+        t2 = t2 - r * alpha_e_a[2]
+        t3 = t3 + r * alpha_e_a[1]
     t = (t1, t2, t3)
     return f1 + dot3(c_ba[0], t), f2 + dot3(c_ba[1], t), f3 + dot3(c_ba[2], t)
 
@@ -129,7 +149,9 @@ class RvEulerRates(NamedTuple):
         return (self.r_dot, *self.e_a_dot, self.v_dot, *self.e_b_dot)
 
 
-def rv_euler_rates(r, e_a, v, e_b, accel_b, omega_e=ZERO3, alpha_e=ZERO3, c_ae=None, c_ba=None):
+def rv_euler_rates(
+    r, e_a, v, e_b, accel_b, omega_e=ZERO3, alpha_e=ZERO3, c_ae=None, c_ba=None, omega_e_a=None, alpha_e_a=None
+):
     """Derivatives of the rv-Euler parameters for an applied specific force.
 
     :param r: distance from O (m).
@@ -141,10 +163,14 @@ def rv_euler_rates(r, e_a, v, e_b, accel_b, omega_e=ZERO3, alpha_e=ZERO3, c_ae=N
     :param alpha_e: angular acceleration of E relative to N, E components (rad/s^2).
     :param c_ae: C_AE if the caller already has it (saves work).
     :param c_ba: C_BA if the caller already has it.
+    :param omega_e_a: omega_E already in A components (then ``omega_e`` is ignored).
+    :param alpha_e_a: alpha_E already in A components (then ``alpha_e`` is ignored).
     :return: :class:`RvEulerRates`.
     """
-    if c_ae is None and (sparse(omega_e) or sparse(alpha_e)):
-        c_ae = dcm(*e_a)  # only the rotating-frame terms need C_AE
+    if omega_e_a is None or alpha_e_a is None:
+        w_a, al_a = frame_rates_in_a(e_a, omega_e, alpha_e, c_ae)
+        omega_e_a = w_a if omega_e_a is None else omega_e_a
+        alpha_e_a = al_a if alpha_e_a is None else alpha_e_a
     if c_ba is None:
         c_ba = dcm(*e_b)
     eb1, eb2, eb3, etab = e_b
@@ -153,7 +179,7 @@ def rv_euler_rates(r, e_a, v, e_b, accel_b, omega_e=ZERO3, alpha_e=ZERO3, c_ae=N
     w_a2, w_a3 = omega_a(r, v, e_b)
     e_a_dot = _no_twist_rates(e_a, w_a2, w_a3)
     # kinetics, Eqs. F-apparent-3, dynamics-final-1 / -2 (omega_B1 = 0)
-    ft = apparent_force(r, v, c_ae, c_ba, accel_b, omega_e, alpha_e)
+    ft = apparent_force(r, v, c_ba, accel_b, omega_e_a, alpha_e_a)
     w_b2, w_b3 = omega_b(v, e_b, w_a2, w_a3, ft)
     e_b_dot = _no_twist_rates(e_b, w_b2, w_b3)
     return RvEulerRates(r_dot, e_a_dot, ft[0], e_b_dot, (w_a2, w_a3), (w_b2, w_b3))
@@ -203,6 +229,7 @@ __all__ = [
     "Frames",
     "frames",
     "omega_a",
+    "frame_rates_in_a",
     "apparent_force",
     "omega_b",
     "RvEulerRates",

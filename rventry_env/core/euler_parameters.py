@@ -31,6 +31,17 @@ def dcm(e1, e2, e3, eta):
     )
 
 
+def dcm_column(e1, e2, e3, eta, j: int):
+    """Column ``j`` (0-based) of C_BA, Eq. ``C_BA-Quat``: the j-th basis vector of A written in B."""
+    if j == 0:
+        return 1 - 2 * (e2 * e2 + e3 * e3), 2 * (e2 * e1 - e3 * eta), 2 * (e3 * e1 + e2 * eta)
+    if j == 1:
+        return 2 * (e1 * e2 + e3 * eta), 1 - 2 * (e3 * e3 + e1 * e1), 2 * (e3 * e2 - e1 * eta)
+    if j == 2:
+        return 2 * (e1 * e3 - e2 * eta), 2 * (e2 * e3 + e1 * eta), 1 - 2 * (e1 * e1 + e2 * e2)
+    raise ValueError(f"column index must be 0, 1 or 2, got {j}")
+
+
 def rates_from_omega(e1, e2, e3, eta, w1, w2, w3):
     """Euler-parameter rates from the angular velocity in B components, Eq. ``QuatRate``."""
     return (
@@ -137,6 +148,7 @@ def quaternion_from_dcm(c) -> np.ndarray:
 
 __all__ = [
     "dcm",
+    "dcm_column",
     "rates_from_omega",
     "omega_from_rates",
     "dcm_from_quaternion",

@@ -64,10 +64,13 @@ def features(task: EntryTask, radius: float) -> tuple[Feature, ...]:
     )
 
 
-def observe(x: tuple, forces: EntryForces, t, task: EntryTask, target_e, radius: float, g0: float, ns) -> tuple:
-    """The observation components (floats or arrays), in :func:`features` order."""
+def observe(x: tuple, forces: EntryForces, c_ae, t, task: EntryTask, target_e, radius: float, g0: float, ns) -> tuple:
+    """The observation components (floats or arrays), in :func:`features` order.
+
+    ``c_ae`` is C_AE at ``x`` (the environments form it once per step).
+    """
     p = task.problem
-    c_ae, c_ba = forces.c_ae, forces.c_ba
+    c_ba = forces.c_ba
     sigma = x[11]
     ss, cs = ns.sin(sigma), ns.cos(sigma)
     # lift-up direction in B is (0, C_BA(2,1), C_BA(3,1)) / cos(gamma); see conversions.lift_up_angle
@@ -117,14 +120,13 @@ class TerminalMetrics(NamedTuple):
     alpha_final_deg: object
 
 
-def terminal_metrics(x: tuple, forces: EntryForces, task: EntryTask, target_e, radius: float, ns) -> TerminalMetrics:
+def terminal_metrics(x: tuple, c_ae, task: EntryTask, target_e, radius: float, ns) -> TerminalMetrics:
     """Miss (great-circle, at the surface), vertical-impact error, speed error and final alpha.
 
     The vertical error is the angle between the velocity and straight down:
     cos = -b1 . a1 = 2 (eB2^2 + eB3^2) - 1 = 1 - 2 (eB1^2 + etaB^2), i.e.
     2 asin(sqrt(eB1^2 + etaB^2)); zero exactly when eB1 = etaB = 0 (Table tab:Ex2-BCs).
     """
-    c_ae = forces.c_ae
     ta = tuple(c_ae[i][0] * target_e[0] + c_ae[i][1] * target_e[1] + c_ae[i][2] * target_e[2] for i in range(3))
     theta = ns.arctan2(ns.sqrt(ta[1] * ta[1] + ta[2] * ta[2]), ta[0])
     s = ns.sqrt(ns.fmin(x[6] * x[6] + x[9] * x[9], 1.0))

@@ -37,8 +37,8 @@ from rventry_env.envs.task import EntryTask
 
 IMPACT_TOLERANCE_M = 1e-6
 
-# termination codes (0 = still flying)
-FLYING, IMPACT, SKIP_OUT, NON_FINITE, STALL = 0, 1, 2, 3, 4
+# termination codes (0 = still flying; IDLE = not stepped this time, e.g. awaiting its reset)
+FLYING, IMPACT, SKIP_OUT, NON_FINITE, STALL, IDLE = 0, 1, 2, 3, 4, 5
 FAILURE_NAMES = {SKIP_OUT: "skip-out", NON_FINITE: "non-finite state", STALL: "stall"}
 
 
@@ -104,11 +104,13 @@ class Propagator:
     def forces(self, x: tuple, model: EntryModel) -> EntryForces:
         return entry_forces(x, model, self.ns)
 
-    def step(self, x: tuple, forces: EntryForces, u_alpha, u_sigma, model: EntryModel) -> StepOutcome:
+    def step(self, x: tuple, forces: EntryForces, u_alpha, u_sigma, model: EntryModel, active=None) -> StepOutcome:
         """Advance ``x`` (with ``forces`` evaluated at ``x``) by one control step.
 
         :param u_alpha: commanded angle-of-attack rate (rad/s), already within bounds.
         :param u_sigma: commanded bank-angle rate (rad/s), already within bounds.
+        :param active: batched only: vehicles to step; the others stay as they are
+            (status IDLE).
         """
         ns, task = self.ns, self.task
         p = task.problem
@@ -118,7 +120,12 @@ class Propagator:
         w = task.weights
         batched = ns.name == "numpy"
 
-        status = np.zeros(np.shape(x[0]), dtype=np.int8) if batched else FLYING
+        if batched:
+            status = np.zeros(np.shape(x[0]), dtype=np.int8)
+            if active is not None:
+                status[~np.asarray(active, bool)] = IDLE
+        else:
+            status = FLYING
         cost = 0.0 * x[0]
         path = 0.0 * x[0]
         elapsed = 0.0 * x[0]
@@ -159,16 +166,16 @@ class Propagator:
             step_cost = running_cost(alpha0, ua, u_alpha, u_sigma, tau, task)
             f_new = entry_forces(x_new, model, ns)
             new_status = _classify(x_new, f_new, hit, task, radius, ns, batched)
-            if batched:
+            if batched and (np.all(flying) and not np.any(new_status)):
+                x, forces = x_new, f_new  # the common case: every vehicle flies on
+            elif batched:
                 # vehicles that already ended stay frozen; a non-finite step keeps the last finite state
                 keep = ~flying | (new_status == NON_FINITE)
                 x = tuple(np.where(keep, a, b) for a, b in zip(x, x_new))
-                f_ok = _where_forces(keep, forces, f_new)
-                tau = np.where(flying, tau, 0.0)
-                tau = np.where(new_status == NON_FINITE, 0.0, tau)
-                step_cost = np.where(flying & (new_status != NON_FINITE), step_cost, 0.0)
+                forces = _where_forces(keep, forces, f_new)
+                tau = np.where(keep, 0.0, tau)
+                step_cost = np.where(keep, 0.0, step_cost)
                 status = np.where(flying, new_status, status).astype(np.int8)
-                forces = f_ok
             else:
                 if new_status == NON_FINITE:
                     tau, step_cost = 0.0, 0.0
@@ -229,7 +236,8 @@ def _classify(x, forces, hit, task: EntryTask, radius, ns, batched):
     """Status after a substep: impact, skip-out above the ceiling, non-finite, stall, or flying."""
     h = x[0] - radius
     if batched:
-        finite = np.isfinite(np.stack(x)).all(axis=0) & np.isfinite(forces.aero_accel)
+        # one NaN or inf anywhere makes the sum non-finite: cheaper than testing 12 arrays
+        finite = np.isfinite(sum(x[1:], x[0]) + forces.aero_accel)
         status = np.full(h.shape, FLYING, dtype=np.int8)
         status = np.where(x[5] < task.min_speed, STALL, status)
         status = np.where(h > task.ceiling_altitude, SKIP_OUT, status)
@@ -266,5 +274,6 @@ __all__ = [
     "SKIP_OUT",
     "NON_FINITE",
     "STALL",
+    "IDLE",
     "FAILURE_NAMES",
 ]

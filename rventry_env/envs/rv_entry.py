@@ -10,6 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from rventry_env.core.backend import MATH
+from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import common
 from rventry_env.envs.observation import features, observation_box, observe, terminal_metrics, terminal_penalty
 from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT, Propagator
@@ -199,6 +200,7 @@ class RvEntryEnv(gym.Env):
         self.dispersion_draw = d
         self._x = tuple(float(c) for c in x0)
         self._forces = self._prop.forces(self._x, self._episode_model)
+        self._c_ae = dcm(*self._x[1:5])
         self._t = 0.0
         self._steps = 0
         self._cost = 0.0
@@ -227,6 +229,7 @@ class RvEntryEnv(gym.Env):
         p = self.task.problem
         out = self._prop.step(self._x, self._forces, a0 * p.u_alpha_max, a1 * p.u_sigma_max, self._episode_model)
         self._x, self._forces = out.x, out.forces
+        self._c_ae = dcm(*self._x[1:5])  # once per step, for the observation and info
         self._t += out.elapsed
         self._steps += 1
         self._cost += out.cost
@@ -256,7 +259,7 @@ class RvEntryEnv(gym.Env):
 
     # ------------------------------------------------------------------ helpers
     def _observe(self):
-        raw = observe(self._x, self._forces, self._t, self.task, self._target, self._radius, self._g0, MATH)
+        raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, MATH)
         obs = np.array(raw, dtype=np.float32)
         clipped = bool(np.any(obs < self._obs_low) or np.any(obs > self._obs_high))
         if clipped:
@@ -265,7 +268,7 @@ class RvEntryEnv(gym.Env):
 
     def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
         f = self._forces
-        r_e, v_e, a1 = common.position_velocity_e(f.c_ae, f.c_ba, self._x[0], self._x[5])
+        r_e, v_e, a1 = common.position_velocity_e(self._c_ae, f.c_ba, self._x[0], self._x[5])
         lat, lon = common.latitude_longitude(a1, MATH)
         return {
             "r_ecef_m": np.array(r_e),
@@ -285,7 +288,7 @@ class RvEntryEnv(gym.Env):
 
     def _finish(self, info: dict, status: int, terminated: bool) -> float:
         """Add the terminal metrics to ``info``; return the terminal penalty."""
-        m = terminal_metrics(self._x, self._forces, self.task, self._target, self._radius, MATH)
+        m = terminal_metrics(self._x, self._c_ae, self.task, self._target, self._radius, MATH)
         tol = self.task.success.constraint_tolerance
         p = self.task.problem
         violation = self._max_load > p.a_max_g * (1 + tol) or self._min_q < p.q_min * (1 - tol)
@@ -320,7 +323,7 @@ class RvEntryEnv(gym.Env):
     def _record(self):
         if self._track is not None:
             f = self._forces
-            lat, lon = common.latitude_longitude(f.c_ae[0], MATH)
+            lat, lon = common.latitude_longitude(self._c_ae[0], MATH)
             self._track.append(self._t, self._x[0] - self._radius, self._x[5], lat, lon)
 
 

@@ -25,7 +25,7 @@ from typing import NamedTuple, Sequence
 
 from rventry_env.core.backend import NUMPY, dot3, sparse, sparse_dot
 from rventry_env.core.eom import STATE_NAMES, rv_euler_rates
-from rventry_env.core.euler_parameters import dcm
+from rventry_env.core.euler_parameters import dcm, dcm_column
 from rventry_env.physics.model import EntryModel
 
 ENTRY_STATE_NAMES = STATE_NAMES + ("alpha", "sigma")
@@ -45,7 +45,7 @@ class EntryForces(NamedTuple):
     lift_accel: object  # L / m (m/s^2)
     drag_accel: object  # D / m (m/s^2)
     accel_b: tuple  # applied specific force (aero + gravity), B components
-    c_ae: tuple
+    e3_a: tuple  # the planet's spin axis in A, C_AE(:, 3); (sin latitude, ., .)
     c_ba: tuple
 
     @property
@@ -61,9 +61,9 @@ def _hypot(a, b):
 def entry_forces(x: Sequence, model: EntryModel, ns=NUMPY) -> EntryForces:
     """Aerodynamic and gravitational forces for the 12 state components ``x``."""
     r, v, alpha, sigma = x[0], x[5], x[10], x[11]
-    c_ae = dcm(*x[1:5])
+    # the dynamics need only C_AE's third column (the spin axis in A), not all of C_AE
+    e3_a = dcm_column(*x[1:5], 2)
     c_ba = dcm(*x[6:10])
-    e3_a = (c_ae[0][2], c_ae[1][2], c_ae[2][2])  # spin axis in A: C_AE(:, 3)
     h = r - model.planet.radius
     atm = model.atmosphere
     rho = atm.density(h, ns)
@@ -93,7 +93,7 @@ def entry_forces(x: Sequence, model: EntryModel, ns=NUMPY) -> EntryForces:
         aero = tuple(-drag * u[i] + lift * lv[i] / ln for i in range(3))
     g_nz = sparse(model.gravity.acceleration_a(r, e3_a, ns))  # point mass: (g, 0, 0)
     accel_b = tuple(aero[i] + sparse_dot(c_ba[i], g_nz) for i in range(3))
-    return EntryForces(h, rho, q, mach, cl, cd, lift, drag, accel_b, c_ae, c_ba)
+    return EntryForces(h, rho, q, mach, cl, cd, lift, drag, accel_b, e3_a, c_ba)
 
 
 def entry_rhs(x: Sequence, u: Sequence, model: EntryModel, ns=NUMPY, forces: EntryForces | None = None):
@@ -108,9 +108,10 @@ def entry_rhs(x: Sequence, u: Sequence, model: EntryModel, ns=NUMPY, forces: Ent
     :return: tuple of 12 derivatives.
     """
     f = entry_forces(x, model, ns) if forces is None else forces
+    w = model.planet.omega  # E spins about e3: omega_E in A is w C_AE(:, 3)
     rates = rv_euler_rates(
-        x[0], tuple(x[1:5]), x[5], tuple(x[6:10]), f.accel_b,
-        omega_e=(0.0, 0.0, model.planet.omega), c_ae=f.c_ae, c_ba=f.c_ba,
+        x[0], tuple(x[1:5]), x[5], tuple(x[6:10]), f.accel_b, c_ba=f.c_ba,
+        omega_e_a=(w * f.e3_a[0], w * f.e3_a[1], w * f.e3_a[2]), alpha_e_a=(0.0, 0.0, 0.0),
     )  # fmt: skip
     return (*rates.as_tuple(), u[0], u[1])
 

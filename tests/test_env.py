@@ -1,0 +1,334 @@
+"""RvEntry-v0: API conformance, physics of the step, determinism, vector/single agreement."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from gymnasium.vector import AutoresetMode
+from scipy.integrate import solve_ivp
+
+import rventry_env  # noqa: F401  (registers RvEntry-v0)
+from rventry_env.envs.rv_entry import RvEntryEnv
+from rventry_env.envs.task import Dispersion, EntryProblem, EntryTask
+from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.physics import EntryModel, J2Gravity, entry_rhs
+
+# alpha(0), sigma(0) pinned so these tests do not depend on the shipped reference
+TASK = EntryTask(problem=EntryProblem(initial_alpha=math.radians(11.86), initial_sigma=math.radians(100.0)))
+
+
+def dive_policy(obs: np.ndarray) -> np.ndarray:
+    """A crude descending policy: bank to put lift sideways, bleed alpha slowly."""
+    return np.array([-0.05, 0.0], dtype=np.float32)
+
+
+def run_episode(env, policy=dive_policy, seed=0, options=None):
+    obs, info = env.reset(seed=seed, options=options)
+    traj = [obs]
+    total = 0.0
+    while True:
+        obs, r, term, trunc, info = env.step(policy(obs))
+        traj.append(obs)
+        total += r
+        if term or trunc:
+            return np.array(traj), total, info
+
+
+def test_gymnasium_env_checker_passes():
+    env = gym.make("RvEntry-v0", task=TASK, render_mode="rgb_array").unwrapped
+    gym_check_env(env, skip_render_check=False)
+
+
+def test_stable_baselines3_env_checker_passes():
+    from stable_baselines3.common.env_checker import check_env
+
+    check_env(RvEntryEnv(task=TASK), warn=True)
+
+
+def test_make_returns_registered_env_with_time_limit_and_attributes():
+    env = gym.make("RvEntry-v0", task=TASK)
+    assert env.spec.max_episode_steps == 2000
+    env.reset(seed=0)
+    s = env.unwrapped.state
+    assert s.dtype == np.float64 and s.shape == (12,)
+    assert env.unwrapped.dt == 1.0
+    np.testing.assert_allclose(s[:10], [6378137.0 + 37e3, 0, 0, 0, 1, 7138.0, 0, 0, math.sqrt(0.5), math.sqrt(0.5)])
+
+
+def test_same_seed_same_episode_with_dispersions():
+    a, ra, ia = run_episode(gym.make("RvEntry-v0", task=TASK, dispersion="standard"), seed=7)
+    b, rb, ib = run_episode(gym.make("RvEntry-v0", task=TASK, dispersion="standard"), seed=7)
+    c, rc, _ = run_episode(gym.make("RvEntry-v0", task=TASK, dispersion="standard"), seed=8)
+    assert a.shape == b.shape and np.array_equal(a, b) and ra == rb and ia["miss_km"] == ib["miss_km"]
+    assert not (a.shape == c.shape and np.array_equal(a, c))
+
+
+def test_step_after_termination_raises():
+    env = RvEntryEnv(task=TASK)
+    run_episode(env)
+    with pytest.raises(RuntimeError, match="after the episode terminated; call reset"):
+        env.step(np.zeros(2, np.float32))
+
+
+@pytest.mark.parametrize(
+    "action, message",
+    [
+        (np.zeros(3), r"shape \(2,\)"),
+        (np.zeros((1, 2)), r"shape \(2,\)"),
+        (np.array([np.nan, 0.0]), "NaN or inf"),
+        (np.array([0.0, np.inf]), "NaN or inf"),
+    ],
+)
+def test_bad_actions_raise_value_error(action, message):
+    env = RvEntryEnv(task=TASK)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=message):
+        env.step(action)
+
+
+def test_out_of_range_action_is_clipped_and_reported():
+    e1, e2 = RvEntryEnv(task=TASK), RvEntryEnv(task=TASK)
+    e1.reset(seed=0)
+    e2.reset(seed=0)
+    o1, r1, *_, i1 = e1.step(np.array([-3.0, 5.0]))
+    o2, r2, *_, i2 = e2.step(np.array([-1.0, 1.0]))
+    assert i1["action_clipped"] and not i2["action_clipped"]
+    assert np.array_equal(o1, o2) and r1 == r2
+
+
+def test_alpha_saturates_exactly_at_its_bounds():
+    env = RvEntryEnv(task=TASK)
+    env.reset(seed=0)
+    saturated = False
+    for _ in range(3):  # 11.86 deg at -10 deg/s reaches 0 within 2 s
+        *_, info = env.step(np.array([-1.0, 0.0]))
+        saturated |= info["alpha_saturated"]
+    assert env.unwrapped.state[10] == 0.0 and saturated
+    for _ in range(4):  # 0 -> 25 deg at 10 deg/s: 2.5 s
+        *_, info = env.step(np.array([1.0, 0.0]))
+    assert env.unwrapped.state[10] == pytest.approx(TASK.problem.alpha_max, abs=0) and info["alpha_saturated"]
+
+
+def test_step_reward_is_minus_the_paper_running_cost():
+    """Constant rates, no saturation, no path violation: -reward = exact integral of Eq. Ex2-Cost."""
+    env = RvEntryEnv(task=TASK)
+    env.reset(seed=0)
+    p = TASK.problem
+    a = np.array([0.3, -0.5])
+    _, r, *_, info = env.step(a)
+    ua, us = a[0] * p.u_alpha_max, a[1] * p.u_sigma_max
+    t = np.linspace(0, 1, 2001)
+    integrand = ((p.alpha_bar + ua * t - p.alpha_bar) / p.alpha_max) ** 2 + (ua / p.u_alpha_max) ** 2 + (
+        us / p.u_sigma_max
+    ) ** 2
+    expected = np.trapezoid(integrand, t)
+    assert -r == pytest.approx(expected, rel=1e-6)
+    assert info["cost"] == pytest.approx(expected, rel=1e-6)
+
+
+def test_impact_is_root_found_to_the_surface_and_matches_a_tight_integration():
+    env = RvEntryEnv(task=TASK)
+    obs, info = env.reset(seed=0)
+    x0 = env.state.copy()
+    steps = 0
+    while True:
+        obs, r, term, trunc, info = env.step(dive_policy(obs))
+        steps += 1
+        if term:
+            break
+    assert info["failure"] == "" and info["altitude_m"] == pytest.approx(0.0, abs=1e-5)
+    assert env.state[0] == pytest.approx(6378137.0, abs=1e-5)
+    assert info["time_s"] < steps  # the impact lies inside the last control step
+    # the same controls (alpha rate -0.5 deg/s until alpha = 0, bank rate 0) integrated tightly
+    model = EntryModel()
+    ua = -0.05 * TASK.problem.u_alpha_max
+    t_zero = x0[10] / -ua
+
+    def f(t, x):
+        u = ua if t < t_zero else 0.0
+        return np.array(entry_rhs(list(x), (u, 0.0), model))
+
+    def ground(t, x):
+        return x[0] - 6378137.0
+
+    ground.terminal, ground.direction = True, -1
+    sol = solve_ivp(f, (0, 3000), x0, method="DOP853", rtol=1e-11, atol=1e-9, events=ground, max_step=5.0)
+    t_hit = sol.t_events[0][0]
+    assert info["time_s"] == pytest.approx(t_hit, abs=0.05)
+    from rventry_env.core.conversions import cartesian_from_rv_euler
+
+    r_ref, _ = cartesian_from_rv_euler(sol.y_events[0][0])
+    assert np.linalg.norm(info["r_ecef_m"] - r_ref) < 200.0  # default dt = 1 s, 2 RK4 substeps
+
+
+def test_skip_out_ends_the_episode_as_a_failure():
+    env = RvEntryEnv(task=EntryTask(problem=EntryProblem(initial_alpha=math.radians(11.86), initial_sigma=math.pi)))
+    _, total, info = run_episode(env, policy=lambda o: np.zeros(2, np.float32))
+    assert info["failure"] == "skip-out" and not info["is_success"]
+    assert info["altitude_m"] > 80e3 and info["terminal_penalty"] > TASK.weights.failure
+
+
+def test_observations_stay_in_the_box_under_random_dispersed_episodes():
+    env = gym.make("RvEntry-v0", task=TASK, dispersion="standard")
+    rng = np.random.default_rng(1)
+    for seed in range(3):
+        obs, info = env.reset(seed=seed)
+        assert env.observation_space.contains(obs)
+        while True:
+            obs, r, term, trunc, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+            assert env.observation_space.contains(obs), obs
+            assert not info["observation_clipped"]
+            for key in ("r_ecef_m", "v_ecef_mps", "latitude_deg", "longitude_deg", "altitude_m",
+                        "dynamic_pressure_pa", "load_factor_g", "cost"):  # fmt: skip
+                assert key in info
+            if term or trunc:
+                break
+        for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg",
+                    "constraint_violation", "is_success"):  # fmt: skip
+            assert key in info
+
+
+def test_info_positions_agree_with_latitude_longitude_and_altitude():
+    env = RvEntryEnv(task=TASK)
+    env.reset(seed=0)
+    for _ in range(50):
+        *_, info = env.step(np.array([0.0, 0.3]))
+    r = info["r_ecef_m"]
+    lat, lon = math.radians(info["latitude_deg"]), math.radians(info["longitude_deg"])
+    np.testing.assert_allclose(r / np.linalg.norm(r), [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)], atol=1e-12)
+    assert np.linalg.norm(r) - 6378137.0 == pytest.approx(info["altitude_m"], abs=1e-6)
+    assert np.linalg.norm(info["v_ecef_mps"]) == pytest.approx(env.state[5], rel=1e-12)
+
+
+def test_model_parts_are_swappable_through_make():
+    a, _, _ = run_episode(gym.make("RvEntry-v0", task=TASK))
+    b, _, _ = run_episode(gym.make("RvEntry-v0", task=TASK, model=EntryModel(gravity=J2Gravity())))
+    assert not (a.shape == b.shape and np.allclose(a, b))
+    with pytest.raises(TypeError, match="EntryModel"):
+        RvEntryEnv(task=TASK, model={"gravity": "J2"})
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"state": np.zeros(11)}, r"shape \(12,\)"),
+        ({"state": np.full(12, np.nan)}, "NaN or inf"),
+        ({"seed": 3}, "unknown reset option"),
+        ({"dispersion": {"densty": 0.1}}, "unknown dispersion field"),
+        ({"dispersion": {"density": -0.1}}, "half-width"),
+    ],
+)
+def test_bad_reset_options_raise(options, message):
+    with pytest.raises(ValueError, match=message):
+        RvEntryEnv(task=TASK).reset(seed=0, options=options)
+
+
+def test_reset_with_an_explicit_state_starts_there():
+    env = RvEntryEnv(task=TASK)
+    env.reset(seed=0)
+    s = env.state.copy()
+    s[0] += 1000.0
+    s[5] -= 100.0
+    env.reset(seed=0, options={"state": s})
+    np.testing.assert_array_equal(env.state, s)
+    bad = s.copy()
+    bad[6:10] *= 1.1
+    with pytest.raises(ValueError, match="unit norm"):
+        env.reset(options={"state": bad})
+
+
+def test_render_returns_an_rgb_picture():
+    env = RvEntryEnv(task=TASK, render_mode="rgb_array")
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.zeros(2))
+    frame = env.render()
+    assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3 and frame.std() > 0
+
+
+# ------------------------------------------------------------------ vector env
+
+
+def test_make_vec_returns_the_batched_env():
+    venv = gym.make_vec("RvEntry-v0", num_envs=3, vectorization_mode="vector_entry_point", task=TASK)
+    assert isinstance(venv, RvEntryVectorEnv) and venv.max_episode_steps == 2000
+    obs, info = venv.reset(seed=0)
+    assert obs.shape == (3, 26) and venv.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize("dispersion", [None, "standard"])
+def test_vector_env_reproduces_n_single_envs(dispersion):
+    n = 5
+    venv = RvEntryVectorEnv(num_envs=n, task=TASK, dispersion=dispersion)
+    singles = [RvEntryEnv(task=TASK, dispersion=dispersion) for _ in range(n)]
+    obs, _ = venv.reset(seed=11)
+    sobs = np.stack([e.reset(seed=11 + i)[0] for i, e in enumerate(singles)])
+    np.testing.assert_array_equal(obs, sobs)
+    rng = np.random.default_rng(0)
+    live = np.ones(n, bool)
+    while live.any():
+        a = np.column_stack([rng.uniform(-0.2, 0.05, n), rng.uniform(-1, 1, n)]).astype(np.float32)
+        obs, rew, term, trunc, info = venv.step(a)
+        for i, e in enumerate(singles):
+            if not live[i]:
+                continue
+            so, sr, st, s_tr, si = e.step(a[i])
+            np.testing.assert_allclose(obs[i], so, rtol=0, atol=1e-6)
+            assert rew[i] == pytest.approx(sr, rel=1e-9, abs=1e-12)
+            assert st == term[i]
+            np.testing.assert_allclose(venv.state[i], e.state, rtol=1e-12)
+            if st:
+                live[i] = False
+                assert info["_miss_km"][i] and info["miss_km"][i] == pytest.approx(si["miss_km"], rel=1e-9)
+                assert info["failure"][i] == si["failure"]
+
+
+def test_vector_env_autoreset_next_step_and_same_step():
+    start = RvEntryEnv(task=TASK)
+    start.reset(seed=0)
+    s = start.state.copy()
+    s[0] = 6378137.0 + 300.0  # 300 m up: the first step impacts
+    s[6:10] = [0.0, 0.0, 0.8, 0.6]  # dive: sin(gamma) = C_BA(1,1) = 1 - 2 (0.8^2) < 0
+    s[6:10] /= np.linalg.norm(s[6:10])
+    nxt = RvEntryVectorEnv(num_envs=2, task=TASK)
+    nxt.reset(seed=0, options={"state": s})
+    _, r1, t1, _, i1 = nxt.step(np.zeros((2, 2)))
+    assert t1.all() and i1["_miss_km"].all()
+    obs, r2, t2, tr2, i2 = nxt.step(np.zeros((2, 2)))
+    assert not t2.any() and not tr2.any() and np.all(r2 == 0.0)
+    np.testing.assert_allclose(nxt.state, np.stack([s, s]))
+    same = RvEntryVectorEnv(num_envs=2, task=TASK, autoreset_mode=AutoresetMode.SAME_STEP)
+    obs0, _ = same.reset(seed=0, options={"state": s})
+    obs, r, t, tr, info = same.step(np.zeros((2, 2)))
+    assert t.all() and info["_final_obs"].all()
+    np.testing.assert_array_equal(obs, obs0)
+    assert info["final_info"]["failure"][0] == "" and not np.array_equal(info["final_obs"], obs0)
+
+
+def test_vector_env_truncates_at_its_time_limit():
+    venv = RvEntryVectorEnv(num_envs=2, task=TASK, max_episode_steps=3)
+    venv.reset(seed=0)
+    for k in range(3):
+        _, _, term, trunc, info = venv.step(np.zeros((2, 2)))
+    assert trunc.all() and not term.any() and (info["failure"] == "time limit").all()
+
+
+def test_vector_env_rejects_bad_actions():
+    venv = RvEntryVectorEnv(num_envs=2, task=TASK)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(2, 2\)"):
+        venv.step(np.zeros(2))
+    with pytest.raises(ValueError, match="NaN or inf"):
+        venv.step(np.array([[0, 0], [np.nan, 0]]))
+
+
+def test_dispersion_draws_change_the_model_per_copy():
+    venv = RvEntryVectorEnv(num_envs=4, task=TASK, dispersion=Dispersion(density=0.05, lift=0.03, drag=0.03))
+    venv.reset(seed=0)
+    d = venv.dispersion_draw
+    assert np.all(np.abs(d[:, 0]) <= 0.05) and np.all(np.abs(d[:, 1:3]) <= 0.03) and np.unique(d[:, 0]).size == 4
+    np.testing.assert_allclose(venv._density, 1 + d[:, 0])
