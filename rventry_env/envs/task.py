@@ -1,8 +1,8 @@
-"""The entry task: the paper's Example 2 problem plus the RL terminal terms.
+"""The entry task: the paper's Example 2 problem (:mod:`rventry_env.problem`) plus
+the RL reward weights, success thresholds, dispersions and episode limits.
 
-Everything the environment, the collocation reference and the evaluation agree on
-lives here as configurable defaults (PROBLEM.md). SI units and radians; the
-``*_deg`` / ``*_km`` names are the user-facing thresholds and weights.
+SI units and radians; the ``*_deg`` / ``*_km`` names are user-facing thresholds
+and weights.
 """
 
 from __future__ import annotations
@@ -10,64 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from rventry_env.physics.model import EntryModel
-
-SQRT_HALF = math.sqrt(0.5)
-
-
-@dataclass(frozen=True)
-class EntryProblem:
-    """The optimal-control problem of the paper's Example 2 (PROBLEM.md defaults).
-
-    Initial state: Table ``tab:Ex2-BCs``. ``initial_alpha`` / ``initial_sigma``
-    ``None`` means "take the shipped collocation reference's values".
-    """
-
-    initial_altitude: float = 37e3
-    initial_speed: float = 7138.0
-    initial_e_a: tuple = (0.0, 0.0, 0.0, 1.0)
-    initial_e_b: tuple = (0.0, 0.0, SQRT_HALF, SQRT_HALF)
-    initial_alpha: float | None = None
-    initial_sigma: float | None = None
-    target_longitude: float = math.radians(25.15)
-    target_latitude: float = 0.0
-    final_speed: float = 1219.0
-    final_alpha: float = 0.0
-    # cost, Eq. Ex2-Cost
-    k1: float = 1.0
-    k2: float = 1.0
-    k3: float = 1.0
-    alpha_bar: float = math.radians(11.86)
-    alpha_max: float = math.radians(25.0)
-    u_alpha_max: float = math.radians(10.0)
-    u_sigma_max: float = math.radians(30.0)
-    # path constraints, Eq. Ex2-path
-    a_max_g: float = 12.0
-    q_min: float = 12e3
-
-    def target_unit_vector(self) -> np.ndarray:
-        """The target's direction in E (planet-fixed), Eq. ``Ex2-endpoint``."""
-        cl = math.cos(self.target_latitude)
-        return np.array(
-            [cl * math.cos(self.target_longitude), cl * math.sin(self.target_longitude), math.sin(self.target_latitude)]
-        )
-
-    def initial_state(self, model: EntryModel) -> np.ndarray:
-        """The nominal 12-component initial state (float64)."""
-        alpha, sigma = self.initial_alpha, self.initial_sigma
-        if alpha is None or sigma is None:
-            from rventry_env.reference import load_reference  # the reference's own free initial values
-
-            ref_alpha, ref_sigma = load_reference().x[0, 10:12]
-            alpha = ref_alpha if alpha is None else alpha
-            sigma = ref_sigma if sigma is None else sigma
-        return np.array(
-            [model.planet.radius + self.initial_altitude, *self.initial_e_a, self.initial_speed,
-             *self.initial_e_b, alpha, sigma],
-            dtype=float,
-        )  # fmt: skip
+from rventry_env.problem import EntryProblem
 
 
 @dataclass(frozen=True)
