@@ -7,7 +7,7 @@ full entry dynamics (``entry_rhs``: rv-Euler with lift, drag, gravity and a
 rotating Earth, 12 states).
 
 Throughput: states per second, for one state given as plain Python floats
-(``scalar``: math.sin etc., the way a per-vehicle loop would call it) and for
+(``scalar``: the ``MATH`` namespace, the way the single environment steps one vehicle) and for
 NumPy batches of 1 to 1e5 states (component arrays of shape ``(B,)``).
 
 Operation count: each form is built once on CasADi SX with ``casadi_ns()`` and the
@@ -28,19 +28,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
 from collections import Counter
-from types import SimpleNamespace
 from typing import Callable
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from rventry_env.core.backend import NUMPY, casadi_ns  # noqa: E402
+from rventry_env.core.backend import MATH, NUMPY, casadi_ns  # noqa: E402
 from rventry_env.core.cartesian import two_body_cartesian_rhs  # noqa: E402
 from rventry_env.core.conversions import rv_euler_from_cartesian, spherical_from_cartesian  # noqa: E402
 from rventry_env.core.eom import two_body_rhs  # noqa: E402
@@ -51,11 +49,6 @@ MU = 3.986004418e14
 BATCHES = (1, 10, 100, 1_000, 10_000, 100_000)
 SIN_FLOPS = 14  # the paper's price of one sin evaluation, Eq. sin(x)
 
-# Plain-float math for the scalar path (NumPy ufuncs on Python floats cost ~1 us each).
-MATH = SimpleNamespace(
-    name="math", sqrt=math.sqrt, exp=math.exp, log=math.log, sin=math.sin, cos=math.cos, tanh=math.tanh,
-    arctan2=math.atan2, fabs=abs, fmax=max, fmin=min, where=lambda c, a, b: a if c else b,
-)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------
@@ -211,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in FORMS:
         rates[name] = throughput(name, batches, min_time)
         print(f"{name:<18}" + "".join(f"{_fmt_rate(rates[name][c]):>11}" for c in cols), flush=True)
-    print("scalar = one state as Python floats (math.sin); B = NumPy component arrays of length B")
+    print("scalar = one state as Python floats (MATH namespace); B = NumPy component arrays of length B")
 
     counts = {}
     for cse in (False, True) if args.cse else (False,):

@@ -41,11 +41,11 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Callable, Sequence
 
 import numpy as np
 
+from rventry_env.core.backend import MATH
 from rventry_env.core.conversions import (
     cartesian_from_rv_euler,
     cartesian_from_spherical,
@@ -61,8 +61,8 @@ FORMS = ("rv_euler", "spherical")
 # Scalar math for the per-step right-hand sides: math.sin on a Python float is an
 # order of magnitude cheaper than np.sin on a NumPy scalar, and the rv-Euler side
 # uses no transcendental function at all, so NumPy scalars would bias the timing
-# against spherical coordinates without changing a single bit of the result.
-SCALAR_NS = SimpleNamespace(name="math", sin=math.sin, cos=math.cos, sqrt=math.sqrt)
+# against spherical coordinates (both give correctly rounded results).
+SCALAR_NS = MATH
 
 
 @dataclass(frozen=True)
