@@ -207,11 +207,15 @@ class Propagator:
         b, fb = h + 0.0 * x0[0], xb[0] - radius
         xc, c = xb, b
         for _ in range(60):
-            if np.all(ns.fabs(fb) <= IMPACT_TOLERANCE_M):
+            done = ns.fabs(fb) <= IMPACT_TOLERANCE_M
+            if np.all(done):
                 break
-            c = b - fb * (b - a) / (fb - fa)
-            xc = state_at(c)
-            fc = xc[0] - radius
+            # converged vehicles keep their root (their secant would divide 0 by 0)
+            denom = ns.where(done, 1.0, fb - fa)
+            c = ns.where(done, b, b - fb * (b - a) / denom)
+            xc_new = state_at(c)
+            xc = tuple(ns.where(done, old, new) for old, new in zip(xc, xc_new))
+            fc = ns.where(done, fb, xc[0] - radius)
             same = fc * fb > 0  # root not between b and c: keep a, halve its weight (Illinois)
             fa = ns.where(same, fa * 0.5, fb)
             a = ns.where(same, a, b)

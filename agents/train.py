@@ -1,0 +1,251 @@
+"""Train the PPO baseline on the numpy-batched RvEntry-v0 with stable-baselines3.
+
+Everything that shapes the result is in one config file (``agents/ppo.toml``).
+A run writes into its output directory:
+
+* ``model.zip`` + ``vecnormalize.pkl``: the policy selected on the *task* metric
+  (success rate on a fixed dispersed evaluation set, then mean miss distance),
+  not on the shaped return;
+* ``final_model.zip`` + ``final_vecnormalize.pkl``: the last iterate;
+* ``checkpoints/``: periodic snapshots with their normalization statistics;
+* ``tb/``: TensorBoard logs (needs the ``train`` extra: ``pip install -e .[train]``);
+* ``evaluations.json`` and ``learning_curve.png``: the evaluation history;
+* ``metadata.json``: the exact command, seed, wall time, config and best evaluation.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+import time
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rventry_env.envs.task import Dispersion, EntryTask
+
+DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
+
+
+def load_config(path: str | Path | None = None) -> dict:
+    """The training configuration (TOML). Raises with the offending key on a malformed file."""
+    path = Path(path) if path is not None else DEFAULT_CONFIG
+    with open(path, "rb") as f:
+        cfg = tomllib.load(f)
+    for section in ("env", "normalize", "ppo", "policy", "train"):
+        if section not in cfg:
+            raise ValueError(f"{path}: missing section [{section}]")
+    return cfg
+
+
+def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:
+    from dataclasses import replace
+
+    base = EntryTask() if base is None else base
+    return replace(base, dt=float(cfg["env"]["dt"]), substeps=int(cfg["env"]["substeps"]))
+
+
+def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
+    """The training VecEnv: batched env -> VecMonitor -> VecNormalize."""
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    from agents.sb3_vec import RvEntrySB3VecEnv
+
+    e = cfg["env"]
+    venv = RvEntrySB3VecEnv(
+        n_envs or int(e["num_envs"]), task=task, dispersion=Dispersion.parse(dict(e.get("dispersion", {}))),
+        max_episode_steps=int(e["max_episode_steps"]),
+    )  # fmt: skip
+    venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
+    n = cfg["normalize"]
+    return VecNormalize(
+        venv, norm_obs=bool(n["norm_obs"]), norm_reward=bool(n["norm_reward"]), clip_obs=float(n["clip_obs"]),
+        clip_reward=float(n["clip_reward"]), gamma=float(cfg["ppo"]["gamma"]),
+    )  # fmt: skip
+
+
+class _LivePolicy:
+    """The model being trained, acting deterministically on normalized observations."""
+
+    def __init__(self, model, vecnorm):
+        self.model, self.vecnorm = model, vecnorm
+
+    def __call__(self, obs, time_s, state):
+        actions, _ = self.model.predict(self.vecnorm.normalize_obs(obs), deterministic=True)
+        return actions
+
+
+def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None):
+    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+
+    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.evaluation.summary import summarize
+
+    t = cfg["train"]
+
+    class TaskMetricEval(BaseCallback):
+        """Every ``eval_every`` steps: fly the fixed dispersed evaluation set deterministically,
+        log the task metrics, and keep the best model by (success rate, -mean miss)."""
+
+        def __init__(self):
+            super().__init__()
+            self.next_eval = int(t["eval_every"])
+            self.history: list[dict] = []
+            self.best_key = (-1.0, -np.inf)
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps < self.next_eval:
+                return True
+            self.next_eval += int(t["eval_every"])
+            self.evaluate()
+            return True
+
+        def evaluate(self):
+            vecnorm = self.model.get_vec_normalize_env()
+            batch = rollout(
+                _LivePolicy(self.model, vecnorm), int(t["eval_episodes"]), seed=int(t["eval_seed"]),
+                dispersion=t["eval_dispersion"], task=task,
+            )  # fmt: skip
+            s = summarize(batch, reference_cost or 1.0, task)
+            rec = {
+                "timesteps": int(self.num_timesteps),
+                "wall_s": time.time() - self.t0,
+                "success_rate": s["success_rate"],
+                "miss_km": s["miss_km"],
+                "median_miss_km": s["percentiles"]["miss_km"]["p50"],
+                "vertical_error_deg": s["vertical_error_deg"],
+                "abs_speed_error_mps": s["abs_speed_error_mps"],
+                "cost_ratio": s["cost_ratio"] if reference_cost else None,
+                "impact_rate": s["impact_rate"],
+                "train_ep_return": float(np.mean([e["r"] for e in self.model.ep_info_buffer]))
+                if self.model.ep_info_buffer else None,
+            }  # fmt: skip
+            self.history.append(rec)
+            for k in ("success_rate", "miss_km", "median_miss_km", "vertical_error_deg", "abs_speed_error_mps",
+                      "impact_rate"):  # fmt: skip
+                if rec[k] is not None:
+                    self.logger.record(f"task/{k}", rec[k])
+            key = (rec["success_rate"] or 0.0, -(rec["miss_km"] if rec["miss_km"] is not None else np.inf))
+            if key > self.best_key:
+                self.best_key = key
+                self.model.save(out / "model.zip")
+                vecnorm.save(str(out / "vecnormalize.pkl"))
+                rec["best"] = True
+            (out / "evaluations.json").write_text(json.dumps(self.history, indent=1))
+            if self.verbose or True:
+                print(
+                    f"[eval @ {rec['timesteps']:,}] success {rec['success_rate']:.2f} miss {rec['miss_km']:.1f} km "
+                    f"(median {rec['median_miss_km']:.1f}) vertical {rec['vertical_error_deg']:.1f} deg "
+                    f"|dv| {rec['abs_speed_error_mps']:.0f} m/s impact {rec['impact_rate']:.2f}"
+                    + (" *best*" if rec.get("best") else ""),
+                    flush=True,
+                )
+
+        def _on_training_start(self) -> None:
+            self.t0 = time.time()
+
+    ckpt = CheckpointCallback(
+        save_freq=max(int(t["checkpoint_every"]) // int(cfg["env"]["num_envs"]), 1),
+        save_path=str(out / "checkpoints"), name_prefix="ppo", save_vecnormalize=True,
+    )  # fmt: skip
+    return TaskMetricEval(), ckpt
+
+
+def train_ppo(config: str | Path | None = None, timesteps: int | None = None, seed: int | None = None,
+              out: str | Path = "runs/ppo", task: EntryTask | None = None, progress_bar: bool = True) -> Path:  # fmt: skip
+    """Train PPO as the config says; returns the output directory.
+
+    :param config: TOML config path (default ``agents/ppo.toml``).
+    :param timesteps: override ``[train] total_timesteps``.
+    :param seed: override ``[train] seed``.
+    :param out: output directory.
+    :param task: the task (default :class:`EntryTask` with the config's dt/substeps).
+    :param progress_bar: show SB3's progress bar.
+    """
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import CallbackList
+
+    cfg = load_config(config)
+    t = cfg["train"]
+    timesteps = int(timesteps if timesteps is not None else t["total_timesteps"])
+    seed = int(seed if seed is not None else t["seed"])
+    if timesteps < 1:
+        raise ValueError(f"timesteps must be positive, got {timesteps}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(int(t.get("torch_threads", 1)))
+    task = make_task(cfg, task)
+    try:
+        from rventry_env.reference import load_reference
+
+        reference_cost = float(load_reference().cost)
+    except Exception:  # training does not need the reference; the cost ratio does
+        reference_cost = None
+    venv = make_vec_env(cfg, task)
+    venv.seed(seed)
+    p, pol = cfg["ppo"], cfg["policy"]
+    policy_kwargs: dict[str, Any] = {
+        "net_arch": {"pi": list(pol["net_arch_pi"]), "vf": list(pol["net_arch_vf"])},
+        "activation_fn": {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "elu": torch.nn.ELU}[pol["activation"]],
+        "log_std_init": float(pol["log_std_init"]),
+    }
+    try:
+        import tensorboard  # noqa: F401
+
+        tb = str(out / "tb")
+    except ImportError:
+        tb = None
+    model = PPO("MlpPolicy", venv, seed=seed, device="cpu", tensorboard_log=tb, policy_kwargs=policy_kwargs, verbose=0,
+                **{k: v for k, v in p.items()})  # fmt: skip
+    evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost)
+    start = time.time()
+    model.learn(timesteps, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar)
+    evaluator.evaluate()  # the final iterate competes for "best" too
+    wall = time.time() - start
+    model.save(out / "final_model.zip")
+    venv.save(str(out / "final_vecnormalize.pkl"))
+    best = max(evaluator.history, key=lambda r: (r["success_rate"] or 0.0, -(r["miss_km"] or np.inf)))
+    meta = {
+        "command": " ".join(shlex.quote(a) for a in sys.argv),
+        "seed": seed,
+        "timesteps": timesteps,
+        "wall_time_s": wall,
+        "torch_threads": int(t.get("torch_threads", 1)),
+        "config": cfg,
+        "best_evaluation": best,
+        "reference_cost": reference_cost,
+    }
+    (out / "metadata.json").write_text(json.dumps(meta, indent=1))
+    plot_learning_curve(evaluator.history, out / "learning_curve.png")
+    return out
+
+
+def plot_learning_curve(history: list[dict], path: Path) -> None:
+    """Success rate and miss distance on the evaluation set against training steps (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not history:
+        return
+    steps = np.array([h["timesteps"] for h in history]) / 1e6
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    axes[0].plot(steps, [h["success_rate"] for h in history], "o-")
+    axes[0].set(xlabel="timesteps (M)", ylabel="success rate (dispersed eval)", ylim=(-0.02, 1.02))
+    axes[1].semilogy(steps, [h["miss_km"] for h in history], "o-", label="mean")
+    axes[1].semilogy(steps, [h["median_miss_km"] for h in history], "s--", label="median")
+    axes[1].set(xlabel="timesteps (M)", ylabel="miss (km)")
+    axes[1].legend()
+    ret = [h["train_ep_return"] for h in history]
+    axes[2].plot(steps, [np.nan if r is None else r for r in ret], "o-")
+    axes[2].set(xlabel="timesteps (M)", ylabel="training episode return")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,152 @@
+"""Fly a guidance policy through RvEntry-v0 episodes, batched, and record the task metrics.
+
+A policy is any callable ``policy(obs, time_s, state) -> actions``:
+
+* ``obs``: float32 observations, shape (N, 26);
+* ``time_s``: time since each episode's start (N,);
+* ``state``: the float64 states (N, 12), PROBLEM.md order;
+* returns actions (N, 2) in [-1, 1].
+
+Closed-loop policies (PPO) use ``obs``; the open-loop reference replay uses
+``time_s``. All N episodes run side by side in one :class:`RvEntryVectorEnv`, so
+episode i is exactly a single ``RvEntry-v0`` episode reset with seed ``seed + i``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.physics.model import EntryModel
+
+Policy = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass
+class EpisodeBatch:
+    """Per-episode outcomes (arrays of length N) and, optionally, the flown histories."""
+
+    miss_km: np.ndarray
+    vertical_error_deg: np.ndarray
+    speed_error_mps: np.ndarray
+    alpha_final_deg: np.ndarray
+    cost: np.ndarray
+    max_load_factor_g: np.ndarray
+    min_dynamic_pressure_pa: np.ndarray
+    constraint_violation: np.ndarray
+    is_success: np.ndarray
+    failure: np.ndarray
+    time_s: np.ndarray
+    dispersion_draw: np.ndarray
+    # histories: time (T,), states (T, N, 12), actions (T, N, 2); T = longest episode
+    history_t: np.ndarray | None = None
+    history_x: np.ndarray | None = None
+    history_a: np.ndarray | None = None
+    lengths: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+
+    def records(self, reference_cost: float | None = None) -> list[dict]:
+        """One JSON-friendly dict per episode."""
+        out = []
+        for i in range(self.miss_km.size):
+            rec = {
+                "miss_km": float(self.miss_km[i]),
+                "vertical_error_deg": float(self.vertical_error_deg[i]),
+                "speed_error_mps": float(self.speed_error_mps[i]),
+                "alpha_final_deg": float(self.alpha_final_deg[i]),
+                "cost": float(self.cost[i]),
+                "cost_ratio": float(self.cost[i] / reference_cost) if reference_cost else None,
+                "max_load_factor_g": float(self.max_load_factor_g[i]),
+                "min_dynamic_pressure_pa": float(self.min_dynamic_pressure_pa[i]),
+                "constraint_violation": bool(self.constraint_violation[i]),
+                "success": bool(self.is_success[i]),
+                "failure": str(self.failure[i]),
+                "tf_s": float(self.time_s[i]),
+                "dispersion": dict(zip(Dispersion.__dataclass_fields__, map(float, self.dispersion_draw[i]))),
+            }
+            out.append(rec)
+        return out
+
+
+def rollout(
+    policy: Policy,
+    n_episodes: int,
+    *,
+    seed: int = 0,
+    dispersion: Dispersion | dict | str | None = None,
+    task: EntryTask | None = None,
+    model: EntryModel | None = None,
+    max_episode_steps: int | None = None,
+    record_history: bool = False,
+) -> EpisodeBatch:
+    """Run ``n_episodes`` episodes of ``policy`` side by side; episode i uses seed ``seed + i``.
+
+    :param policy: ``policy(obs, time_s, state) -> actions`` (see module docstring).
+    :param n_episodes: number of episodes (one copy each).
+    :param seed: base seed.
+    :param dispersion: initial-state and model dispersions (None = nominal).
+    :param task: the task (default :class:`EntryTask`).
+    :param model: the force model (default :class:`EntryModel`).
+    :param max_episode_steps: time limit in steps (default the registration's).
+    :param record_history: keep the state and action of every step (for plots).
+    """
+    if n_episodes < 1:
+        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    kwargs = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
+    venv = RvEntryVectorEnv(num_envs=n_episodes, task=task, model=model, dispersion=dispersion, **kwargs)
+    obs, info = venv.reset(seed=seed)
+    n = n_episodes
+    done = np.zeros(n, bool)
+    keys = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
+            "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
+    final = {k: np.zeros(n, dtype=object if k == "failure" else (bool if k in ("constraint_violation", "is_success") else float)) for k in keys}
+    draws = venv.dispersion_draw.copy()
+    lengths = np.zeros(n, int)
+    hist_t, hist_x, hist_a = [], [], []
+    time_s = np.zeros(n)
+    while not done.all():
+        state = venv.state
+        actions = np.asarray(policy(obs, time_s.copy(), state), dtype=np.float32)
+        if record_history:
+            hist_t.append(time_s.copy())
+            hist_x.append(state)
+            hist_a.append(actions.copy())
+        obs, _, term, trunc, info = venv.step(actions)
+        time_s = info["time_s"]
+        ended = (term | trunc) & ~done
+        for k in keys:
+            final[k][ended] = info[k][ended]
+        lengths[ended] = venv._steps[ended]
+        done |= ended
+        if record_history:
+            # after an episode ends the copy restarts; keep its final state, freeze it afterwards
+            if np.any(ended):
+                hist_t.append(np.where(ended, time_s, np.nan))
+                hist_x.append(np.where(ended[:, None], venv.state, np.nan))
+                hist_a.append(np.full((n, 2), np.nan, np.float32))
+    batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths)
+    if record_history:
+        batch.history_t, batch.history_x, batch.history_a = _tidy_history(hist_t, hist_x, hist_a, lengths)
+    return batch
+
+
+def _tidy_history(ts, xs, acts, lengths):
+    """Per-episode histories as (T, N, .) arrays with NaN after each episode's end."""
+    n = lengths.size
+    tmax = int(lengths.max()) + 1
+    t_out = np.full((tmax, n), np.nan)
+    x_out = np.full((tmax, n, 12), np.nan)
+    a_out = np.full((tmax, n, 2), np.nan)
+    k = np.zeros(n, int)
+    alive = np.ones(n, bool)
+    for t, x, a in zip(ts, xs, acts):
+        rows = np.nonzero(alive & ~np.isnan(t))[0]
+        t_out[k[rows], rows] = t[rows]
+        x_out[k[rows], rows] = x[rows]
+        a_out[k[rows], rows] = a[rows]
+        k[rows] += 1
+        alive &= k <= lengths
+    return t_out, x_out, a_out
