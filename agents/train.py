@@ -49,17 +49,24 @@ def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:
 
 
 def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
-    """The training VecEnv: batched env -> VecMonitor -> VecNormalize."""
+    """The training VecEnv: batched env -> VecMonitor -> range shaping -> VecNormalize.
+
+    VecMonitor sits inside the shaping, so logged episode returns are the
+    environment's own (unshaped) rewards.
+    """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from agents.sb3_vec import RvEntrySB3VecEnv
+    from agents.sb3_vec import RangePotentialShaping, RvEntrySB3VecEnv
 
     e = cfg["env"]
     venv = RvEntrySB3VecEnv(
         n_envs or int(e["num_envs"]), task=task, dispersion=Dispersion.parse(dict(e.get("dispersion", {}))),
-        max_episode_steps=int(e["max_episode_steps"]),
+        max_episode_steps=int(e["max_episode_steps"]), time_limit_is_failure=bool(e["time_limit_is_failure"]),
     )  # fmt: skip
     venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
+    shaping = cfg.get("shaping", {})
+    if float(shaping.get("range_weight", 0.0)) > 0:
+        venv = RangePotentialShaping(venv, float(shaping["range_weight"]), float(cfg["ppo"]["gamma"]))
     n = cfg["normalize"]
     return VecNormalize(
         venv, norm_obs=bool(n["norm_obs"]), norm_reward=bool(n["norm_reward"]), clip_obs=float(n["clip_obs"]),

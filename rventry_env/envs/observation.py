@@ -64,6 +64,16 @@ def features(task: EntryTask, radius: float) -> tuple[Feature, ...]:
     )
 
 
+def feature_index(name: str) -> int:
+    """Index of a feature by name (the order never depends on the task)."""
+    from rventry_env.envs.task import EntryTask as _Task
+
+    names = [f.name for f in features(_Task(), 6378137.0)]
+    if name not in names:
+        raise KeyError(f"no observation feature {name!r}; features are {names}")
+    return names.index(name)
+
+
 def observe(x: tuple, forces: EntryForces, c_ae, t, task: EntryTask, target_e, radius: float, g0: float, ns) -> tuple:
     """The observation components (floats or arrays), in :func:`features` order.
 
@@ -164,6 +174,7 @@ def observation_box(task: EntryTask, radius: float) -> tuple[np.ndarray, np.ndar
 __all__ = [
     "Feature",
     "features",
+    "feature_index",
     "observe",
     "TerminalMetrics",
     "terminal_metrics",

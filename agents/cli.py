@@ -1,0 +1,25 @@
+"""``rventry train ppo``: train the PPO baseline (see :mod:`agents.train`)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    train = sub.add_parser("train", help="train a learning agent on RvEntry-v0")
+    algos = train.add_subparsers(dest="algo", metavar="ALGO", required=True)
+    ppo = algos.add_parser("ppo", help="stable-baselines3 PPO on the numpy-batched vector env")
+    ppo.add_argument("--timesteps", type=int, help="total environment steps (default: the config's)")
+    ppo.add_argument("--seed", type=int, help="random seed (default: the config's)")
+    ppo.add_argument("--out", default="runs/ppo", help="output directory (default runs/ppo)")
+    ppo.add_argument("--config", help="TOML config (default agents/ppo.toml)")
+    ppo.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ppo.set_defaults(func=_run_ppo)
+
+
+def _run_ppo(args) -> int:
+    from agents.train import train_ppo
+
+    out = train_ppo(args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress)
+    print(f"wrote {out}/model.zip (best on the task metric), learning_curve.png, metadata.json")
+    return 0

@@ -1,0 +1,206 @@
+"""``rventry evaluate`` (one agent) and ``rventry compare`` (the main job: shipped PPO vs the reference)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+# issue 5's targets, checked and printed beside the measured values
+NOMINAL_TARGETS = {"miss_km": 5.0, "vertical_error_deg": 2.0, "abs_speed_error_mps": 50.0, "cost_ratio": 1.5}
+DISPERSED_SUCCESS_TARGET = 0.90
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    ev = sub.add_parser("evaluate", help="evaluate a guidance policy on RvEntry-v0 against the collocation reference")
+    ev.add_argument("--agent", required=True, help="ppo (the shipped policy), reference (open-loop replay), or a path to a saved SB3 PPO model")
+    ev.add_argument("--episodes", type=_positive_int, default=1, help="number of episodes (default 1)")
+    ev.add_argument("--dispersed", action="store_true", help="draw the standard dispersions (density 5 %%, aero 3 %%, altitude 0.5 km, speed 20 m/s, gamma 0.2 deg)")
+    ev.add_argument("--seed", type=int, default=0, help="episode i uses seed SEED + i (default 0)")
+    ev.add_argument("--json", required=True, metavar="PATH", help="write the summary and per-episode records here")
+    ev.add_argument("--plots", metavar="DIR", help="write PNG plots here")
+    ev.set_defaults(func=_evaluate)
+
+    cmp_ = sub.add_parser("compare", help="the main job: shipped PPO vs the reference, nominal and dispersed; table, JSON, plots")
+    cmp_.add_argument("--episodes", type=_positive_int, default=200, help="dispersed episodes per agent (default 200)")
+    cmp_.add_argument("--seed", type=int, default=0, help="dispersed episode i uses seed SEED + i (default 0)")
+    cmp_.add_argument("--agent", default="ppo", help="the learned agent to compare (default: the shipped PPO)")
+    cmp_.add_argument("--json", default="out/compare.json", metavar="PATH", help="default out/compare.json")
+    cmp_.add_argument("--plots", default="out/plots", metavar="DIR", help="default out/plots")
+    cmp_.set_defaults(func=_compare)
+
+
+def _positive_int(text: str) -> int:
+    n = int(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return n
+
+
+def run_agent(agent: str, episodes: int, dispersed: bool, seed: int, history: bool):
+    """Evaluate one agent; returns (batch, summary, policy)."""
+    from rventry_env.envs.task import Dispersion, EntryTask
+    from rventry_env.evaluation.policies import load_policy
+    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.evaluation.summary import summarize
+    from rventry_env.reference import load_reference
+
+    task = EntryTask()
+    policy = load_policy(agent, task)
+    batch = rollout(
+        policy, episodes, seed=seed, dispersion=Dispersion.standard() if dispersed else None, task=task,
+        record_history=history,
+    )  # fmt: skip
+    return batch, summarize(batch, float(load_reference().cost), task), policy
+
+
+def _document(agent, episodes, dispersed, seed, batch, summary) -> dict:
+    from rventry_env.envs.task import Dispersion
+    from rventry_env.reference import load_reference
+
+    ref = load_reference()
+    return {
+        "agent": agent,
+        "n_episodes": episodes,
+        "dispersed": dispersed,
+        "dispersion": Dispersion.standard().__dict__ if dispersed else None,
+        "seed": seed,
+        "reference": {"cost": float(ref.cost), "tf_s": float(ref.tf)},
+        "summary": summary,
+        "episodes": batch.records(float(ref.cost)),
+    }
+
+
+def _evaluate(args) -> int:
+    from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
+    from rventry_env.reference import load_reference
+
+    t0 = time.time()
+    batch, summary, _ = run_agent(args.agent, args.episodes, args.dispersed, args.seed, history=bool(args.plots))
+    doc = _document(args.agent, args.episodes, args.dispersed, args.seed, batch, summary)
+    doc["wall_time_s"] = time.time() - t0
+    _write_json(args.json, doc)
+    _print_summary(args.agent, summary)
+    if args.plots:
+        label = Path(args.agent).stem if args.agent not in ("ppo", "reference") else args.agent
+        plot_trajectories({label: batch}, Path(args.plots) / f"trajectories_{label}.png", reference=load_reference())
+        from rventry_env.envs.task import EntryTask
+
+        plot_outcomes({label: batch}, Path(args.plots) / f"outcomes_{label}.png", EntryTask().success)
+    return 0
+
+
+def _compare(args) -> int:
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from rventry_env.envs.task import EntryTask
+    from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
+    from rventry_env.reference import load_reference
+
+    t0 = time.time()
+    runs = {}
+    plan = [("nominal", args.agent, 1, False), ("nominal", "reference", 1, False),
+            ("dispersed", args.agent, args.episodes, True), ("dispersed", "reference", args.episodes, True)]  # fmt: skip
+    with Progress(transient=True) as progress:
+        job = progress.add_task("evaluating", total=len(plan))
+        for case, agent, n, dispersed in plan:
+            progress.update(job, description=f"{case}: {agent} ({n} episode{'s' if n > 1 else ''})")
+            batch, summary, _ = run_agent(agent, n, dispersed, args.seed, history=True)
+            runs[(case, agent)] = (batch, summary, _document(agent, n, dispersed, args.seed, batch, summary))
+            progress.advance(job)
+    label = "ppo" if args.agent == "ppo" else Path(args.agent).stem
+    nominal = runs[("nominal", args.agent)][1]
+    dispersed = runs[("dispersed", args.agent)][1]
+    checks = {
+        **{f"nominal_{k}": {"target": v, "measured": nominal[k], "met": nominal[k] is not None and abs(nominal[k]) <= v}
+           for k, v in NOMINAL_TARGETS.items()},
+        "dispersed_success_rate": {"target": DISPERSED_SUCCESS_TARGET, "measured": dispersed["success_rate"],
+                                   "met": dispersed["success_rate"] >= DISPERSED_SUCCESS_TARGET},
+    }  # fmt: skip
+    doc = {
+        "agent": args.agent,
+        "seed": args.seed,
+        "targets": checks,
+        "runs": {f"{case}/{agent if agent == 'reference' else label}": d for (case, agent), (_, _, d) in runs.items()},
+        "wall_time_s": time.time() - t0,
+    }
+    _write_json(args.json, doc)
+    Console().print(_table(runs, args.agent, label, checks))
+    ref = load_reference()
+    plots = Path(args.plots)
+    plot_trajectories({label: runs[("nominal", args.agent)][0], "reference (open loop)": runs[("nominal", "reference")][0]},
+                      plots / "nominal_trajectories.png", reference=ref, title="Nominal: learned guidance vs the optimal reference")  # fmt: skip
+    plot_trajectories({label: runs[("dispersed", args.agent)][0], "reference (open loop)": runs[("dispersed", "reference")][0]},
+                      plots / "dispersed_trajectories.png", reference=ref, title=f"Dispersed: {args.episodes} episodes each")  # fmt: skip
+    plot_outcomes({label: runs[("dispersed", args.agent)][0], "reference (open loop)": runs[("dispersed", "reference")][0]},
+                  plots / "dispersed_outcomes.png", EntryTask().success)  # fmt: skip
+    print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)")
+    return 0
+
+
+def _table(runs, agent, label, checks):
+    from rich.table import Table
+
+    rows = (
+        ("miss (km)", "miss_km", "{:.3g}"),
+        ("vertical-impact error (deg)", "vertical_error_deg", "{:.3g}"),
+        ("|speed error| (m/s)", "abs_speed_error_mps", "{:.3g}"),
+        ("alpha(t_f) (deg)", "alpha_final_deg", "{:.3g}"),
+        ("cost J / J*", "cost_ratio", "{:.3f}"),
+        ("peak load factor (g)", "max_load_factor_g", "{:.2f}"),
+        ("min dynamic pressure (kPa)", "min_dynamic_pressure_pa", "{:.1f}"),
+        ("constraint-violation rate", "constraint_violation_rate", "{:.2f}"),
+        ("success rate", "success_rate", "{:.2f}"),
+    )
+    n = runs[("dispersed", agent)][1]["episodes"]
+    t = Table(title="RvEntry-v0: learned guidance vs the open-loop collocation reference")
+    t.add_column("metric")
+    for col in (f"{label} nominal", "reference nominal", f"{label} dispersed mean (p95)", f"reference dispersed mean (p95)"):
+        t.add_column(col, justify="right")
+    t.add_column("target", justify="right")
+    targets = {"miss_km": "<= 5 nominal", "vertical_error_deg": "<= 2 nominal", "abs_speed_error_mps": "<= 50 nominal",
+               "cost_ratio": "<= 1.5 nominal", "success_rate": f">= 0.90 of {n}"}  # fmt: skip
+    for name, key, fmt in rows:
+        cells = []
+        for case, who in (("nominal", agent), ("nominal", "reference"), ("dispersed", agent), ("dispersed", "reference")):
+            s = runs[(case, who)][1]
+            v = s.get(key)
+            if key == "min_dynamic_pressure_pa" and v is not None:
+                v = v / 1e3
+            cell = "-" if v is None else fmt.format(v)
+            if case == "dispersed" and key in s.get("percentiles", {}):
+                p = s["percentiles"][key]["p95"]
+                if p is not None:
+                    p = p / 1e3 if key == "min_dynamic_pressure_pa" else p
+                    cell += f" ({fmt.format(p)})"
+            cells.append(cell)
+        t.add_row(name, *cells, targets.get(key, ""))
+    met = ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in checks.items())
+    t.caption = f"success: miss <= 5 km, vertical error <= 5 deg, |speed error| <= 100 m/s, no path violation. {met}"
+    return t
+
+
+def _print_summary(agent: str, s: dict) -> None:
+    print(
+        f"{agent}: {s['episodes']} episode(s): success {s['success_rate']:.2f}, miss {s['miss_km']:.3g} km, "
+        f"vertical {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
+        f"J/J* {s['cost_ratio']:.3f}, endings {s['endings']}"
+    )
+
+
+def _write_json(path: str, doc: dict) -> None:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(json.dumps(doc, indent=1, default=_jsonable))
+
+
+def _jsonable(o):
+    import numpy as np
+
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON-serializable: {type(o).__name__}")

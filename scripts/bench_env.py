@@ -1,0 +1,169 @@
+"""Benchmark RvEntry-v0: speed of the single and vector envs, and the default step's accuracy.
+
+Speed
+    * single env steps/s through ``gym.make`` (with its wrappers), constant action,
+      resetting at episode end;
+    * vector env vehicle-steps/s at N = 1, 64, 1024, 8192, and the same for
+      ``gym.make_vec(..., vectorization_mode="sync")`` (N single envs in a
+      SyncVectorEnv), with the ratio.
+
+Accuracy
+    The reference's open-loop controls, held piecewise constant per control step
+    (the step-mean rates, what ``rventry evaluate --agent reference`` flies), are
+    integrated by the env at several substep counts and by DOP853 at rtol 1e-12
+    with the *same* piecewise-constant controls, so the difference is integration
+    error alone. Reports the position error at impact and the max along the way.
+
+Run: ``python scripts/bench_env.py [--json PATH] [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+import numpy as np
+
+
+def time_single(n_steps: int) -> float:
+    import gymnasium as gym
+
+    import rventry_env  # noqa: F401
+
+    env = gym.make("RvEntry-v0")
+    env.reset(seed=0)
+    a = np.array([0.0, 0.02], dtype=np.float32)
+    for _ in range(50):  # warm-up
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+    t0 = time.perf_counter()
+    for _ in range(n_steps):
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+    return n_steps / (time.perf_counter() - t0)
+
+
+def time_vector(n: int, mode: str, min_vehicle_steps: int) -> float:
+    import gymnasium as gym
+
+    import rventry_env  # noqa: F401
+
+    venv = gym.make_vec("RvEntry-v0", num_envs=n, vectorization_mode=mode)
+    venv.reset(seed=0)
+    a = np.tile(np.array([0.0, 0.02], dtype=np.float32), (n, 1))
+    for _ in range(3):
+        venv.step(a)
+    steps = max(3, min_vehicle_steps // n)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        venv.step(a)
+    rate = n * steps / (time.perf_counter() - t0)
+    venv.close()
+    return rate
+
+
+def accuracy(substeps_list=(1, 2, 4)) -> list[dict]:
+    from scipy.integrate import solve_ivp
+
+    from rventry_env.core.conversions import cartesian_from_rv_euler
+    from rventry_env.envs.rv_entry import RvEntryEnv
+    from rventry_env.envs.task import EntryTask
+    from rventry_env.evaluation.policies import ReferencePolicy
+    from rventry_env.physics import EntryModel, entry_rhs
+
+    model = EntryModel()
+    policy = ReferencePolicy()
+    out = []
+    tight = None
+    for k in substeps_list:
+        task = EntryTask(substeps=k)
+        env = RvEntryEnv(task=task)
+        obs, info = env.reset(seed=0)
+        x0 = env.state.copy()
+        actions, states, times = [], [env.state.copy()], [0.0]
+        while True:
+            a = policy(obs[None], np.array([info["time_s"]]), env.state[None])[0]
+            actions.append(a)
+            obs, _, term, trunc, info = env.step(a)
+            states.append(env.state.copy())
+            times.append(info["time_s"])
+            if term or trunc:
+                break
+        if tight is None:
+            tight = _tight_replay(x0, np.array(actions), task, model, solve_ivp, entry_rhs)
+        t_hit, sol = tight
+        r_env = np.array([cartesian_from_rv_euler(s)[0] for s in states])
+        r_ref = np.array([cartesian_from_rv_euler(sol(t))[0] for t in times[:-1]] + [cartesian_from_rv_euler(sol(t_hit))[0]])
+        err = np.linalg.norm(r_env - r_ref, axis=1)
+        out.append({
+            "substeps": k, "dt_s": task.dt, "impact_position_error_m": float(err[-1]),
+            "max_position_error_m": float(err.max()), "impact_time_error_s": float(times[-1] - t_hit),
+        })  # fmt: skip
+    return out
+
+
+def _tight_replay(x0, actions, task, model, solve_ivp, entry_rhs):
+    p = task.problem
+    u = actions * np.array([p.u_alpha_max, p.u_sigma_max])
+    radius = model.planet.radius
+
+    def f(t, x):
+        k = min(int(t // task.dt), len(u) - 1)
+        return np.array(entry_rhs(list(x), tuple(u[k]), model))
+
+    def ground(t, x):
+        return x[0] - radius
+
+    ground.terminal, ground.direction = True, -1
+    segs, x, t = [], x0, 0.0
+    for k in range(len(u)):  # integrate step by step so every control switch is a breakpoint
+        sol = solve_ivp(f, (t, t + task.dt), x, method="DOP853", rtol=1e-12, atol=1e-10, dense_output=True,
+                        events=ground)  # fmt: skip
+        segs.append(sol)
+        if sol.status == 1:
+            t_hit = float(sol.t_events[0][0])
+            break
+        x, t = sol.y[:, -1], sol.t[-1]
+    else:
+        raise RuntimeError("the tight replay did not reach the ground")
+
+    def dense(tq):
+        k = min(int(tq // task.dt), len(segs) - 1)
+        return segs[k].sol(tq)
+
+    return t_hit, dense
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", help="write the figures here")
+    ap.add_argument("--quick", action="store_true", help="fewer steps (noisier figures)")
+    args = ap.parse_args()
+    scale = 0.2 if args.quick else 1.0
+    res: dict = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()}}
+    res["single_env_steps_per_s"] = time_single(int(20000 * scale))
+    print(f"single env through gym.make: {res['single_env_steps_per_s']:,.0f} steps/s  (target >= 1e4)")
+    rows = []
+    for n in (1, 64, 1024, 8192):
+        vec = time_vector(n, "vector_entry_point", int(3e5 * scale))
+        sync = time_vector(n, "sync", int(2e4 * scale))
+        rows.append({"num_envs": n, "vector_vehicle_steps_per_s": vec, "sync_vehicle_steps_per_s": sync, "speedup": vec / sync})
+        print(f"N = {n:5d}: vector {vec:12,.0f}  sync {sync:10,.0f} vehicle-steps/s  ratio {vec / sync:6.1f}"
+              + ("  (target >= 1e6)" if n == 8192 else ""))  # fmt: skip
+    res["vector"] = rows
+    res["accuracy"] = accuracy()
+    for r in res["accuracy"]:
+        print(f"dt {r['dt_s']} s, {r['substeps']} RK4 substeps: impact position error {r['impact_position_error_m']:.3g} m, "
+              f"max {r['max_position_error_m']:.3g} m, impact time error {r['impact_time_error_s']:.2g} s (vs DOP853 rtol 1e-12)")  # fmt: skip
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(res, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
