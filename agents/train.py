@@ -114,7 +114,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
             vecnorm = self.model.get_vec_normalize_env()
             batch = rollout(
                 _LivePolicy(self.model, vecnorm), int(t["eval_episodes"]), seed=int(t["eval_seed"]),
-                dispersion=t["eval_dispersion"], task=task,
+                dispersion=t["eval_dispersion"], task=task, max_episode_steps=int(cfg["env"]["max_episode_steps"]),
             )  # fmt: skip
             s = summarize(batch, reference_cost or 1.0, task)
             rec = {

@@ -1,0 +1,97 @@
+"""PPO baseline: the training pipeline, the shipped policy, and the evaluation JSON schema."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.evaluation.policies import SHIPPED_PPO, SB3Policy, load_policy
+from rventry_env.evaluation.rollout import rollout
+from rventry_env.problem import EntryProblem
+
+SMOKE_TASK = EntryTask(problem=EntryProblem(initial_alpha=math.radians(11.86), initial_sigma=math.radians(100.0)))
+
+
+def _smoke_config(tmp_path: Path) -> Path:
+    from agents.train import DEFAULT_CONFIG
+
+    text = DEFAULT_CONFIG.read_text()
+    for old, new in (("num_envs = 64", "num_envs = 8"), ("max_episode_steps = 2000", "max_episode_steps = 60"), ("n_steps = 256", "n_steps = 64"),
+                     ("batch_size = 4096", "batch_size = 256"), ("n_epochs = 10", "n_epochs = 2"),
+                     ("eval_every = 500_000", "eval_every = 1024"), ("eval_episodes = 100", "eval_episodes = 4"),
+                     ("checkpoint_every = 2_000_000", "checkpoint_every = 1024"),
+                     ("net_arch_pi = [256, 256]", "net_arch_pi = [32]"), ("net_arch_vf = [256, 256]", "net_arch_vf = [32]")):  # fmt: skip
+        assert old in text, f"the smoke test expects {old!r} in agents/ppo.toml"
+        text = text.replace(old, new)
+    path = tmp_path / "smoke.toml"
+    path.write_text(text)
+    return path
+
+
+def test_training_pipeline_trains_saves_and_reloads(tmp_path):
+    from agents.train import train_ppo
+
+    out = train_ppo(_smoke_config(tmp_path), timesteps=2048, seed=3, out=tmp_path / "run", task=SMOKE_TASK,
+                    progress_bar=False)  # fmt: skip
+    for name in ("model.zip", "vecnormalize.pkl", "final_model.zip", "evaluations.json", "metadata.json",
+                 "learning_curve.png"):  # fmt: skip
+        assert (out / name).exists(), name
+    assert list((out / "checkpoints").glob("*.zip"))
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["seed"] == 3 and meta["timesteps"] == 2048 and meta["wall_time_s"] > 0
+    evals = json.loads((out / "evaluations.json").read_text())
+    assert evals and all(0.0 <= e["success_rate"] <= 1.0 for e in evals)
+    policy = SB3Policy(out)
+    assert policy.obs_mean is not None  # normalization statistics travel with the model
+    a = rollout(policy, 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
+    b = rollout(SB3Policy(out), 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
+    np.testing.assert_array_equal(a.miss_km, b.miss_km)
+
+
+def test_loading_something_that_is_not_a_policy_fails_clearly(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no saved policy"):
+        load_policy(str(tmp_path / "nothing.zip"))
+    bogus = tmp_path / "bogus.zip"
+    bogus.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="not a stable-baselines3 PPO model"):
+        load_policy(str(bogus))
+
+
+def test_shipped_policy_is_present_and_deterministic_for_a_seed():
+    assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
+    a = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
+    b = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
+    for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
+        np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+    assert (a.failure == "").all()  # the shipped policy reaches the ground in every one of these
+
+
+def test_evaluate_cli_writes_the_documented_schema(tmp_path):
+    out = tmp_path / "eval.json"
+    cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", "reference", "--episodes", "3",
+           "--dispersed", "--seed", "4", "--json", str(out), "--plots", str(tmp_path / "plots")]  # fmt: skip
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    doc = json.loads(out.read_text())
+    for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost_ratio", "success_rate"):
+        assert isinstance(doc["summary"][key], float), key
+    assert doc["summary"]["success_thresholds"]["miss_km"] == 5.0
+    assert len(doc["episodes"]) == 3
+    for rec in doc["episodes"]:
+        for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "cost_ratio",
+                    "max_load_factor_g", "min_dynamic_pressure_pa", "constraint_violation", "success"):  # fmt: skip
+            assert key in rec, key
+    assert (tmp_path / "plots" / "trajectories_reference.png").stat().st_size > 10_000
+
+
+def test_evaluate_cli_rejects_bad_arguments(tmp_path):
+    cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", "reference", "--episodes", "0",
+           "--json", str(tmp_path / "x.json")]  # fmt: skip
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    assert res.returncode == 2 and "positive integer" in res.stderr
