@@ -1,0 +1,137 @@
+"""``rventry reference {solve,show,export,plot}``.
+
+Heavy imports (CasADi, matplotlib) happen inside the command functions so that
+``rventry --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+
+def _positive_float(text: str) -> float:
+    try:
+        val = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (val > 0 and math.isfinite(val)):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number of seconds, got {text}")
+    return val
+
+
+def register(subparsers) -> None:
+    """Add ``reference`` and its subcommands to the ``rventry`` parser."""
+    ref = subparsers.add_parser("reference", help="the collocation reference (paper Example 2)")
+    sub = ref.add_subparsers(dest="reference_command", metavar="SUBCOMMAND")
+    ref.set_defaults(func=lambda args: (ref.print_help(), 2)[1])
+
+    p = sub.add_parser("solve", help="solve Example 2 from a cold start and write the data file")
+    p.add_argument("--out", type=Path, default=None, help="output .npz (default: the packaged reference)")
+    p.add_argument("--mesh-tolerance", type=_positive_float, default=1e-6, help="target max relative error")
+    p.add_argument("--first-mesh", type=int, nargs=2, metavar=("INTERVALS", "POINTS"), default=(40, 4))
+    p.add_argument("--norm-mode", choices=("projection", "paper"), default="projection",
+                   help="how the quaternion norms are kept (see docs/reference.md)")  # fmt: skip
+    p.add_argument("--quiet", action="store_true", help="no per-pass table")
+    p.set_defaults(func=_solve)
+
+    p = sub.add_parser("show", help="print the summary of the reference")
+    p.add_argument("--json", type=Path, default=None, metavar="PATH", help="also write the summary as JSON here")
+    p.add_argument("--file", type=Path, default=None, help="a reference .npz (default: the packaged one)")
+    p.set_defaults(func=_show)
+
+    p = sub.add_parser("export", help="write the reference on a uniform time grid as CSV")
+    p.add_argument("--csv", type=Path, required=True, metavar="PATH", help="output CSV")
+    p.add_argument("--dt", type=_positive_float, default=0.1, metavar="SECONDS", help="grid step (default 0.1 s)")
+    p.add_argument("--file", type=Path, default=None, help="a reference .npz (default: the packaged one)")
+    p.set_defaults(func=_export)
+
+    p = sub.add_parser("plot", help="write the panels of the paper's Fig. fig:Ex2-sol-1 as PNG")
+    p.add_argument("dir", type=Path, metavar="DIR", help="output directory")
+    p.add_argument("--file", type=Path, default=None, help="a reference .npz (default: the packaged one)")
+    p.set_defaults(func=_plot)
+
+
+def _load(path):
+    from rventry_env.reference import load_reference
+
+    return load_reference(path)
+
+
+def _solve(args) -> int:
+    from rventry_env.reference.collocation.progress import RichMeshTable
+    from rventry_env.reference.entry_problem import EntryProblemConfig
+    from rventry_env.reference.pipeline import ReferenceOptions, save_reference, solve_reference
+
+    opts = ReferenceOptions(first_mesh=tuple(args.first_mesh), mesh_tolerance=args.mesh_tolerance)
+    progress = None if args.quiet else RichMeshTable("LGR collocation, paper Example 2 (rv-Euler, exact vertical impact)")
+    rs = solve_reference(EntryProblemConfig(norm_mode=args.norm_mode), opts, progress)
+    npz, js = save_reference(rs, args.out)
+    sol = rs.solution
+    print(f"J* = {sol.cost:.6f}   tf = {sol.tf:.3f} s   mesh error = {sol.max_error:.2e}   "
+          f"max violation = {sol.max_violation:.1e}   solve time = {rs.timings['solve_time_s']:.1f} s")  # fmt: skip
+    print(f"wrote {npz} and {js}")
+    if not rs.converged:
+        print("warning: the solve did not meet the mesh tolerance or the NLP failed; see the summary", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _show(args) -> int:
+    ref = _load(args.file)
+    s = ref.summary()
+    keys = ("tf_s", "cost", "mesh_error", "max_constraint_violation", "solve_time_s", "n_nodes", "n_intervals",
+            "nlp_iterations_per_pass", "rss_peak_mb", "norm_mode")  # fmt: skip
+    for k in keys:
+        if k in s:
+            print(f"{k:28s} {s[k]}")
+    for k, v in s.get("diagnostics", {}).items():
+        print(f"{'diagnostics.' + k:28s} {v}")
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(s, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0
+
+
+def export_grid(ref, dt: float):
+    """Uniform times from 0 with step ``dt`` ending exactly at tf, and the interpolated rows."""
+    import numpy as np
+
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ValueError(f"--dt must be a positive number of seconds, got {dt}")
+    n = int(math.floor((ref.tf - ref.t0) / dt + 1e-9))
+    t = ref.t0 + dt * np.arange(n + 1)
+    if ref.tf - t[-1] > 1e-9 * max(1.0, ref.tf):
+        t = np.append(t, ref.tf)
+    else:
+        t[-1] = ref.tf
+    return t, ref.state(t), ref.control(t)
+
+
+def _export(args) -> int:
+    import numpy as np
+
+    ref = _load(args.file)
+    t, x, u = export_grid(ref, args.dt)
+    header = ",".join(("t_s", *ref.state_names, *ref.control_names))
+    args.csv.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(args.csv, np.column_stack([t, x, u]), delimiter=",", header=header, comments="", fmt="%.12g")
+    print(f"wrote {t.size} rows to {args.csv}")
+    return 0
+
+
+def _plot(args) -> int:
+    from rventry_env.reference.plots import plot_reference
+
+    ref = _load(args.file)
+    paths = plot_reference(ref, args.dir)
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
+__all__ = ["register", "export_grid"]

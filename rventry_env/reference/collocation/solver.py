@@ -1,0 +1,686 @@
+"""LGR transcription to an NLP, IPOPT through CasADi, and the hp mesh-refinement loop.
+
+Transcription (Garg et al. 2010; GPOPS-II, Patterson & Rao 2014), differential
+form: with the node layout of :class:`~.mesh.Mesh`, on interval k
+
+    D_k X_k = (tf - t0) (b_k - a_k) / 2 * f(X_j, U_j, t_j),  j the interval's LGR points,
+
+the Lagrange cost is the Radau quadrature of the running cost, and path
+constraints hold at the collocation points. The whole NLP is one CasADi ``SX``
+graph, so IPOPT gets exact first and second derivatives by automatic
+differentiation (``hessian_approximation = exact``).
+
+Scaling: every NLP variable is ``(value - shift) / scale`` with the problem's
+state and control scales, tf is divided by ``time_scale``; each defect row is
+divided by its state's scale (it then reads "scaled state change per unit
+normalised time"), path and endpoint constraints by their own scales, the cost
+by ``cost_scale``. IPOPT's own gradient-based scaling stays on top.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from rventry_env.reference.collocation.interpolation import PiecewiseLGR
+from rventry_env.reference.collocation.lgr import (
+    differentiation_matrix,
+    integration_matrix,
+    lagrange_matrix,
+    lgr_points,
+    lgr_weights,
+    support_points,
+)
+from rventry_env.reference.collocation.mesh import Mesh, refine_ph
+from rventry_env.reference.collocation.problem import OptimalControlProblem
+from rventry_env.reference.collocation.progress import MeshIterationRecord, Progress
+
+
+# ---------------------------------------------------------------------------------
+# problem -> CasADi functions
+
+
+class CompiledProblem:
+    """CasADi functions of one problem, built once and shared by every mesh.
+
+    ``f(x, u, t)``, ``lagrange(x, u, t)``, ``path(x, u, t)``, ``invariants(x)``,
+    ``endpoint(x0, xf, t0, tf)``, ``mayer(x0, xf, t0, tf)``; x, u are column vectors.
+    """
+
+    def __init__(self, problem: OptimalControlProblem):
+        import casadi as ca
+
+        self.problem = p = problem
+        x = ca.SX.sym("x", p.n_x)
+        u = ca.SX.sym("u", p.n_u)
+        t = ca.SX.sym("t")
+        x0 = ca.SX.sym("x0", p.n_x)
+        xf = ca.SX.sym("xf", p.n_x)
+        t0 = ca.SX.sym("t0")
+        tf = ca.SX.sym("tf")
+        xl = [x[i] for i in range(p.n_x)]
+        ul = [u[i] for i in range(p.n_u)]
+        x0l = [x0[i] for i in range(p.n_x)]
+        xfl = [xf[i] for i in range(p.n_x)]
+
+        rhs = list(p.dynamics(xl, ul, t))
+        if len(rhs) != p.n_x:
+            raise ValueError(f"dynamics returned {len(rhs)} derivatives for {p.n_x} states")
+        self.f = ca.Function("f", [x, u, t], [ca.vertcat(*rhs)])
+        lag = p.lagrange(xl, ul, t) if p.lagrange is not None else 0
+        self.lagrange = ca.Function("L", [x, u, t], [ca.SX(lag)])
+        path = [c.fn(xl, ul, t) for c in p.path_constraints]
+        self.path = ca.Function("c", [x, u, t], [ca.vertcat(*path) if path else ca.SX(0, 1)])
+        inv = [g.fn(xl) for g in p.invariants]
+        self.invariants = ca.Function("g", [x], [ca.vertcat(*inv) if inv else ca.SX(0, 1)])
+        end = [b.fn(x0l, xfl, t0, tf) for b in p.endpoint_constraints]
+        self.endpoint = ca.Function("b", [x0, xf, t0, tf], [ca.vertcat(*end) if end else ca.SX(0, 1)])
+        may = p.mayer(x0l, xfl, t0, tf) if p.mayer is not None else 0
+        self.mayer = ca.Function("M", [x0, xf, t0, tf], [ca.SX(may)])
+        self.path_scale = np.array([c.scale for c in p.path_constraints])
+        self.path_lower = np.array([c.lower for c in p.path_constraints])
+        self.path_upper = np.array([c.upper for c in p.path_constraints])
+        self.end_scale = np.array([c.scale for c in p.endpoint_constraints])
+        self.end_lower = np.array([c.lower for c in p.endpoint_constraints])
+        self.end_upper = np.array([c.upper for c in p.endpoint_constraints])
+        self.inv_scale = np.array([g.scale for g in p.invariants])
+
+    def _scaled_symbols(self):
+        import casadi as ca
+
+        p = self.problem
+        xs = ca.SX.sym("xs", p.n_x)
+        x = xs * ca.DM(p.state_scale) + ca.DM(p.state_shift)
+        return xs, x
+
+    def node_function(self):
+        """``(xs, us, s, h, tf) -> (f_scaled, path_scaled, lagrange)`` at one collocation point.
+
+        xs, us are scaled; s is the normalised time, h the interval length (in s);
+        f_scaled = (tf - t0) h / 2 f / state_scale is what the defect subtracts.
+        """
+        import casadi as ca
+
+        if getattr(self, "_node", None) is None:
+            p = self.problem
+            xs, x = self._scaled_symbols()
+            us = ca.SX.sym("us", p.n_u)
+            u = us * ca.DM(p.control_scale) + ca.DM(p.control_shift)
+            s, h, tf = ca.SX.sym("s"), ca.SX.sym("h"), ca.SX.sym("tf")
+            t = p.t0 + (tf - p.t0) * s
+            f = self.f(x, u, t) * ((tf - p.t0) * h / 2) / ca.DM(p.state_scale)
+            c = self.path(x, u, t) / ca.DM(self.path_scale) if self.path_scale.size else ca.SX(0, 1)
+            self._node = ca.Function("node", [xs, us, s, h, tf], [f, c, self.lagrange(x, u, t)])
+        return self._node
+
+    def invariant_function(self):
+        """``xs -> invariants / scale`` at one node (scaled state)."""
+        import casadi as ca
+
+        if getattr(self, "_inv", None) is None:
+            xs, x = self._scaled_symbols()
+            out = self.invariants(x) / ca.DM(self.inv_scale) if self.inv_scale.size else ca.SX(0, 1)
+            self._inv = ca.Function("inv", [xs], [out])
+        return self._inv
+
+    def endpoint_function(self):
+        """``(xs0, xsf, tf) -> endpoint / scale``."""
+        import casadi as ca
+
+        if getattr(self, "_end", None) is None:
+            p = self.problem
+            xs0, x0 = self._scaled_symbols()
+            xsf, xf = self._scaled_symbols()
+            tf = ca.SX.sym("tf")
+            out = self.endpoint(x0, xf, p.t0, tf)
+            out = out / ca.DM(self.end_scale) if self.end_scale.size else out
+            self._end = ca.Function("end", [xs0, xsf, tf], [out])
+        return self._end
+
+    def mayer_function(self):
+        """``(xs0, xsf, tf) -> terminal cost``."""
+        import casadi as ca
+
+        if getattr(self, "_may", None) is None:
+            p = self.problem
+            xs0, x0 = self._scaled_symbols()
+            xsf, xf = self._scaled_symbols()
+            tf = ca.SX.sym("tf")
+            self._may = ca.Function("mayer", [xs0, xsf, tf], [self.mayer(x0, xf, p.t0, tf)])
+        return self._may
+
+    def rhs(self, x: np.ndarray, u: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Batched numeric dynamics: ``x (n, n_x)``, ``u (n, n_u)``, ``t (n,)`` -> ``(n, n_x)``."""
+        n = x.shape[0]
+        out = self.f.map(n)(x.T, u.T, np.reshape(t, (1, n)))
+        return np.asarray(out).T
+
+
+# ---------------------------------------------------------------------------------
+# guesses
+
+
+class TrajectoryLike(Protocol):
+    t0: float
+    tf: float
+
+    def state(self, t) -> np.ndarray: ...
+
+    def control(self, t) -> np.ndarray: ...
+
+
+@dataclass
+class SampledGuess:
+    """A guess given as samples, interpolated linearly (the angles are not wrapped).
+
+    :param t: strictly increasing times, shape ``(n,)``; ``t[0]`` is t0 and ``t[-1]`` the guessed tf.
+    :param x: states, shape ``(n, n_x)``.
+    :param u: controls, shape ``(n, n_u)``.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+
+    def __post_init__(self):
+        self.t = np.asarray(self.t, dtype=float)
+        self.x = np.asarray(self.x, dtype=float)
+        self.u = np.asarray(self.u, dtype=float)
+        if self.t.ndim != 1 or self.t.size < 2 or np.any(np.diff(self.t) <= 0):
+            raise ValueError("guess times must be 1-D, at least two, strictly increasing")
+        for name, arr in (("x", self.x), ("u", self.u)):
+            if arr.ndim != 2 or arr.shape[0] != self.t.size:
+                raise ValueError(f"guess {name} must have shape ({self.t.size}, n), got {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"guess {name} contains NaN or inf")
+
+    @property
+    def t0(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def tf(self) -> float:
+        return float(self.t[-1])
+
+    def _interp(self, t, arr):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return np.stack([np.interp(t, self.t, arr[:, i]) for i in range(arr.shape[1])], axis=-1)
+
+    def state(self, t) -> np.ndarray:
+        return self._interp(t, self.x)
+
+    def control(self, t) -> np.ndarray:
+        return self._interp(t, self.u)
+
+
+# ---------------------------------------------------------------------------------
+# transcription
+
+
+@dataclass
+class Transcription:
+    """The NLP of one problem on one mesh, with its packing helpers."""
+
+    cp: CompiledProblem
+    mesh: Mesh
+    solver: Any
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    g_groups: dict  # name -> slice into g
+    build_time_s: float
+
+    @property
+    def problem(self) -> OptimalControlProblem:
+        return self.cp.problem
+
+    def pack(self, x: np.ndarray, u: np.ndarray, tf: float) -> np.ndarray:
+        """Scaled decision vector from ``x (n_nodes, n_x)``, ``u (n_col, n_u)`` and tf."""
+        p = self.problem
+        xs = (x - p.state_shift) / p.state_scale
+        us = (u - p.control_shift) / p.control_scale
+        parts = [xs.ravel(), us.ravel()]
+        if p.free_final_time:
+            parts.append(np.full(self.mesh.n_nodes, tf / p.time_scale))
+        return np.concatenate(parts)
+
+    def unpack(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Inverse of :meth:`pack`."""
+        p, m = self.problem, self.mesh
+        z = np.asarray(z, dtype=float).ravel()
+        nxz = m.n_nodes * p.n_x
+        nuz = m.n_collocation * p.n_u
+        x = z[:nxz].reshape(m.n_nodes, p.n_x) * p.state_scale + p.state_shift
+        u = z[nxz : nxz + nuz].reshape(m.n_collocation, p.n_u) * p.control_scale + p.control_shift
+        tf = float(z[-1] * p.time_scale) if p.free_final_time else float(p.tf_lower)
+        return x, u, tf
+
+
+def _block_matrices(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Global D (n_col x n_nodes, sparse pattern), per-column interval length and quadrature weight, node s."""
+    import scipy.sparse as sp
+
+    rows, cols, vals = [], [], []
+    h = np.empty(mesh.n_collocation)
+    w = np.empty(mesh.n_collocation)
+    for k, (n, off) in enumerate(zip(mesh.degrees, mesh.offsets)):
+        n, off = int(n), int(off)
+        d = differentiation_matrix(n)
+        r, c = np.nonzero(np.ones_like(d))
+        rows.append(off + r)
+        cols.append(off + c)
+        vals.append(d[r, c])
+        h[off : off + n] = mesh.breaks[k + 1] - mesh.breaks[k]
+        w[off : off + n] = lgr_weights(n)
+    big = sp.csc_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(mesh.n_collocation, mesh.n_nodes),
+    )
+    return big, h, w, mesh.nodes()
+
+
+def _dm_sparse(m):
+    import casadi as ca
+
+    m = m.tocsc()
+    sp = ca.Sparsity(m.shape[0], m.shape[1], m.indptr.tolist(), m.indices.tolist())
+    return ca.DM(sp, m.data.tolist())
+
+
+# A refined mesh starts from the previous solution, which is optimal to within the
+# error estimate: start the barrier small and do not push the point off its bounds.
+WARM_START_IPOPT = {
+    "mu_init": 1e-6,
+    "warm_start_init_point": "yes",
+    "warm_start_bound_push": 1e-9,
+    "warm_start_bound_frac": 1e-9,
+    "warm_start_slack_bound_push": 1e-9,
+    "warm_start_slack_bound_frac": 1e-9,
+    "warm_start_mult_bound_push": 1e-9,
+}
+
+
+@dataclass
+class SolverOptions:
+    """Options of the hp loop and of IPOPT.
+
+    :param mesh_tolerance: target max relative error per interval.
+    :param max_mesh_iterations: mesh passes before giving up.
+    :param n_min: LGR points of a new subinterval (ph rule).
+    :param n_max: LGR points beyond which an interval is split.
+    :param nlp_tolerance: IPOPT ``tol``.
+    :param max_nlp_iterations: IPOPT ``max_iter`` per pass.
+    :param ipopt: extra IPOPT options (``{"mu_strategy": "adaptive"}``, ...).
+    :param print_ipopt: show IPOPT's own iteration log.
+    :param refine_after_failure: whether to refine the mesh after an NLP failure
+        (GPOPS-II does; off by default because the error estimate of a failed
+        NLP point is meaningless).
+    :param warm_ipopt: IPOPT options for the passes after the first, which start
+        from the previous mesh's solution: a small initial barrier parameter and
+        tiny bound pushes keep IPOPT from walking away from a nearly optimal point.
+    :param warm_start_error: use ``warm_ipopt`` only when the previous pass's max
+        error is below this (a coarse solution is not "nearly optimal").
+    :param graph: ``"mx"`` (default) evaluates the node functions through
+        ``Function.map``, so building the NLP and its exact Hessian costs the same
+        for any mesh size; ``"sx"`` inlines everything into one scalar graph
+        (faster evaluations, slower to build).
+    """
+
+    mesh_tolerance: float = 1e-6
+    max_mesh_iterations: int = 10
+    n_min: int = 4
+    n_max: int = 10
+    nlp_tolerance: float = 1e-9
+    max_nlp_iterations: int = 3000
+    ipopt: dict = field(default_factory=dict)
+    print_ipopt: bool = False
+    refine_after_failure: bool = False
+    graph: str = "mx"
+    warm_ipopt: dict = field(default_factory=lambda: dict(WARM_START_IPOPT))
+    warm_start_error: float = 1e-3
+
+    def __post_init__(self):
+        if self.graph not in ("mx", "sx"):
+            raise ValueError(f"graph must be 'mx' or 'sx', got {self.graph!r}")
+        if not self.mesh_tolerance > 0:
+            raise ValueError(f"mesh_tolerance must be positive, got {self.mesh_tolerance}")
+        if self.max_mesh_iterations < 1:
+            raise ValueError(f"max_mesh_iterations must be >= 1, got {self.max_mesh_iterations}")
+        if not 1 <= self.n_min <= self.n_max:
+            raise ValueError(f"need 1 <= n_min <= n_max, got {self.n_min}, {self.n_max}")
+        if not self.nlp_tolerance > 0:
+            raise ValueError(f"nlp_tolerance must be positive, got {self.nlp_tolerance}")
+
+
+def transcribe(
+    cp: CompiledProblem, mesh: Mesh, options: SolverOptions | None = None, warm: bool = False
+) -> Transcription:
+    """Build the NLP (and its IPOPT solver) of ``cp`` on ``mesh``.
+
+    :param warm: use ``options.warm_ipopt`` on top of the IPOPT options (the guess
+        is a converged solution on a nearby mesh).
+    """
+    import casadi as ca
+
+    opts = options or SolverOptions()
+    start = time.perf_counter()
+    p = cp.problem
+    nx, nu, nn, nc = p.n_x, p.n_u, mesh.n_nodes, mesh.n_collocation
+    big_d, h_col, w_col, s_nodes = _block_matrices(mesh)
+
+    sym = ca.MX if opts.graph == "mx" else ca.SX
+    xs = sym.sym("X", nx, nn)  # scaled, column = node
+    us = sym.sym("U", nu, nc)
+    zs = [ca.vec(xs), ca.vec(us)]  # column-major vec = node-major, matching pack()
+    if p.free_final_time:
+        # one copy of tf per node, chained by equalities: a single tf variable would
+        # couple every defect and make the KKT matrix's tf row and column dense
+        # (twice the factorisation time, and many more colours for the MX Hessian)
+        tfs = sym.sym("tf", 1, nn)
+        zs.append(ca.vec(tfs))
+        tf_nodes = tfs * p.time_scale
+    else:
+        tf_nodes = ca.repmat(sym(p.tf_lower), 1, nn)
+    tf = tf_nodes[0, nn - 1]
+    tf_col = tf_nodes[0, :nc]
+    t0 = p.t0
+    node = cp.node_function()
+    # one mapped call evaluates dynamics, path constraints and running cost at every
+    # collocation point; its derivatives are those of one node, reused nc times
+    f_sc, c_sc, lag = node.map(nc)(
+        xs[:, :nc], us, ca.DM(s_nodes[:nc]).T, ca.DM(h_col).T, tf_col
+    )  # fmt: skip
+    # defects, D X = (tf - t0) h / 2 f, divided by the state scale
+    defect = ca.mtimes(xs, _dm_sparse(big_d).T) - f_sc
+    g = [ca.vec(defect)]
+    groups = {"defects": slice(0, nx * nc)}
+    lbg = [np.zeros(nx * nc)]
+    ubg = [np.zeros(nx * nc)]
+    pos = nx * nc
+
+    def add(name, expr, lo, hi):
+        nonlocal pos
+        n = expr.numel()
+        if n == 0:
+            return
+        g.append(ca.vec(expr))
+        lbg.append(np.asarray(lo, dtype=float).ravel())
+        ubg.append(np.asarray(hi, dtype=float).ravel())
+        groups[name] = slice(pos, pos + n)
+        pos += n
+
+    if p.free_final_time:
+        add("time_links", (tfs[0, 1:] - tfs[0, : nn - 1]), np.zeros(nn - 1), np.zeros(nn - 1))
+    n_path = len(p.path_constraints)
+    if n_path:
+        add("path", c_sc, np.repeat((cp.path_lower / cp.path_scale)[:, None], nc, 1).T,
+            np.repeat((cp.path_upper / cp.path_scale)[:, None], nc, 1).T)  # fmt: skip
+    n_inv = len(p.invariants)
+    if n_inv:
+        gi = cp.invariant_function().map(nn - 1)(xs[:, 1:])
+        add("invariants", gi, np.zeros((nn - 1, n_inv)), np.zeros((nn - 1, n_inv)))
+    if p.endpoint_constraints:
+        b = cp.endpoint_function()(xs[:, 0], xs[:, nn - 1], tf)
+        add("endpoint", b, cp.end_lower / cp.end_scale, cp.end_upper / cp.end_scale)
+
+    cost = ca.mtimes((tf_col - t0) * 0.5 * lag, ca.DM(h_col * w_col)) + cp.mayer_function()(xs[:, 0], xs[:, nn - 1], tf)
+    nlp = {"x": ca.vertcat(*zs), "f": cost / p.cost_scale, "g": ca.vertcat(*g)}
+
+    # variable bounds (scaled)
+    xl = np.tile(p.state_lower, (nn, 1))
+    xu = np.tile(p.state_upper, (nn, 1))
+    xl[0], xu[0] = p.initial_lower, p.initial_upper
+    xl[-1], xu[-1] = p.final_lower, p.final_upper
+    lbx = [((xl - p.state_shift) / p.state_scale).ravel()]
+    ubx = [((xu - p.state_shift) / p.state_scale).ravel()]
+    lbx.append(((np.tile(p.control_lower, (nc, 1)) - p.control_shift) / p.control_scale).ravel())
+    ubx.append(((np.tile(p.control_upper, (nc, 1)) - p.control_shift) / p.control_scale).ravel())
+    if p.free_final_time:
+        lbx.append(np.full(nn, p.tf_lower / p.time_scale))
+        ubx.append(np.full(nn, p.tf_upper / p.time_scale if math.isfinite(p.tf_upper) else math.inf))
+
+    ipopt = {
+        "tol": opts.nlp_tolerance,
+        "max_iter": opts.max_nlp_iterations,
+        "print_level": 5 if opts.print_ipopt else 0,
+        "sb": "yes",
+        "linear_solver": "mumps",
+        "hessian_approximation": "exact",
+    }
+    if warm:
+        ipopt.update(opts.warm_ipopt)
+    ipopt.update(opts.ipopt)
+    solver = ca.nlpsol(
+        "lgr", "ipopt", nlp,
+        {"ipopt": ipopt, "print_time": False, "error_on_fail": False},
+    )  # fmt: skip
+    return Transcription(
+        cp, mesh, solver,
+        np.concatenate(lbx), np.concatenate(ubx), np.concatenate(lbg), np.concatenate(ubg),
+        groups, time.perf_counter() - start,
+    )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------
+# error estimate
+
+
+def estimate_errors(cp: CompiledProblem, sol: "CollocationSolution") -> np.ndarray:
+    """Max relative error on each mesh interval (GPOPS-II, Patterson & Rao 2014, Sect. 4).
+
+    On interval k with N LGR points take the N + 1 LGR points of a finer rule,
+    evaluate the solution's polynomials there, integrate the dynamics with that
+    rule's integration matrix from the interval's start, and compare:
+    e = |X_integrated - X_polynomial| / (1 + max over the interval of |X|),
+    maximised over the states and the new points.
+    """
+    mesh, interp = sol.mesh, sol.interpolant
+    t0, tf = sol.t0, sol.tf
+    all_s, owners = [], []
+    for k, n in enumerate(mesh.degrees):
+        m = int(n) + 1
+        a, b = mesh.breaks[k], mesh.breaks[k + 1]
+        all_s.append(a + (b - a) * (support_points(m) + 1.0) / 2.0)
+        owners.append(k)
+    # evaluate each interval's own polynomials (a point on a break belongs to the left
+    # interval's support here, so do it per interval rather than through interval_of)
+    xs, us = [], []
+    for k, s in zip(owners, all_s):
+        xs.append(interp.evaluate_in_interval(k, s, control=False))
+        us.append(interp.evaluate_in_interval(k, s[:-1], control=True))
+    t_col = np.concatenate([t0 + (tf - t0) * s[:-1] for s in all_s])
+    fx = cp.rhs(np.vstack([x[:-1] for x in xs]), np.vstack(us), t_col)
+    errors = np.empty(mesh.n_intervals)
+    pos = 0
+    for k, (n, x) in enumerate(zip(mesh.degrees, xs)):
+        m = int(n) + 1
+        a, b = mesh.breaks[k], mesh.breaks[k + 1]
+        fk = fx[pos : pos + m]
+        pos += m
+        xint = x[0] + (tf - t0) * (b - a) / 2.0 * (integration_matrix(m) @ fk)
+        denom = 1.0 + np.max(np.abs(x), axis=0)
+        errors[k] = np.max(np.abs(xint - x[1:]) / denom)
+    return errors
+
+
+# ---------------------------------------------------------------------------------
+# results
+
+
+class _Interp(PiecewiseLGR):
+    def evaluate_in_interval(self, k: int, s: np.ndarray, control: bool) -> np.ndarray:
+        mesh = self.mesh
+        a, b = mesh.breaks[k], mesh.breaks[k + 1]
+        tau = 2.0 * (np.asarray(s) - a) / (b - a) - 1.0
+        n, off = int(mesh.degrees[k]), int(mesh.offsets[k])
+        if control:
+            if n == 1:
+                return np.repeat(self.u[off : off + 1], tau.size, axis=0)
+            return lagrange_matrix(lgr_points(n), tau) @ self.u[off : off + n]
+        return lagrange_matrix(support_points(n), tau) @ self.x[off : off + n + 1]
+
+
+@dataclass
+class CollocationSolution:
+    """The NLP solution on one mesh.
+
+    :param mesh: the mesh.
+    :param t: times of the state nodes, ``(n_nodes,)``.
+    :param x: states at the nodes, ``(n_nodes, n_x)``.
+    :param u: controls at the collocation points, ``(n_nodes - 1, n_u)``.
+    """
+
+    problem: OptimalControlProblem
+    mesh: Mesh
+    t0: float
+    tf: float
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    cost: float
+    status: str
+    success: bool
+    nlp_iterations: int
+    solve_time_s: float
+    build_time_s: float
+    max_violation: float
+    violations: dict
+    errors: np.ndarray | None = None
+
+    @property
+    def interpolant(self) -> _Interp:
+        return _Interp(self.mesh, self.t0, self.tf, self.x, self.u)
+
+    def state(self, t) -> np.ndarray:
+        return self.interpolant.state(t)
+
+    def control(self, t) -> np.ndarray:
+        return self.interpolant.control(t)
+
+    @property
+    def max_error(self) -> float:
+        return float(np.max(self.errors)) if self.errors is not None else math.nan
+
+
+def _violations(tr: Transcription, z: np.ndarray, gval: np.ndarray) -> tuple[float, dict]:
+    """Largest violation of the (scaled) NLP constraints and bounds, overall and per group."""
+    def excess(v, lo, hi):
+        if v.size == 0:
+            return 0.0
+        return float(np.max(np.maximum(np.maximum(lo - v, v - hi), 0.0)))
+
+    out = {name: excess(gval[sl], tr.lbg[sl], tr.ubg[sl]) for name, sl in tr.g_groups.items()}
+    out["bounds"] = excess(z, tr.lbx, tr.ubx)
+    return max(out.values()), out
+
+
+def solve_on_mesh(tr: Transcription, guess: TrajectoryLike, ipopt_overrides: dict | None = None) -> CollocationSolution:
+    """Solve the transcribed NLP from a guess interpolated onto the mesh nodes."""
+    p, mesh = tr.problem, tr.mesh
+    tf_guess = float(np.clip(guess.tf, p.tf_lower, p.tf_upper))
+    s = mesh.nodes()
+    # guess given on its own time axis: map normalised time onto it
+    tg = guess.t0 + (guess.tf - guess.t0) * s
+    x0 = np.asarray(guess.state(tg), dtype=float).reshape(mesh.n_nodes, p.n_x)
+    u0 = np.asarray(guess.control(tg[:-1]), dtype=float).reshape(mesh.n_collocation, p.n_u)
+    z0 = tr.pack(x0, u0, tf_guess)
+    z0 = np.clip(z0, tr.lbx, tr.ubx)
+    start = time.perf_counter()
+    res = tr.solver(x0=z0, lbx=tr.lbx, ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
+    elapsed = time.perf_counter() - start
+    stats = tr.solver.stats()
+    z = np.asarray(res["x"]).ravel()
+    x, u, tf = tr.unpack(z)
+    worst, groups = _violations(tr, z, np.asarray(res["g"]).ravel())
+    return CollocationSolution(
+        problem=p, mesh=mesh, t0=p.t0, tf=tf, t=p.t0 + (tf - p.t0) * s, x=x, u=u,
+        cost=float(res["f"]) * p.cost_scale, status=str(stats.get("return_status", "?")),
+        success=bool(stats.get("success", False)), nlp_iterations=int(stats.get("iter_count", -1)),
+        solve_time_s=elapsed, build_time_s=tr.build_time_s, max_violation=worst, violations=groups,
+    )  # fmt: skip
+
+
+@dataclass
+class CollocationResult:
+    """Outcome of the hp loop: the last solution and one record per mesh pass."""
+
+    solution: CollocationSolution
+    records: list
+    converged: bool
+    total_time_s: float
+
+
+def solve(
+    problem: OptimalControlProblem | CompiledProblem,
+    guess: TrajectoryLike,
+    mesh: Mesh | None = None,
+    options: SolverOptions | None = None,
+    progress: Progress | None = None,
+    label: str = "",
+    warm_start: bool = False,
+) -> CollocationResult:
+    """Solve ``problem`` by LGR collocation with hp mesh refinement.
+
+    :param problem: the problem (or its :class:`CompiledProblem`, to reuse the CasADi functions).
+    :param guess: anything with ``t0``, ``tf``, ``state(t)``, ``control(t)`` (a
+        :class:`SampledGuess`, a previous :class:`CollocationSolution`, ...).
+    :param mesh: the first mesh (default: 10 intervals of ``n_min`` points).
+    :param options: :class:`SolverOptions`.
+    :param progress: called with a :class:`MeshIterationRecord` after each pass.
+    :param label: appended to the pass number in the records (e.g. a continuation stage).
+    :param warm_start: the guess is already a converged solution of a nearby
+        problem: use the warm-start IPOPT options from the first pass.
+    :return: :class:`CollocationResult`; ``converged`` is true when the NLP
+        succeeded and the mesh error met the tolerance.
+    """
+    opts = options or SolverOptions()
+    cp = problem if isinstance(problem, CompiledProblem) else CompiledProblem(problem)
+    mesh = mesh or Mesh.uniform(10, opts.n_min)
+    records = []
+    start = time.perf_counter()
+    sol = None
+    converged = False
+    warm = warm_start
+    for it in range(opts.max_mesh_iterations):
+        t_pass = time.perf_counter()
+        tr = transcribe(cp, mesh, opts, warm=warm)
+        sol = solve_on_mesh(tr, guess)
+        sol.errors = estimate_errors(cp, sol)
+        rec = MeshIterationRecord(
+            iteration=it, n_intervals=mesh.n_intervals, n_nodes=mesh.n_nodes, max_error=sol.max_error,
+            status=sol.status, success=sol.success, nlp_iterations=sol.nlp_iterations,
+            solve_time_s=time.perf_counter() - t_pass, cost=sol.cost, tf=sol.tf, label=label,
+        )  # fmt: skip
+        records.append(rec)
+        if progress is not None:
+            progress(rec)
+        if not sol.success and not opts.refine_after_failure:
+            break
+        if sol.success and sol.max_error <= opts.mesh_tolerance:
+            converged = True
+            break
+        new = refine_ph(mesh, sol.errors, opts.mesh_tolerance, opts.n_min, opts.n_max)
+        guess = sol
+        mesh = new
+        # far from converged the old point is no better than any guess: restart cold
+        warm = sol.max_error <= opts.warm_start_error
+    return CollocationResult(sol, records, converged, time.perf_counter() - start)
+
+
+__all__ = [
+    "CompiledProblem",
+    "SampledGuess",
+    "Transcription",
+    "SolverOptions",
+    "transcribe",
+    "estimate_errors",
+    "CollocationSolution",
+    "CollocationResult",
+    "solve_on_mesh",
+    "solve",
+]

@@ -1,0 +1,366 @@
+"""The paper's Example 2 as an optimal-control problem (Section ``sect:Ex2``).
+
+States: the 12 entry states of PROBLEM.md (``r, eA1..etaA, v, eB1..etaB, alpha,
+sigma``); controls: ``u_alpha, u_sigma`` and, in the default norm-keeping
+formulation, two more (``lambda_A, lambda_B``, below). The dynamics are
+:func:`rventry_env.physics.entry.entry_rhs` on CasADi symbols: one copy of the
+physics (Eqs. ``Ex2-EOM`` to ``Ex2-EOM-Ftot``).
+
+The implicit constraints (Section ``sect:Ex2-Implementation``)
+--------------------------------------------------------------
+The exact flow keeps |q_A| = |q_B| = 1 and omega_A1 = omega_B1 = 0, but a
+collocation solution keeps them only to truncation error, and then the endpoint
+equations Eq. ``Ex2-endpoint`` (three equations asking a possibly non-unit a1 to
+equal a unit vector) become inconsistent. Two remedies are available here:
+
+``norm_mode="projection"`` (default)
+    Each quaternion gets one extra control along itself,
+    dq/dt = (Eq. ``Ex2-EOM`` rates) + lambda q, and the unit norm is imposed as an
+    equality at every state node after t0. Equivalence: along any trajectory with
+    |q| = 1, d|q|^2/dt = 2 q . (rates) + 2 lambda |q|^2 = 2 lambda (the rates of
+    Eq. ``Ex2-EOM`` are orthogonal to q), so the exact problem forces lambda = 0
+    and the two problems have the same solutions. A radial rate adds no angular
+    velocity (omega = 2 G(q) dq/dt with G(q) q = 0), so omega_A1 = omega_B1 = 0
+    are untouched. Degrees of freedom balance one for one (one control, one
+    equality per node), so the NLP stays square and LICQ holds, and lambda
+    measures how much the discretisation wanted to drift (it tends to zero as the
+    mesh is refined). The norms are then exact at every node, so Eq.
+    ``Ex2-endpoint`` is consistent; of its three equations only two are
+    independent on the unit sphere, and those two are imposed (a1 orthogonal to
+    the target's east and north directions) with the sign fixed by a1 . target > 0.
+
+``norm_mode="paper"``
+    The paper's remedy: controls u1..u4 replace the ODEs of eA2, eA3, eB2, eB3,
+    with |u_i - (Eq. ``Ex2-EOM`` rate)| <= delta (delta = 1e-6) as path
+    constraints. The norms then drift within what the band allows; the endpoint
+    conditions are written with the homogeneous (norm-free) direction of a1 so
+    they never contradict a slightly non-unit quaternion.
+
+The vertical impact eB1(tf) = etaB(tf) = 0 is imposed exactly as final-state
+bounds in both modes. For the continuation used by the initial-guess generator
+the final flight-path condition can instead be relaxed to gamma(tf) <= gamma_max
+(``final_gamma_max_deg``); the shipped solution always uses the exact condition.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from rventry_env.core.backend import casadi_ns
+from rventry_env.physics.entry import ENTRY_STATE_NAMES, entry_forces, entry_rhs
+from rventry_env.physics.model import EntryModel
+from rventry_env.reference.collocation.problem import (
+    EndpointConstraint,
+    Invariant,
+    OptimalControlProblem,
+    PathConstraint,
+)
+
+DEG = math.pi / 180.0
+NORM_MODES = ("projection", "paper")
+
+
+@dataclass(frozen=True)
+class EntryProblemConfig:
+    """Constants of Example 2 (PROBLEM.md defaults; angles in degrees at this interface).
+
+    :param model: the force model (default :class:`EntryModel`).
+    :param k1: weight of the angle-of-attack term of Eq. ``Ex2-Cost``.
+    :param k2: weight of the angle-of-attack-rate term.
+    :param k3: weight of the bank-rate term.
+    :param alpha_bar_deg: angle of attack of maximum L/D.
+    :param alpha_max_deg: largest angle of attack.
+    :param u_alpha_max_deg: largest |d alpha/dt| (deg/s).
+    :param u_sigma_max_deg: largest |d sigma/dt| (deg/s).
+    :param a_max_g: largest sqrt(L^2 + D^2)/m in units of g0.
+    :param q_min: smallest dynamic pressure (Pa).
+    :param h0: initial altitude (m).
+    :param v0: initial speed (m/s).
+    :param e_a0: initial C_AE Euler parameters (eA1, eA2, eA3, etaA).
+    :param e_b0: initial C_BA Euler parameters.
+    :param vf: final speed (m/s).
+    :param hf: final altitude (m).
+    :param alpha_f_deg: final angle of attack.
+    :param target_lon_deg: target longitude (Earth-relative, deg E).
+    :param target_lat_deg: target geocentric latitude (deg).
+    :param norm_mode: ``"projection"`` or ``"paper"`` (module docstring).
+    :param delta: band of the paper's remedy.
+    :param final_gamma_max_deg: ``None`` for the exact vertical impact, else the
+        relaxed condition gamma(tf) <= this (continuation only).
+    :param tf_bounds: (smallest, largest) final time (s).
+    """
+
+    model: EntryModel = field(default_factory=EntryModel)
+    k1: float = 1.0
+    k2: float = 1.0
+    k3: float = 1.0
+    alpha_bar_deg: float = 11.86
+    alpha_max_deg: float = 25.0
+    u_alpha_max_deg: float = 10.0
+    u_sigma_max_deg: float = 30.0
+    a_max_g: float = 12.0
+    q_min: float = 12e3
+    h0: float = 37e3
+    v0: float = 7138.0
+    e_a0: tuple = (0.0, 0.0, 0.0, 1.0)
+    e_b0: tuple = (0.0, 0.0, math.sqrt(2.0) / 2.0, math.sqrt(2.0) / 2.0)
+    vf: float = 1219.0
+    hf: float = 0.0
+    alpha_f_deg: float = 0.0
+    target_lon_deg: float = 25.15
+    target_lat_deg: float = 0.0
+    norm_mode: str = "projection"
+    delta: float = 1e-6
+    final_gamma_max_deg: float | None = None
+    tf_bounds: tuple = (50.0, 3000.0)
+
+    def __post_init__(self):
+        if self.norm_mode not in NORM_MODES:
+            raise ValueError(f"norm_mode must be one of {NORM_MODES}, got {self.norm_mode!r}")
+        positive = ("alpha_max_deg", "u_alpha_max_deg", "u_sigma_max_deg", "a_max_g", "v0", "vf", "delta")
+        for name in positive:
+            val = getattr(self, name)
+            if not (val > 0 and math.isfinite(val)):
+                raise ValueError(f"{name} must be positive and finite, got {val}")
+        if not 0 <= self.alpha_bar_deg <= self.alpha_max_deg:
+            raise ValueError(f"alpha_bar_deg ({self.alpha_bar_deg}) must lie in [0, alpha_max_deg]")
+        if not 0 <= self.alpha_f_deg <= self.alpha_max_deg:
+            raise ValueError(f"alpha_f_deg ({self.alpha_f_deg}) must lie in [0, alpha_max_deg]")
+        if self.q_min < 0:
+            raise ValueError(f"q_min must be >= 0, got {self.q_min}")
+        for name in ("e_a0", "e_b0"):
+            q = np.asarray(getattr(self, name), dtype=float)
+            if q.shape != (4,) or abs(np.linalg.norm(q) - 1.0) > 1e-12:
+                raise ValueError(f"{name} must be 4 Euler parameters of unit norm, got {getattr(self, name)}")
+        if self.h0 <= self.hf:
+            raise ValueError(f"h0 ({self.h0}) must exceed hf ({self.hf})")
+        if not -90.0 <= self.target_lat_deg <= 90.0:
+            raise ValueError(f"target_lat_deg must lie in [-90, 90], got {self.target_lat_deg}")
+        lo, hi = self.tf_bounds
+        if not 0 < lo < hi:
+            raise ValueError(f"tf_bounds must satisfy 0 < lower < upper, got {self.tf_bounds}")
+        if self.final_gamma_max_deg is not None and not -90.0 < self.final_gamma_max_deg <= 90.0:
+            raise ValueError(f"final_gamma_max_deg must lie in (-90, 90], got {self.final_gamma_max_deg}")
+
+    def replace(self, **changes) -> "EntryProblemConfig":
+        return replace(self, **changes)
+
+    # derived, SI
+    @property
+    def alpha_bar(self) -> float:
+        return self.alpha_bar_deg * DEG
+
+    @property
+    def alpha_max(self) -> float:
+        return self.alpha_max_deg * DEG
+
+    @property
+    def u_alpha_max(self) -> float:
+        return self.u_alpha_max_deg * DEG
+
+    @property
+    def u_sigma_max(self) -> float:
+        return self.u_sigma_max_deg * DEG
+
+    @property
+    def a_max(self) -> float:
+        return self.a_max_g * self.model.planet.g0
+
+    def target_e(self) -> np.ndarray:
+        """Unit vector to the target in E."""
+        lon, lat = self.target_lon_deg * DEG, self.target_lat_deg * DEG
+        return np.array([math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)])
+
+    def target_frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(target, east, north) unit vectors in E at the target."""
+        lon, lat = self.target_lon_deg * DEG, self.target_lat_deg * DEG
+        east = np.array([-math.sin(lon), math.cos(lon), 0.0])
+        north = np.array([-math.sin(lat) * math.cos(lon), -math.sin(lat) * math.sin(lon), math.cos(lat)])
+        return self.target_e(), east, north
+
+    def initial_state(self, alpha: float, sigma: float) -> np.ndarray:
+        """The 12-state initial condition of Table ``tab:Ex2-BCs`` with the given alpha, sigma (rad)."""
+        r0 = self.model.planet.radius + self.h0
+        return np.array([r0, *self.e_a0, self.v0, *self.e_b0, alpha, sigma], dtype=float)
+
+
+def position_direction(e_a):
+    """a1 in E components from C_AE Euler parameters, homogeneous form.
+
+    (eta^2 + e1^2 - e2^2 - e3^2, 2(e1 e2 + e3 eta), 2(e1 e3 - e2 eta)) equals the first
+    row of Eq. ``CAE-final`` when the norm is 1 and is |q|^2 a1 otherwise, so its
+    direction is the position direction for any non-zero q.
+    """
+    e1, e2, e3, eta = e_a
+    return (
+        eta * eta + e1 * e1 - e2 * e2 - e3 * e3,
+        2 * (e1 * e2 + e3 * eta),
+        2 * (e1 * e3 - e2 * eta),
+    )
+
+
+def sin_flight_path(e_b):
+    """sin(gamma) = b1 . a1 = 1 - 2 (eB2^2 + eB3^2) (Eq. ``Ex2-EOM``, r_dot = v sin gamma)."""
+    _, e2, e3, _ = e_b
+    return 1 - 2 * (e2 * e2 + e3 * e3)
+
+
+def control_names(config: EntryProblemConfig) -> tuple[str, ...]:
+    if config.norm_mode == "projection":
+        return ("u_alpha", "u_sigma", "lambda_A", "lambda_B")
+    return ("u_alpha", "u_sigma", "u1", "u2", "u3", "u4")
+
+
+def entry_dynamics(config: EntryProblemConfig, ns=None):
+    """The dynamics callable ``(x, u, t) -> dx/dt`` of the chosen formulation."""
+    ns = ns or casadi_ns()
+    model = config.model
+
+    if config.norm_mode == "projection":
+
+        def f(x, u, t):
+            d = list(entry_rhs(x, u[:2], model, ns))
+            lam_a, lam_b = u[2], u[3]
+            for i in range(1, 5):  # radial rate: keeps |q_A| = 1, adds no angular velocity
+                d[i] = d[i] + lam_a * x[i]
+            for i in range(6, 10):
+                d[i] = d[i] + lam_b * x[i]
+            return d
+
+        return f
+
+    def f_paper(x, u, t):
+        d = list(entry_rhs(x, u[:2], model, ns))
+        # Section sect:Ex2-Implementation: u1..u4 replace d(eA2), d(eA3), d(eB2), d(eB3)
+        d[2], d[3], d[7], d[8] = u[2], u[3], u[4], u[5]
+        return d
+
+    return f_paper
+
+
+def _rate_band(config: EntryProblemConfig, ns, state_index: int, control_index: int) -> PathConstraint:
+    model = config.model
+
+    def fn(x, u, t):
+        return u[control_index] - entry_rhs(x, u[:2], model, ns)[state_index]
+
+    name = f"band_{ENTRY_STATE_NAMES[state_index]}"
+    return PathConstraint(name, fn, lower=-config.delta, upper=config.delta, scale=config.delta)
+
+
+def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlProblem:
+    """The Example 2 optimal-control problem (see the module docstring)."""
+    config = config or EntryProblemConfig()
+    ns = casadi_ns()
+    model = config.model
+    re = model.planet.radius
+    nan_free = math.inf
+    # --- cost, Eq. Ex2-Cost
+    ab, am, uam, usm = config.alpha_bar, config.alpha_max, config.u_alpha_max, config.u_sigma_max
+    k1, k2, k3 = config.k1, config.k2, config.k3
+
+    def lagrange(x, u, t):
+        return k1 * ((x[10] - ab) / am) ** 2 + k2 * (u[0] / uam) ** 2 + k3 * (u[1] / usm) ** 2
+
+    # --- path constraints, Eq. Ex2-path (alpha and the rates are bounds below)
+    path = [
+        PathConstraint("aero_accel", lambda x, u, t: entry_forces(x, model, ns).aero_accel, upper=config.a_max,
+                       scale=config.a_max),
+        PathConstraint("dynamic_pressure", lambda x, u, t: entry_forces(x, model, ns).dynamic_pressure,
+                       lower=config.q_min, scale=1e5),
+    ]  # fmt: skip
+    invariants = []
+    if config.norm_mode == "projection":
+        invariants = [
+            Invariant("unit_q_A", lambda x: x[1] * x[1] + x[2] * x[2] + x[3] * x[3] + x[4] * x[4] - 1.0),
+            Invariant("unit_q_B", lambda x: x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9] - 1.0),
+        ]
+    else:
+        path += [_rate_band(config, ns, s, c) for s, c in ((2, 2), (3, 3), (7, 4), (8, 5))]
+
+    # --- endpoint, Eq. Ex2-endpoint: two independent equations plus the sign
+    target, east, north = config.target_frame()
+
+    def along(vec):
+        def fn(x0, xf, t0, tf):
+            a1 = position_direction(xf[1:5])
+            return a1[0] * vec[0] + a1[1] * vec[1] + a1[2] * vec[2]
+
+        return fn
+
+    endpoint = [
+        EndpointConstraint("target_east", along(east), lower=0.0, upper=0.0),
+        EndpointConstraint("target_north", along(north), lower=0.0, upper=0.0),
+        EndpointConstraint("target_side", along(target), lower=0.5),
+    ]
+    if config.final_gamma_max_deg is not None:
+        limit = math.sin(config.final_gamma_max_deg * DEG)
+        endpoint.append(
+            EndpointConstraint("final_gamma", lambda x0, xf, t0, tf: sin_flight_path(xf[6:10]), upper=limit)
+        )
+
+    # --- bounds and boundary conditions, Table tab:Ex2-BCs
+    q_lo, q_hi = -1.5, 1.5  # never active: the norms are 1
+    state_lower = [re - 1.0, *[q_lo] * 4, 50.0, *[q_lo] * 4, 0.0, -8 * math.pi]
+    state_upper = [re + 150e3, *[q_hi] * 4, 8000.0, *[q_hi] * 4, config.alpha_max, 8 * math.pi]
+    x0 = config.initial_state(0.0, 0.0)
+    initial_lower = x0.copy()
+    initial_upper = x0.copy()
+    initial_lower[10:12] = (0.0, -8 * math.pi)  # alpha(0), sigma(0) free
+    initial_upper[10:12] = (config.alpha_max, 8 * math.pi)
+    final_lower = np.full(12, -nan_free)
+    final_upper = np.full(12, nan_free)
+    final_lower[0] = final_upper[0] = re + config.hf
+    final_lower[5] = final_upper[5] = config.vf
+    final_lower[10] = final_upper[10] = config.alpha_f_deg * DEG
+    if config.final_gamma_max_deg is None:
+        final_lower[6] = final_upper[6] = 0.0  # eB1(tf) = 0 } vertical impact, exact
+        final_lower[9] = final_upper[9] = 0.0  # etaB(tf) = 0 }
+    names = control_names(config)
+    n_extra = len(names) - 2
+    extra_bound = 10.0 if config.norm_mode == "projection" else 1.0  # 1/s: far from any value reached
+    control_lower = [-uam, -usm] + [-extra_bound] * n_extra
+    control_upper = [uam, usm] + [extra_bound] * n_extra
+    extra_scale = 1e-3 if config.norm_mode == "projection" else 1e-2
+
+    return OptimalControlProblem(
+        name=f"rv-euler-entry-{config.norm_mode}",
+        state_names=ENTRY_STATE_NAMES,
+        control_names=names,
+        dynamics=entry_dynamics(config, ns),
+        state_lower=state_lower,
+        state_upper=state_upper,
+        control_lower=control_lower,
+        control_upper=control_upper,
+        initial_lower=initial_lower,
+        initial_upper=initial_upper,
+        final_lower=final_lower,
+        final_upper=final_upper,
+        t0=0.0,
+        tf_lower=config.tf_bounds[0],
+        tf_upper=config.tf_bounds[1],
+        lagrange=lagrange,
+        path_constraints=path,
+        endpoint_constraints=endpoint,
+        invariants=invariants,
+        state_scale=[1e5, 1, 1, 1, 1, 1e4, 1, 1, 1, 1, 0.5, math.pi],
+        state_shift=[re, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
+        control_scale=[uam, usm] + [extra_scale] * n_extra,
+        control_shift=[0.0] * len(names),
+        time_scale=500.0,
+        cost_scale=10.0,
+    )
+
+
+__all__ = [
+    "NORM_MODES",
+    "EntryProblemConfig",
+    "position_direction",
+    "sin_flight_path",
+    "control_names",
+    "entry_dynamics",
+    "entry_problem",
+]
