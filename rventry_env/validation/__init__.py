@@ -1,0 +1,74 @@
+"""The model-validation loop: replay measured flight data, name the missing effect, add it.
+
+Rooms (one-way dependencies, physics knows nothing of this package):
+
+* :mod:`~rventry_env.validation.record` reads and validates a flight record;
+* :mod:`~rventry_env.validation.setup`, :mod:`~rventry_env.validation.controls`,
+  :mod:`~rventry_env.validation.replay` fly it with the rv-Euler entry model;
+* :mod:`~rventry_env.validation.effects`, :mod:`~rventry_env.validation.fit`,
+  :mod:`~rventry_env.validation.statistics`, :mod:`~rventry_env.validation.identify`
+  trace the residual to an effect and build the identified model;
+* :mod:`~rventry_env.validation.truth`, :mod:`~rventry_env.validation.simulate`
+  make synthetic records through an independent Cartesian truth model;
+* :mod:`~rventry_env.validation.apollo4` ships the Apollo 4 flight record.
+
+Typical use::
+
+    from rventry_env.validation import identify_record, load_model
+    ident = identify_record("flight.csv")
+    model = ident.model                      # an EntryModel with the effect added
+    # gym.make("RvEntry-v0", model=model)
+
+Everything heavy (SciPy) is imported by the modules, not here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def identify_record(path: str | Path, **kwargs):
+    """Load a record and run :func:`~rventry_env.validation.identify.identify` on it.
+
+    :param path: the record CSV (its sidecar is read from beside it).
+    :param kwargs: passed to :func:`~rventry_env.validation.identify.identify`
+        (``vehicle``, ``start``, ``candidates``, ``threshold``, ``h_max``, ``max_effects``, ``progress``).
+    :return: an :class:`~rventry_env.validation.identify.Identification`; ``.model`` is the
+        identified :class:`~rventry_env.physics.EntryModel`, ``.report`` the JSON report.
+    """
+    from rventry_env.validation.identify import identify
+    from rventry_env.validation.record import load_record
+
+    return identify(load_record(path), **kwargs)
+
+
+def identified_model(source):
+    """The identified :class:`~rventry_env.physics.EntryModel` from an identification, a report or a file.
+
+    :param source: an :class:`~rventry_env.validation.identify.Identification`, a report dict,
+        or the path of a report JSON (``rventry identify --json``) or model JSON (``--model-out``).
+    """
+    from rventry_env.validation.model_io import load_model, model_from_dict
+
+    if hasattr(source, "model") and hasattr(source, "report"):
+        return source.model
+    if isinstance(source, dict):
+        return model_from_dict(source)
+    return load_model(source)
+
+
+def save_model(model, path):
+    """Write an :class:`~rventry_env.physics.EntryModel` to JSON (see :mod:`~rventry_env.validation.model_io`)."""
+    from rventry_env.validation.model_io import save_model as _save
+
+    return _save(model, path)
+
+
+def load_model(path):
+    """Read an :class:`~rventry_env.physics.EntryModel` from a model or report JSON."""
+    from rventry_env.validation.model_io import load_model as _load
+
+    return _load(path)
+
+
+__all__ = ["identify_record", "identified_model", "save_model", "load_model"]

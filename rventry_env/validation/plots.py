@@ -1,0 +1,134 @@
+"""Plots of an identification (PNG, matplotlib's Agg backend): residuals, ranking, density."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_residuals(ident, path: Path) -> Path:
+    """Residual against time, before (current model) and after (identified model).
+
+    Full-ECEF records: the norms of the position and velocity errors on a log
+    scale, both fits on one axis. Reduced records: signed altitude and speed
+    residuals, before and after side by side (their sizes differ by orders).
+    """
+    plt = _pyplot()
+    t = ident.replay.t_obs
+    rep = ident.report
+    kind = rep["record"]["kind"]
+    label_after = "after: " + (" + ".join(rep["effects"]) or "none")
+    fits = ((ident.baseline, "before: current model", "C3"), (ident.final, label_after, "C0"))
+    key = "position_rms_m" if kind == "ecef" else "altitude_rms_m"
+    title = f"replayed - measured: rms {rep['before'][key]:.4g} m before, {rep['after'][key]:.4g} m after"
+    if kind == "ecef":
+        fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+        for fit, label, color in fits:
+            e = fit.residual
+            for ax, y in zip(axes, (np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1))):
+                ok = np.isfinite(y)
+                ax.plot(t[ok], y[ok], "-", color=color, label=label, lw=1)
+        axes[0].set_ylabel("position error |dr| (m)")
+        axes[1].set_ylabel("velocity error |dv| (m/s)")
+        for ax in axes:
+            ax.set_yscale("log")
+        axes[1].set_xlabel("t (s)")
+        axes[0].legend(loc="best", fontsize=8)
+        axes[0].set_title(title, fontsize=10)
+    else:
+        fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
+        for col, (fit, label, color) in enumerate(fits):
+            for row, unit in enumerate(("altitude residual (m)", "speed residual (m/s)")):
+                ax = axes[row, col]
+                y = fit.residual[:, row]
+                ok = np.isfinite(y)
+                ax.plot(t[ok], y[ok], ".-", color=color, lw=1, ms=3)
+                ax.axhline(0.0, color="k", lw=0.5)
+                ax.set_ylabel(unit)
+            axes[0, col].set_title(label, fontsize=10)
+            axes[1, col].set_xlabel("t (s)")
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_ranking(ident, path: Path) -> Path:
+    """BIC improvement of every candidate over the current model (step 1), with the threshold."""
+    plt = _pyplot()
+    step = ident.report["steps"][0]
+    rows = step["tried"]
+    names = [r["effect"] for r in rows][::-1]
+    imp = np.array([r["improvement_over_current"] for r in rows][::-1])
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    colors = ["C2" if n == step["accepted"] else "C7" for n in names]
+    # symmetric log: improvements span from a few units to tens of thousands
+    ax.barh(names, np.sign(imp) * np.log10(1 + np.abs(imp)), color=colors)
+    thr = ident.report["bic_threshold"]
+    ax.axvline(np.log10(1 + thr), color="k", ls="--", lw=1, label=f"threshold {thr:g}")
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_xlabel("BIC improvement over the current model, sign(x) log10(1 + |x|)")
+    ax.set_title(f"candidates (effect: {ident.report['effect']}, effective samples "
+                 f"{step['effective_samples']:.0f})", fontsize=10)  # fmt: skip
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_density(ident, path: Path) -> Path | None:
+    """The record's density against the current model atmosphere, with the corrections (if measured)."""
+    dc = ident.report.get("density_check")
+    if not dc:
+        return None
+    from rventry_env.core.backend import NUMPY
+    from rventry_env.physics.atmosphere import piecewise_linear
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 5))
+    h = np.array(dc["altitude_m"])
+    ax.plot(dc["current"]["log_ratio"], h / 1e3, "o", ms=4, label="record / current model")
+    hh = np.linspace(h.min(), h.max(), 200)
+    mc = dc["measured_correction"]
+    ax.plot(piecewise_linear(hh, mc["knots_m"], mc["log_factors"], NUMPY), hh / 1e3, "-", color="C1",
+            label="correction fitted to the record's density")  # fmt: skip
+    knots = ident.report.get("density_knots_m")
+    if knots:
+        lf = [v for k, v in ident.report["parameters"].items() if k.startswith("dlnrho_")]
+        ax.plot(piecewise_linear(hh, knots, lf, NUMPY), hh / 1e3, "--", color="C2",
+                label="density_profile identified from the trajectory")  # fmt: skip
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_xlabel("ln(rho_record / rho_model)")
+    ax.set_ylabel("altitude (km)")
+    ax.legend(fontsize=8)
+    ax.set_title("flight-derived density vs the model atmosphere", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_plots(ident, folder: str | Path) -> list[Path]:
+    """Write every plot of an identification into ``folder``; returns the files."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    out = [plot_residuals(ident, folder / "residuals.png"), plot_ranking(ident, folder / "ranking.png")]
+    d = plot_density(ident, folder / "density.png")
+    if d is not None:
+        out.append(d)
+    return out
+
+
+__all__ = ["plot_residuals", "plot_ranking", "plot_density", "write_plots"]

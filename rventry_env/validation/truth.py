@@ -1,0 +1,220 @@
+"""An independent truth model for synthetic flight records: Newton's law in ECEF Cartesian form.
+
+This module is the one deliberate second copy of the entry physics in rventry. It
+exists as a **test oracle** for the model-validation loop, so it must not share
+the identification's assumptions or code:
+
+* the state is the ECEF position and Earth-relative velocity ``(r_E, v_E)``, not
+  the rv-Euler parameters, and the rotating-frame terms are written as vector
+  cross products (-2 w x v - w x (w x r)) rather than the paper's apparent force;
+* every force (point-mass + J2 gravity in Cartesian form, exponential density,
+  the CAV-H coefficient fit, lift direction from the conventional bank angle,
+  wind) is evaluated here from PROBLEM.md's formulas, with nothing imported from
+  :mod:`rventry_env.physics` or :mod:`rventry_env.core`;
+* it is integrated by SciPy's adaptive DOP853 with tight tolerances, not by the
+  project's fixed-step RK4;
+* its density error (the ``density_profile`` effect) is a smooth sinusoid in log
+  density, a shape the identification's piecewise-linear correction can only
+  approximate.
+
+Shared with the identification is only what a flight record *means*: the
+conventional bank angle mu (0 = lift up, positive toward b1 x up, measured about
+the Earth-relative velocity) and that lift is normal to the air-relative velocity
+(PROBLEM.md). ``tests/test_validation_truth.py`` cross-checks this model against
+the rv-Euler entry dynamics without effects, and each effect against its
+force-model part.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+# default J2 of the Earth (EGM-96), the magnitude of the ``j2_gravity`` effect
+EARTH_J2 = 1.08262668e-3
+
+
+@dataclass(frozen=True)
+class TruthWorld:
+    """Planet, atmosphere, vehicle and the effects a synthetic flight contains.
+
+    :param radius: planet radius (m); altitude is |r| - radius.
+    :param mu: gravitational parameter (m^3/s^2).
+    :param omega: rotation rate about e3 (rad/s).
+    :param j2: second zonal harmonic (0 = point mass; the ``j2_gravity`` effect).
+    :param rho0: sea-level density of the exponential atmosphere (kg/m^3).
+    :param scale_height: its scale height (m).
+    :param sound_speed: constant speed of sound for the Mach number (m/s).
+    :param density_amplitude: the ``density_profile`` effect: ln(rho_true / rho_exp) =
+        A sin(2 pi (h - density_phase_altitude) / density_wavelength).
+    :param density_wavelength: wavelength of that profile in altitude (m).
+    :param density_phase_altitude: its zero crossing (m).
+    :param cl_scale: the ``lift_coefficient`` effect (C_L multiplied by this).
+    :param cd_scale: the ``drag_coefficient`` effect (C_D multiplied by this).
+    :param wind_east: the ``wind`` effect, eastward air velocity (m/s).
+    :param wind_north: northward air velocity (m/s).
+    :param mass: vehicle mass (kg), CAV-H by default.
+    :param area: reference area (m^2).
+    """
+
+    radius: float = 6378137.0
+    mu: float = 3.986004418e14
+    omega: float = 7.292115e-5
+    j2: float = 0.0
+    rho0: float = 1.225
+    scale_height: float = 7200.0
+    sound_speed: float = 300.0
+    density_amplitude: float = 0.0
+    density_wavelength: float = 80e3
+    density_phase_altitude: float = 30e3
+    cl_scale: float = 1.0
+    cd_scale: float = 1.0
+    wind_east: float = 0.0
+    wind_north: float = 0.0
+    mass: float = 907.2
+    area: float = 0.4839
+
+
+def gravity_ecef(r: np.ndarray, world: TruthWorld) -> np.ndarray:
+    """Gravitational acceleration in ECEF: point mass plus the standard Cartesian J2 terms.
+
+    :param r: position (3,) in m.
+    :param world: the planet.
+    """
+    x, y, z = r
+    rn = math.sqrt(x * x + y * y + z * z)
+    g = -world.mu / rn**3 * r
+    if world.j2:
+        k = 1.5 * world.j2 * world.mu * world.radius**2 / rn**5
+        zz = 5.0 * z * z / (rn * rn)
+        g = g + k * np.array([x * (zz - 1.0), y * (zz - 1.0), z * (zz - 3.0)])
+    return g
+
+
+def density(h: float, world: TruthWorld) -> float:
+    """Truth density (kg/m^3) at altitude ``h`` (m), including the density-profile effect."""
+    rho = world.rho0 * math.exp(-h / world.scale_height)
+    if world.density_amplitude:
+        phase = 2.0 * math.pi * (h - world.density_phase_altitude) / world.density_wavelength
+        rho *= math.exp(world.density_amplitude * math.sin(phase))
+    return rho
+
+
+def cav_h_coefficients(alpha: float, mach: float) -> tuple[float, float]:
+    """(C_L, C_D) of the CAV-H fit in PROBLEM.md, with alpha in rad (converted to degrees)."""
+    a = math.degrees(alpha)
+    cl = -0.2317 + 0.0513 * a + 0.2945 * math.exp(-0.1028 * mach)
+    cd = 0.024 + 7.24e-4 * a * a + 0.406 * math.exp(-0.323 * mach)
+    return cl, cd
+
+
+def wind_ecef(r: np.ndarray, world: TruthWorld) -> np.ndarray:
+    """Horizontal wind (m/s) in ECEF from its east and north components at position ``r``."""
+    if not (world.wind_east or world.wind_north):
+        return np.zeros(3)
+    up = r / np.linalg.norm(r)
+    east = np.cross([0.0, 0.0, 1.0], up)
+    east /= np.linalg.norm(east)
+    north = np.cross(up, east)
+    return world.wind_east * east + world.wind_north * north
+
+
+def lift_direction(r: np.ndarray, v: np.ndarray, v_air: np.ndarray, bank: float) -> np.ndarray:
+    """Unit lift direction for the conventional bank angle ``bank`` (rad).
+
+    The bank is measured about the Earth-relative velocity: mu = 0 is the part of
+    the local vertical normal to v, positive rolls toward v x up. The lift is the
+    part of that direction normal to the air-relative velocity.
+    """
+    up = r / np.linalg.norm(r)
+    vh = v / np.linalg.norm(v)
+    up_n = up - np.dot(up, vh) * vh
+    up_n /= np.linalg.norm(up_n)
+    right = np.cross(vh, up_n)
+    l0 = math.cos(bank) * up_n + math.sin(bank) * right
+    va = v_air / np.linalg.norm(v_air)
+    lv = l0 - np.dot(l0, va) * va
+    return lv / np.linalg.norm(lv)
+
+
+def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world: TruthWorld) -> np.ndarray:
+    """Earth-relative acceleration d(v_E)/dt in ECEF (m/s^2) for one state and control.
+
+    Newton's law seen from the rotating frame:
+    a = g + (L + D)/m - 2 w x v - w x (w x r), w = (0, 0, omega).
+    """
+    w = np.array([0.0, 0.0, world.omega])
+    h = np.linalg.norm(r) - world.radius
+    v_air = v - wind_ecef(r, world)
+    speed_air = np.linalg.norm(v_air)
+    q = 0.5 * density(h, world) * speed_air**2
+    cl, cd = cav_h_coefficients(alpha, speed_air / world.sound_speed)
+    k = q * world.area / world.mass
+    drag = -k * world.cd_scale * cd * v_air / speed_air
+    lift = k * world.cl_scale * cl * lift_direction(r, v, v_air, bank)
+    return gravity_ecef(r, world) + drag + lift - 2.0 * np.cross(w, v) - np.cross(w, np.cross(w, r))
+
+
+def ecef_from_spherical(
+    radius: float, longitude: float, latitude: float, speed: float, flight_path: float, azimuth: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """ECEF position and Earth-relative velocity from spherical coordinates (rad; azimuth from north to east)."""
+    cl, sl, co, so = math.cos(latitude), math.sin(latitude), math.cos(longitude), math.sin(longitude)
+    up = np.array([cl * co, cl * so, sl])
+    east = np.array([-so, co, 0.0])
+    north = np.array([-sl * co, -sl * so, cl])
+    horizontal = math.cos(azimuth) * north + math.sin(azimuth) * east
+    return radius * up, speed * (math.sin(flight_path) * up + math.cos(flight_path) * horizontal)
+
+
+Controls = Callable[[float], tuple[float, float]]
+
+
+def fly(
+    world: TruthWorld,
+    r0: np.ndarray,
+    v0: np.ndarray,
+    controls: Controls,
+    t_eval: np.ndarray,
+    rtol: float = 1e-11,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate a flight through the truth world and sample it.
+
+    :param world: the truth model.
+    :param r0: ECEF position at ``t_eval[0]`` (m).
+    :param v0: Earth-relative ECEF velocity at ``t_eval[0]`` (m/s).
+    :param controls: ``t -> (alpha, conventional bank mu)`` in rad.
+    :param t_eval: increasing sample times (s).
+    :param rtol: relative tolerance of DOP853 (absolute tolerances follow from it).
+    :return: positions and velocities at ``t_eval``, each ``(n, 3)``.
+    """
+    from scipy.integrate import solve_ivp
+
+    def rhs(t, s):
+        alpha, bank = controls(t)
+        return np.concatenate([s[3:], acceleration(s[:3], s[3:], alpha, bank, world)])
+
+    t_eval = np.asarray(t_eval, dtype=float)
+    s0 = np.concatenate([np.asarray(r0, float), np.asarray(v0, float)])
+    atol = np.array([1e-4] * 3 + [1e-7] * 3) * (rtol / 1e-11)
+    sol = solve_ivp(rhs, (t_eval[0], t_eval[-1]), s0, method="DOP853", t_eval=t_eval, rtol=rtol, atol=atol)
+    if not sol.success:
+        raise RuntimeError(f"truth integration failed: {sol.message}")
+    return sol.y[:3].T, sol.y[3:].T
+
+
+__all__ = [
+    "EARTH_J2",
+    "TruthWorld",
+    "gravity_ecef",
+    "density",
+    "cav_h_coefficients",
+    "wind_ecef",
+    "lift_direction",
+    "acceleration",
+    "ecef_from_spherical",
+    "fly",
+]
