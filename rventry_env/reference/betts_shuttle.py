@@ -190,7 +190,56 @@ def shuttle_guess(alpha_deg: float = 17.0, beta_deg: float = -45.0, c: ShuttleCo
     return SampledGuess(np.array(ts), xs, np.tile(u, (len(ts), 1)))
 
 
+@dataclass
+class ShuttleResult:
+    """A solved benchmark case next to its published optimum."""
+
+    case: str
+    tf_s: float
+    latitude_deg: float
+    published: dict
+    converged: bool
+    mesh_error: float
+    n_nodes: int
+    solve_time_s: float
+    nlp_iterations: list
+
+    @property
+    def tf_rel_error(self) -> float:
+        return abs(self.tf_s - self.published["tf_s"]) / self.published["tf_s"]
+
+    @property
+    def latitude_rel_error(self) -> float:
+        return abs(self.latitude_deg - self.published["latitude_deg"]) / self.published["latitude_deg"]
+
+
+def solve_shuttle(heating_limit_btu: float | None = None, mesh_tolerance: float = 1e-7, progress=None) -> ShuttleResult:
+    """Solve one benchmark case from the simulated guess.
+
+    :param heating_limit_btu: ``None`` or 70 (BTU/ft^2/s) for the two published cases.
+    :param mesh_tolerance: target max relative error of the hp loop.
+    :param progress: per-pass reporter.
+    """
+    import time
+
+    from rventry_env.reference.collocation.mesh import Mesh
+    from rventry_env.reference.collocation.solver import SolverOptions, solve
+
+    start = time.perf_counter()
+    res = solve(shuttle_problem(heating_limit_btu), shuttle_guess(), Mesh.uniform(10, 4),
+                SolverOptions(mesh_tolerance=mesh_tolerance), progress=progress)  # fmt: skip
+    sol = res.solution
+    case = "no_heating_limit" if heating_limit_btu is None else f"heating_limit_{heating_limit_btu:g}"
+    return ShuttleResult(
+        case=case, tf_s=sol.tf, latitude_deg=float(sol.x[-1, 2] / DEG), published=PUBLISHED.get(case, {}),
+        converged=res.converged, mesh_error=sol.max_error, n_nodes=sol.mesh.n_nodes,
+        solve_time_s=time.perf_counter() - start, nlp_iterations=[r.nlp_iterations for r in res.records],
+    )  # fmt: skip
+
+
 __all__ = [
+    "ShuttleResult",
+    "solve_shuttle",
     "PUBLISHED",
     "ShuttleConstants",
     "shuttle_dynamics",

@@ -32,7 +32,10 @@ def register(subparsers) -> None:
     p = sub.add_parser("solve", help="solve Example 2 from a cold start and write the data file")
     p.add_argument("--out", type=Path, default=None, help="output .npz (default: the packaged reference)")
     p.add_argument("--mesh-tolerance", type=_positive_float, default=1e-6, help="target max relative error")
-    p.add_argument("--first-mesh", type=int, nargs=2, metavar=("INTERVALS", "POINTS"), default=(40, 4))
+    p.add_argument("--first-mesh", type=int, nargs=2, metavar=("INTERVALS", "POINTS"), default=(39, 6),
+                   help="uniform part of the first mesh (default 39 intervals of 6 LGR points)")
+    p.add_argument("--end-fraction", type=float, default=0.025,
+                   help="last fraction of the time meshed finer in the first mesh (default 0.025; 0 for none)")
     p.add_argument("--norm-mode", choices=("projection", "paper"), default="projection",
                    help="how the quaternion norms are kept (see docs/reference.md)")  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="no per-pass table")
@@ -66,7 +69,11 @@ def _solve(args) -> int:
     from rventry_env.reference.entry_problem import EntryProblemConfig
     from rventry_env.reference.pipeline import ReferenceOptions, save_reference, solve_reference
 
-    opts = ReferenceOptions(first_mesh=tuple(args.first_mesh), mesh_tolerance=args.mesh_tolerance)
+    if not 0.0 <= args.end_fraction < 1.0:
+        raise ValueError(f"--end-fraction must lie in [0, 1), got {args.end_fraction}")
+    opts = ReferenceOptions(
+        first_mesh=tuple(args.first_mesh), end_fraction=args.end_fraction, mesh_tolerance=args.mesh_tolerance
+    )
     progress = None if args.quiet else RichMeshTable("LGR collocation, paper Example 2 (rv-Euler, exact vertical impact)")
     rs = solve_reference(EntryProblemConfig(norm_mode=args.norm_mode), opts, progress)
     npz, js = save_reference(rs, args.out)
@@ -119,7 +126,7 @@ def _export(args) -> int:
     t, x, u = export_grid(ref, args.dt)
     header = ",".join(("t_s", *ref.state_names, *ref.control_names))
     args.csv.parent.mkdir(parents=True, exist_ok=True)
-    np.savetxt(args.csv, np.column_stack([t, x, u]), delimiter=",", header=header, comments="", fmt="%.12g")
+    np.savetxt(args.csv, np.column_stack([t, x, u]), delimiter=",", header=header, comments="", fmt="%.17g")  # round-trips exactly
     print(f"wrote {t.size} rows to {args.csv}")
     return 0
 

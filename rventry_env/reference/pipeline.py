@@ -20,22 +20,50 @@ from rventry_env.reference.collocation.progress import Progress, RecordingProgre
 from rventry_env.reference.entry_problem import DEG, EntryProblemConfig, entry_problem, position_direction
 
 
+def end_clustered_mesh(n_intervals: int, degree: int, end_fraction: float, end_intervals: int, end_degree: int) -> Mesh:
+    """Uniform intervals plus a finer block over the last ``end_fraction`` of the time.
+
+    The entry problem ends with a pull-up-to-vertical dive at the load limit and
+    the angle of attack driven to zero at its rate bound, all within the last
+    few percent of the flight: a first mesh that already resolves it lets the
+    first NLP land near the final optimum instead of on a coarse-mesh artifact.
+    """
+    if not 0.0 < end_fraction < 1.0:
+        raise ValueError(f"end_fraction must lie in (0, 1), got {end_fraction}")
+    if n_intervals < 1 or end_intervals < 1:
+        raise ValueError("need at least one interval in each block")
+    breaks = np.concatenate(
+        [np.linspace(0.0, 1.0 - end_fraction, n_intervals + 1), np.linspace(1.0 - end_fraction, 1.0, end_intervals + 1)[1:]]
+    )
+    return Mesh(breaks, np.array([degree] * n_intervals + [end_degree] * end_intervals))
+
+
 @dataclass
 class ReferenceOptions:
     """How the reference is solved.
 
-    :param first_mesh: (intervals, LGR points) of the first mesh.
+    :param first_mesh: (intervals, LGR points) of the uniform part of the first mesh.
+    :param end_fraction: the last fraction of normalised time meshed finer (0 for none).
+    :param end_mesh: (intervals, LGR points) of that end block.
     :param mesh_tolerance: target max relative error.
     :param max_mesh_iterations: mesh passes per stage.
     :param relaxed_gamma_deg: final flight-path bound of the fallback continuation stage.
     :param ipopt: extra IPOPT options.
+    :param n_min: LGR points of a new subinterval (ph rule).
+    :param n_max: LGR points beyond which an interval is split.
+    :param nlp_tolerance: IPOPT ``tol``.
     """
 
-    first_mesh: tuple = (40, 4)
+    first_mesh: tuple = (39, 6)
+    end_fraction: float = 0.025
+    end_mesh: tuple = (8, 4)
     mesh_tolerance: float = 1e-6
     max_mesh_iterations: int = 15
     relaxed_gamma_deg: float = -75.0
     ipopt: dict = field(default_factory=dict)
+    n_min: int = 4
+    n_max: int = 10
+    nlp_tolerance: float = 1e-9
 
 
 @dataclass
@@ -121,8 +149,14 @@ def solve_reference(
         mesh_tolerance=options.mesh_tolerance,
         max_mesh_iterations=options.max_mesh_iterations,
         ipopt=dict(options.ipopt),
+        n_min=options.n_min,
+        n_max=options.n_max,
+        nlp_tolerance=options.nlp_tolerance,
     )
-    first = Mesh.uniform(*options.first_mesh)
+    if options.end_fraction > 0:
+        first = end_clustered_mesh(*options.first_mesh, options.end_fraction, *options.end_mesh)
+    else:
+        first = Mesh.uniform(*options.first_mesh)
     cp = CompiledProblem(entry_problem(config))
     res = solve(cp, guess, first, solver_opts, recorder)
     stages = ["exact"]
@@ -201,4 +235,4 @@ def save_reference(rs: ReferenceSolve, path=None):
     return write_reference(path or DEFAULT_PATH, sol.t, sol.x, u_nodes[:, :2], u_nodes[:, 2:], sol.mesh, sol.cost, summary)
 
 
-__all__ = ["ReferenceOptions", "ReferenceSolve", "diagnostics", "solve_reference", "summary_of", "save_reference"]
+__all__ = ["end_clustered_mesh", "ReferenceOptions", "ReferenceSolve", "diagnostics", "solve_reference", "summary_of", "save_reference"]

@@ -342,7 +342,7 @@ class SolverOptions:
     refine_after_failure: bool = False
     graph: str = "mx"
     warm_ipopt: dict = field(default_factory=lambda: dict(WARM_START_IPOPT))
-    warm_start_error: float = 1e-3
+    warm_start_error: float = 1e-2
 
     def __post_init__(self):
         if self.graph not in ("mx", "sx"):

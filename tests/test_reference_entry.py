@@ -1,0 +1,110 @@
+"""The entry problem's formulation: one copy of the physics, the norm-keeping controls, the guess."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rventry_env.core.euler_parameters import omega_from_rates
+from rventry_env.physics.entry import entry_rhs
+from rventry_env.physics.model import EntryModel
+from rventry_env.reference import load_reference
+from rventry_env.reference.collocation.solver import CompiledProblem
+from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem, position_direction
+from rventry_env.reference.guess import generate_guess
+from rventry_env.reference.spherical_entry import spherical_from_entry_states, spherical_problem, spherical_rhs
+
+MODEL = EntryModel()
+
+
+def _random_states(n, seed=0):
+    rng = np.random.default_rng(seed)
+    qa = rng.normal(size=(n, 4))
+    qb = rng.normal(size=(n, 4))
+    qa /= np.linalg.norm(qa, axis=1, keepdims=True)
+    qb /= np.linalg.norm(qb, axis=1, keepdims=True)
+    r = MODEL.planet.radius + rng.uniform(5e3, 60e3, n)
+    v = rng.uniform(800, 7000, n)
+    return np.column_stack([r, qa, v, qb, rng.uniform(0, 0.4, n), rng.uniform(-6, 6, n)])
+
+
+def test_dynamics_are_entry_rhs_plus_radial_norm_rates():
+    cp = CompiledProblem(entry_problem(EntryProblemConfig()))
+    x = _random_states(20)
+    rng = np.random.default_rng(1)
+    u = np.column_stack([rng.uniform(-0.1, 0.1, (20, 2)), np.zeros((20, 2))])
+    f = cp.rhs(x, u, np.zeros(20))
+    ref = np.array(entry_rhs(list(x.T), list(u[:, :2].T), MODEL)).T
+    np.testing.assert_allclose(f, ref, rtol=1e-12, atol=1e-15)  # lambda = 0: exactly the physics
+    u[:, 2:] = rng.uniform(-1e-3, 1e-3, (20, 2))
+    f2 = cp.rhs(x, u, np.zeros(20))
+    for q, dq, lam in ((x[:, 1:5], f2[:, 1:5], u[:, 2]), (x[:, 6:10], f2[:, 6:10], u[:, 3])):
+        # d|q|^2/dt = 2 lambda |q|^2, and the implied twist rate omega_1 stays 0
+        np.testing.assert_allclose(2 * np.sum(q * dq, axis=1), 2 * lam, rtol=1e-9, atol=1e-15)
+        w1 = omega_from_rates(*q.T, *dq.T)[0]
+        assert np.max(np.abs(w1)) < 1e-15
+
+
+def test_paper_mode_replaces_four_rates_with_controls():
+    cfg = EntryProblemConfig(norm_mode="paper")
+    prob = entry_problem(cfg)
+    assert prob.control_names == ("u_alpha", "u_sigma", "u1", "u2", "u3", "u4")
+    assert [c.name for c in prob.path_constraints][2:] == ["band_eA2", "band_eA3", "band_eB2", "band_eB3"]
+    assert all(c.upper == 1e-6 and c.lower == -1e-6 for c in prob.path_constraints[2:])
+    cp = CompiledProblem(prob)
+    x = _random_states(5)
+    u = np.column_stack([np.zeros((5, 2)), np.arange(20.0).reshape(5, 4)])
+    f = cp.rhs(x, u, np.zeros(5))
+    np.testing.assert_array_equal(f[:, [2, 3, 7, 8]], u[:, 2:])
+
+
+def test_position_direction_is_homogeneous():
+    q = np.array([0.1, -0.3, 0.2, 0.9])
+    q /= np.linalg.norm(q)
+    a1 = np.array(position_direction(q))
+    assert np.linalg.norm(a1) == pytest.approx(1.0, abs=1e-14)
+    np.testing.assert_allclose(np.array(position_direction(1.01 * q)), 1.01**2 * a1, rtol=1e-14)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(norm_mode="free"), "norm_mode"),
+        (dict(alpha_bar_deg=30.0), "alpha_bar_deg"),
+        (dict(e_a0=(0.0, 0.0, 0.0, 2.0)), "unit norm"),
+        (dict(tf_bounds=(10.0, 5.0)), "tf_bounds"),
+        (dict(u_sigma_max_deg=0.0), "u_sigma_max_deg"),
+        (dict(h0=-1.0), "h0"),
+        (dict(final_gamma_max_deg=-95.0), "final_gamma_max_deg"),
+    ],
+)
+def test_bad_entry_config_is_rejected(kw, match):
+    with pytest.raises(ValueError, match=match):
+        EntryProblemConfig(**kw)
+
+
+def test_generated_guess_reaches_the_ground_near_the_target():
+    guess, flight = generate_guess(EntryProblemConfig())
+    re = MODEL.planet.radius
+    assert guess.x[-1, 0] == pytest.approx(re, abs=1.0)
+    assert flight.miss_m < 50e3 and flight.gamma_deg < -45.0
+    assert np.all(np.isfinite(guess.x)) and guess.u.shape == (guess.t.size, 4)
+    # the guess obeys the rate bounds it is flown with
+    assert np.max(np.abs(guess.u[:, 0])) <= math.radians(10) + 1e-15
+
+
+def test_spherical_equations_agree_with_rv_euler_away_from_vertical():
+    """d/dt of the spherical coordinates of an rv-Euler flight equals the spherical EOM."""
+    ref = load_reference()
+    x, u = ref.x[5:-20], ref.u[5:-20]
+    h = 1e-3
+    xd = np.array(entry_rhs(list(x.T), list(u.T), MODEL)).T
+    s0 = spherical_from_entry_states(x)
+    num = (spherical_from_entry_states(x + h * xd) - spherical_from_entry_states(x - h * xd)) / (2 * h)
+    ana = np.array(spherical_rhs(list(s0.T), [u[:, 0], np.zeros(len(u))], MODEL)).T
+    np.testing.assert_allclose(num[:, :6], ana[:, :6], rtol=1e-6, atol=1e-6)
+
+
+def test_spherical_problem_rejects_bad_terminal_angle():
+    with pytest.raises(ValueError, match="final_gamma_deg"):
+        spherical_problem(final_gamma_deg=-91.0)

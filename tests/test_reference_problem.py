@@ -1,0 +1,131 @@
+"""The general problem definition: bad input gets a clear error; a solved textbook problem."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rventry_env.reference.collocation import (
+    EndpointConstraint,
+    Invariant,
+    Mesh,
+    OptimalControlProblem,
+    PathConstraint,
+    RecordingProgress,
+)
+from rventry_env.reference.collocation.solver import SampledGuess, SolverOptions, solve
+
+
+def _double_integrator(**overrides):
+    """min int u^2 dt, x'' = u, x(0) = v(0) = 0, x(1) = 1, v(1) = 0: u = 6 - 12 t, J = 12."""
+    kw = dict(
+        name="double-integrator",
+        state_names=("x", "v"),
+        control_names=("u",),
+        dynamics=lambda x, u, t: (x[1], u[0]),
+        initial_lower=[0, 0],
+        initial_upper=[0, 0],
+        final_lower=[1, 0],
+        final_upper=[1, 0],
+        tf_lower=1.0,
+        tf_upper=1.0,
+        lagrange=lambda x, u, t: u[0] * u[0],
+    )
+    kw.update(overrides)
+    return OptimalControlProblem(**kw)
+
+
+def test_textbook_problem_is_solved_exactly():
+    prob = _double_integrator()
+    t = np.linspace(0, 1, 5)
+    guess = SampledGuess(t, np.column_stack([t, np.ones_like(t)]), np.zeros((5, 1)))
+    rec = RecordingProgress()
+    res = solve(prob, guess, Mesh.uniform(2, 4), SolverOptions(), progress=rec)
+    sol = res.solution
+    assert res.converged and sol.success
+    assert sol.cost == pytest.approx(12.0, rel=1e-8)
+    tt = np.linspace(0, 1, 11)
+    assert np.max(np.abs(sol.control(tt)[:, 0] - (6 - 12 * tt))) < 1e-7
+    assert np.max(np.abs(sol.state(tt)[:, 0] - (3 * tt**2 - 2 * tt**3))) < 1e-9
+    assert len(rec.records) == len(res.records) >= 1
+    assert rec.records[-1].max_error <= 1e-6
+
+
+def test_free_final_time_problem():
+    """Same dynamics, tf free, cost tf + int u^2: the optimum has tf = (12)^(1/4)... check by stationarity."""
+    prob = _double_integrator(tf_lower=0.1, tf_upper=10.0, mayer=lambda x0, xf, t0, tf: tf)
+    t = np.linspace(0, 1, 5)
+    guess = SampledGuess(t, np.column_stack([t, np.ones_like(t)]), np.zeros((5, 1)))
+    sol = solve(prob, guess, Mesh.uniform(2, 4)).solution
+    # for fixed tf the minimum energy is 12 / tf^3, so J(tf) = tf + 12 / tf^3, minimal at tf = 36^(1/4)
+    assert sol.tf == pytest.approx(36 ** 0.25, rel=1e-6)
+    assert sol.cost == pytest.approx(36 ** 0.25 + 12 / 36 ** 0.75, rel=1e-8)
+
+
+@pytest.mark.parametrize(
+    "overrides, error, match",
+    [
+        (dict(state_names=("x", "x")), ValueError, "unique"),
+        (dict(state_names=()), ValueError, "at least one state"),
+        (dict(dynamics=3), TypeError, "dynamics must be callable"),
+        (dict(lagrange=None), ValueError, "needs a cost"),
+        (dict(state_lower=[0, 0, 0]), ValueError, "state_lower must have 2 entries"),
+        (dict(state_lower=[1, 0], state_upper=[0, 1]), ValueError, "'x' has lower 1.0 > upper 0.0"),
+        (dict(initial_lower=[0, 5], initial_upper=[0, 1]), ValueError, "initial-state bounds: 'v'"),
+        (dict(control_lower=[math.nan]), ValueError, "control_lower contains NaN"),
+        (dict(tf_lower=0.0), ValueError, "must exceed t0"),
+        (dict(tf_lower=2.0, tf_upper=1.0), ValueError, "lower bound 2.0 exceeds upper bound 1.0"),
+        (dict(state_scale=[1.0, 0.0]), ValueError, "state_scale must be positive"),
+        (dict(time_scale=-1.0), ValueError, "time_scale must be positive"),
+        (dict(cost_scale=math.inf), ValueError, "cost_scale must be positive"),
+        (dict(path_constraints=[lambda x, u, t: x[0]]), TypeError, "expected PathConstraint"),
+    ],
+)
+def test_bad_problem_definition_is_rejected(overrides, error, match):
+    with pytest.raises(error, match=match):
+        _double_integrator(**overrides)
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: PathConstraint("c", lambda x, u, t: x[0]), "no finite bound"),
+        (lambda: PathConstraint("c", lambda x, u, t: x[0], lower=1.0, upper=0.0), "exceeds upper"),
+        (lambda: PathConstraint("c", "not callable", upper=1.0), "must be callable"),
+        (lambda: PathConstraint("", lambda x, u, t: x[0], upper=1.0), "non-empty name"),
+        (lambda: EndpointConstraint("b", lambda x0, xf, t0, tf: xf[0], upper=1.0, scale=0.0), "scale must be positive"),
+        (lambda: Invariant("g", lambda x: x[0], scale=-1.0), "scale must be positive"),
+    ],
+)
+def test_bad_constraint_is_rejected(make, match):
+    with pytest.raises((ValueError, TypeError), match=match):
+        make()
+
+
+def test_dynamics_of_wrong_length_is_reported():
+    prob = _double_integrator(dynamics=lambda x, u, t: (x[1],))
+    t = np.linspace(0, 1, 3)
+    guess = SampledGuess(t, np.zeros((3, 2)), np.zeros((3, 1)))
+    with pytest.raises(ValueError, match="dynamics returned 1 derivatives for 2 states"):
+        solve(prob, guess)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(mesh_tolerance=0.0), "mesh_tolerance"),
+        (dict(max_mesh_iterations=0), "max_mesh_iterations"),
+        (dict(n_min=5, n_max=4), "n_min <= n_max"),
+        (dict(graph="dense"), "graph"),
+    ],
+)
+def test_bad_solver_options_are_rejected(kw, match):
+    with pytest.raises(ValueError, match=match):
+        SolverOptions(**kw)
+
+
+def test_bad_guess_is_rejected():
+    with pytest.raises(ValueError, match="strictly increasing"):
+        SampledGuess(np.array([0.0, 0.0]), np.zeros((2, 2)), np.zeros((2, 1)))
+    with pytest.raises(ValueError, match="NaN or inf"):
+        SampledGuess(np.array([0.0, 1.0]), np.array([[0.0, np.nan], [0, 0]]), np.zeros((2, 1)))
