@@ -47,7 +47,7 @@ from rventry_env.validation.setup import ReplaySetup, replay_setup
 from rventry_env.validation.statistics import bic_effective, difference_noise, effective_size, whiteness
 
 BIC_THRESHOLD = 10.0
-INIT_BOUND_SIGMAS = 3.0  # the initial state may move this many noise levels from what was measured
+INIT_BOUND_SIGMAS = 5.0  # the initial state may move this many noise levels from what was measured
 SCREEN_KEEP = 2  # additions fitted in full per forward-selection step, after linearized screening
 
 GROUPS = {

@@ -32,6 +32,7 @@ from rventry_env.validation import truth
 from rventry_env.validation.effects import EFFECT_NAMES
 from rventry_env.validation.record import write_record
 
+GENERATED_BY = "rventry simulate-record"
 DEFAULT_VALUES = {
     "j2_gravity": "1.08262668e-3",
     "density_profile": "0.2",
@@ -161,6 +162,10 @@ def simulate_record(
     rng = np.random.default_rng(seed)
     ctrl = np.array([sc.controls(ti) for ti in t])
     out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stale = out.with_suffix(".json")
+    if stale.is_file() and GENERATED_BY in stale.read_text():
+        stale.unlink()  # a sidecar this command wrote for an earlier record of that name
     if observe == "ecef":
         r_m = r + rng.normal(0.0, noise[0], r.shape)
         v_m = v + rng.normal(0.0, noise[1], v.shape)
@@ -172,6 +177,7 @@ def simulate_record(
             "speed_rel_mps": np.linalg.norm(v, axis=1) + rng.normal(0.0, noise[1], h.shape),
         }
         sidecar = {
+            "generated_by": GENERATED_BY,
             "vehicle": {"name": "CAV-H", "mass_kg": world.mass, "reference_area_m2": world.area,
                         "aerodynamics": {"type": "cav-h"}},
             "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude, "speed_rel_mps": sc.speed,
