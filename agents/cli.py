@@ -1,4 +1,4 @@
-"""``rventry train ppo``: train the PPO baseline (see :mod:`agents.train`)."""
+"""``rventry train ppo``, ``rventry evaluate`` and ``rventry compare``."""
 
 from __future__ import annotations
 
@@ -6,6 +6,9 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from agents import evaluate_cli
+
+    evaluate_cli.register(sub)
     train = sub.add_parser("train", help="train a learning agent on RvEntry-v0")
     algos = train.add_subparsers(dest="algo", metavar="ALGO", required=True)
     ppo = algos.add_parser("ppo", help="stable-baselines3 PPO on the numpy-batched vector env")

@@ -3,6 +3,7 @@
 Everything that shapes the result is in one config file (``agents/ppo.toml``).
 A run writes into its output directory:
 
+* ``policy.json``: how to fly the saved models (direct, or residual on the reference);
 * ``model.zip`` + ``vecnormalize.pkl``: the policy selected on the *task* metric
   (success rate on a fixed dispersed evaluation set, then mean miss distance),
   not on the shaped return;
@@ -48,14 +49,26 @@ def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:
     return replace(base, dt=float(cfg["env"]["dt"]), substeps=int(cfg["env"]["substeps"]))
 
 
+POLICY_MODES = ("direct", "residual")
+
+
+def policy_mode(cfg: dict) -> tuple[str, float]:
+    """("direct" | "residual", residual scale) from the config's [policy] section."""
+    mode = cfg["policy"].get("mode", "direct")
+    if mode not in POLICY_MODES:
+        raise ValueError(f"[policy] mode must be one of {POLICY_MODES}, got {mode!r}")
+    return mode, float(cfg["policy"].get("residual_scale", 1.0))
+
+
 def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
-    """The training VecEnv: batched env -> VecMonitor -> range shaping -> VecNormalize.
+    """The training VecEnv: batched env -> [residual] -> VecMonitor -> [range shaping] -> VecNormalize.
 
     VecMonitor sits inside the shaping, so logged episode returns are the
     environment's own (unshaped) rewards.
     """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
+    from agents.residual import ReferenceSchedule, ResidualVecEnv
     from agents.sb3_vec import RangePotentialShaping, RvEntrySB3VecEnv
 
     e = cfg["env"]
@@ -63,6 +76,9 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
         n_envs or int(e["num_envs"]), task=task, dispersion=Dispersion.parse(dict(e.get("dispersion", {}))),
         max_episode_steps=int(e["max_episode_steps"]), time_limit_is_failure=bool(e["time_limit_is_failure"]),
     )  # fmt: skip
+    mode, scale = policy_mode(cfg)
+    if mode == "residual":
+        venv = ResidualVecEnv(venv, ReferenceSchedule(task), scale)
     venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
     shaping = cfg.get("shaping", {})
     if float(shaping.get("range_weight", 0.0)) > 0:
@@ -74,15 +90,15 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
     )  # fmt: skip
 
 
-class _LivePolicy:
-    """The model being trained, acting deterministically on normalized observations."""
+def live_policy(model, vecnorm, cfg: dict, task: EntryTask):
+    """The model being trained as a rollout policy (deterministic, normalized observations)."""
+    from agents.policies import make_policy
 
-    def __init__(self, model, vecnorm):
-        self.model, self.vecnorm = model, vecnorm
+    def predict(obs):
+        return model.predict(vecnorm.normalize_obs(obs), deterministic=True)[0]
 
-    def __call__(self, obs, time_s, state):
-        actions, _ = self.model.predict(self.vecnorm.normalize_obs(obs), deterministic=True)
-        return actions
+    mode, scale = policy_mode(cfg)
+    return make_policy(predict, mode, scale, task)
 
 
 def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None):
@@ -113,7 +129,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
         def evaluate(self):
             vecnorm = self.model.get_vec_normalize_env()
             batch = rollout(
-                _LivePolicy(self.model, vecnorm), int(t["eval_episodes"]), seed=int(t["eval_seed"]),
+                live_policy(self.model, vecnorm, cfg, task), int(t["eval_episodes"]), seed=int(t["eval_seed"]),
                 dispersion=t["eval_dispersion"], task=task, max_episode_steps=int(cfg["env"]["max_episode_steps"]),
             )  # fmt: skip
             s = summarize(batch, reference_cost or 1.0, task)
@@ -184,6 +200,9 @@ def train_ppo(config: str | Path | None = None, timesteps: int | None = None, se
         raise ValueError(f"timesteps must be positive, got {timesteps}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    mode, scale = policy_mode(cfg)
+    # how to fly any model saved under ``out`` (best, final, checkpoints)
+    (out / "policy.json").write_text(json.dumps({"mode": mode, "residual_scale": scale}))
     torch.set_num_threads(int(t.get("torch_threads", 1)))
     task = make_task(cfg, task)
     try:

@@ -16,7 +16,6 @@ COMMAND_MODULES = (
     "rventry_env.examples.orbit",
     "rventry_env.reference.cli",
     "agents.cli",
-    "rventry_env.evaluation.cli",
     "rventry_env.validation.cli",
 )
 

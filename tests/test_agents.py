@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rventry_env.envs.task import Dispersion, EntryTask
-from rventry_env.evaluation.policies import SHIPPED_PPO, SB3Policy, load_policy
+from agents.policies import SHIPPED_PPO, SB3Policy, load_policy
 from rventry_env.evaluation.rollout import rollout
 from rventry_env.problem import EntryProblem
 

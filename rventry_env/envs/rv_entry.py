@@ -110,7 +110,7 @@ class RvEntryEnv(gym.Env):
     ``alpha_saturated``. The last step also: ``miss_km``, ``vertical_error_deg``,
     ``speed_error_mps``, ``alpha_final_deg``, ``max_load_factor_g``,
     ``min_dynamic_pressure_pa``, ``constraint_violation`` (load > 12 g or q < 12 kPa
-    by more than 0.1 %), ``terminal_penalty``, ``failure`` ("" on impact) and
+    by more than 1 %), ``terminal_penalty``, ``failure`` ("" on impact) and
     ``is_success``: impact with miss <= 5 km, vertical error <= 5 deg,
     |speed error| <= 100 m/s and no constraint violation
     (:class:`~rventry_env.envs.task.SuccessThresholds`).

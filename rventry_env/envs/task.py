@@ -44,8 +44,11 @@ class SuccessThresholds:
     miss_km: float = 5.0
     vertical_error_deg: float = 5.0
     speed_error_mps: float = 100.0
-    # a path constraint counts as violated beyond this relative margin
-    constraint_tolerance: float = 1e-3
+    # A path constraint counts as violated beyond this relative margin. The optimal
+    # collocation reference meets both bounds exactly at its nodes but, replayed,
+    # reaches 12.05 g (+0.45 %) and 11.90 kPa (-0.82 %) between them, so a tighter
+    # margin would call the optimum itself infeasible.
+    constraint_tolerance: float = 0.01
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """``rventry evaluate`` (one agent) and ``rventry compare`` (the main job: shipped PPO vs the reference)."""
 
+
 from __future__ import annotations
 
 import argparse
@@ -41,7 +42,7 @@ def _positive_int(text: str) -> int:
 def run_agent(agent: str, episodes: int, dispersed: bool, seed: int, history: bool):
     """Evaluate one agent; returns (batch, summary, policy)."""
     from rventry_env.envs.task import Dispersion, EntryTask
-    from rventry_env.evaluation.policies import load_policy
+    from agents.policies import load_policy
     from rventry_env.evaluation.rollout import rollout
     from rventry_env.evaluation.summary import summarize
     from rventry_env.reference import load_reference
