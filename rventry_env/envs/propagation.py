@@ -76,10 +76,16 @@ def running_cost(alpha0, u_alpha_applied, u_alpha_cmd, u_sigma_cmd, tau, task: E
 
 
 def path_violation(forces: EntryForces, task: EntryTask, model: EntryModel, ns):
-    """(load-factor excess, dynamic-pressure deficit), each relative and >= 0."""
+    """(load-factor excess, dynamic-pressure deficit) beyond the success margin, relative and >= 0.
+
+    The margin (``task.success.constraint_tolerance``, 1 %) is the one that decides
+    success, so the reward charges exactly what counts as a violation: the optimal
+    reference, which touches both bounds within 0.9 % between its nodes, pays nothing.
+    """
+    tol = task.success.constraint_tolerance
     load = forces.aero_accel / (model.planet.g0 * task.problem.a_max_g)
     q_short = 1.0 - forces.dynamic_pressure / task.problem.q_min
-    return ns.fmax(load - 1.0, 0.0), ns.fmax(q_short, 0.0)
+    return ns.fmax(load - 1.0 - tol, 0.0), ns.fmax(q_short - tol, 0.0)
 
 
 class StepOutcome(NamedTuple):

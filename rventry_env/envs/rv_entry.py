@@ -74,7 +74,8 @@ class RvEntryEnv(gym.Env):
     Each step pays minus the paper's running cost (Eq. ``Ex2-Cost``, k1 = k2 = k3
     = 1) integrated exactly over the step, minus a path penalty (10 x relative
     excess of the load factor over 12 g, 10 x relative deficit of q under 12 kPa,
-    per second, sampled at every RK4 node). The terminal step also pays minus
+    each beyond the 1 % margin that decides success, per second, sampled at every
+    RK4 node). The terminal step also pays minus
 
         0.2 x miss [km] + 0.2 x vertical error [deg] + 0.02 x |v - 1219 m/s| + 0.1 x |alpha(t_f)| [deg]
 

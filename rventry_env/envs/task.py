@@ -22,8 +22,9 @@ class RewardWeights:
     Terminal penalty = miss_per_km * miss [km] + vertical_per_deg * vertical error [deg]
     + speed_per_mps * |v - v_f| [m/s] + alpha_per_deg * |alpha(t_f)| [deg].
     Linear, so a gradient survives far from the target and nothing explodes.
-    Path penalty per second = load_violation * max(0, n/n_max - 1)
-    + q_violation * max(0, 1 - q/q_min), sampled at every RK4 node.
+    Path penalty per second = load_violation * max(0, n/n_max - 1 - tol)
+    + q_violation * max(0, 1 - q/q_min - tol), sampled at every RK4 node, with
+    tol the 1 % margin of :class:`SuccessThresholds` (what counts as a violation).
     ``failure`` is added when an episode ends without impact (skip-out, non-finite
     state, stall).
     """
