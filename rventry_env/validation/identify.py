@@ -48,6 +48,7 @@ from rventry_env.validation.statistics import bic_effective, difference_noise, e
 
 BIC_THRESHOLD = 10.0
 INIT_BOUND_SIGMAS = 5.0  # the initial state may move this many noise levels from what was measured
+CATCH_UP = 10.0  # density knot refinement stops when it trails the best rival by this many last gains
 SCREEN_KEEP = 2  # additions fitted in full per forward-selection step, after linearized screening
 
 GROUPS = {
@@ -123,14 +124,27 @@ def _whiteness(fit: FitResult, sigma: np.ndarray) -> dict:
     return whiteness(fit.residual / sigma[None, :])
 
 
-def _noise(replay: Replay, kind: str) -> dict:
-    """Per-group noise from the record's differences (NaN where the sampling does not allow it)."""
-    out = {}
+def _noise(replay: Replay, kind: str) -> tuple[dict, dict]:
+    """Per-group noise from the record's differences (NaN where the sampling does not allow it).
+
+    Also says whether the differences are noise-dominated: white noise gives the
+    same estimate from 3rd and 4th differences, a signal sampled too coarsely
+    (a sparse trajectory table) gives estimates that fall with the order. Then
+    the estimate is only an upper bound of the noise, and is reported as such.
+    """
+    out, kind_of = {}, {}
     for name, _, cols in GROUPS[kind]:
-        est = [difference_noise(replay.t_obs, replay.y[:, c]) for c in cols]
-        est = [e for e in est if np.isfinite(e)]
+        est, ratios = [], []
+        for c in cols:
+            e4 = difference_noise(replay.t_obs, replay.y[:, c])
+            if np.isfinite(e4):
+                est.append(e4)
+                ratios.append(difference_noise(replay.t_obs, replay.y[:, c], order=3) / e4)
         out[name] = float(np.median(est)) if est else math.nan
-    return out
+        if est:
+            r = float(np.median(ratios))
+            kind_of[name] = "noise" if 0.8 < r < 1.25 else f"upper bound (3rd/4th difference estimates {r:.2f})"
+    return out, kind_of
 
 
 def _fit_summary(fit: FitResult, kind: str, sigma: np.ndarray) -> dict:
@@ -190,6 +204,7 @@ class _Context:
     sigma: np.ndarray
     init_bound: np.ndarray | None
     knots_by_count: dict
+    threshold: float = BIC_THRESHOLD
 
     def problem(self, effect_list: list, knots: tuple) -> OutputErrorProblem:
         eff = candidate_effects(self.setup, knots)
@@ -212,23 +227,35 @@ class _Context:
         prob = self.problem(effect_list, knots)
         return prob.solve(self.start_from(prob, previous))
 
-    def fit_density(self, effect_list: list, previous: FitResult) -> tuple[FitResult, list]:
-        """Fit with a density correction, its knot count chosen by BIC (stop at the first worse).
+    def fit_density(self, effect_list: list, previous: FitResult, rival_bic: float | None = None) -> tuple:
+        """Fit with a density correction, its knot count chosen by BIC.
 
-        Each finer fit starts from the coarser one, its log factors interpolated to the new knots.
+        Finer knots are kept only while they beat the coarser fit by the same BIC
+        margin an effect needs (a wrong effect keeps improving a little with every
+        knot and would otherwise run to the finest). Refinement also stops when the
+        correction trails ``rival_bic`` (the best other candidate) by more than
+        :data:`CATCH_UP` times its last gain: with diminishing gains per knot it cannot
+        catch up, and the finest fits of a wrong effect are the slowest of the loop.
+        Each finer fit starts from the coarser one, its log factors interpolated.
         """
-        best, trials = None, []
+        best, trials, gain = None, [], None
         for n, kn in self.knots_by_count.items():
+            if best is not None and rival_bic is not None and gain is not None:
+                if best.bic - rival_bic > CATCH_UP * gain:
+                    trials.append({"knots": n, "skipped": "cannot catch up with the best other candidate"})
+                    break
             prob = self.problem(effect_list, kn)
             theta0 = self.start_from(prob, previous if best is None else best)
             if best is not None:
                 old = [i for i, name in enumerate(best.names) if name.startswith("dlnrho_")]
                 new = [i for i, name in enumerate(prob.names) if name.startswith("dlnrho_")]
                 theta0[new] = np.interp(kn, best.extra["knots"], best.values[old])
-            f = prob.solve(theta0)
+            f = prob.solve(theta0, max_nfev=60 if best is None else 30)
             trials.append({"knots": n, "bic": f.bic})
-            if best is not None and f.bic >= best.bic:
-                break
+            if best is not None:
+                gain = best.bic - f.bic
+                if f.bic > best.bic - self.threshold:
+                    break
             best = f
         return best, trials
 
@@ -305,14 +332,14 @@ def identify(
     altitudes = record.altitude()[replay.rows]
     knots_by_count = {n: density_knots(altitudes, n) for n in knot_counts(altitudes)}
 
-    noise_diff = _noise(replay, kind)
+    noise_diff, noise_kind = _noise(replay, kind)
     sigma_g = {g: (noise_diff[g] if np.isfinite(noise_diff[g]) else PROVISIONAL_SIGMA[g]) for g in group_names}
     bound = init_bounds(replay, kind, noise_diff)
 
     def sig_vector() -> np.ndarray:
         return np.array([sigma_g[group_names[g]] for g in groups])
 
-    ctx = _Context(replay, setup, groups, sig_vector(), bound, knots_by_count)
+    ctx = _Context(replay, setup, groups, sig_vector(), bound, knots_by_count, threshold)
     say(f"{record.path.name if record.path else 'record'}: {kind}, {len(replay.rows)} samples, "
         f"{len(replay.grid) - 1} RK4 steps; baseline fit")  # fmt: skip
     knots = knots_by_count[2]
@@ -333,10 +360,12 @@ def identify(
     # step 1: every candidate alone
     first: dict[str, FitResult] = {}
     knot_trials = {}
-    for name in candidates:
+    # the density correction last, so its knot refinement knows the best rival
+    for name in sorted(candidates, key=lambda c: c == "density_profile"):
         say(f"candidate {name}")
         if name == "density_profile":
-            first[name], knot_trials["step 1"] = ctx.fit_density([name], base)
+            rival = min((f.bic for f in first.values()), default=None)
+            first[name], knot_trials["step 1"] = ctx.fit_density([name], base, rival)
         else:
             first[name] = ctx.fit([name], base, knots)
     cmp1 = _compare(base, list(first.values()), sigma, threshold)
@@ -358,10 +387,11 @@ def identify(
         lin = full.linearized_chi2(ctx.start_from(full, current), {c: keep + effects_of(full, c) for c in remaining})
         screened = sorted(remaining, key=lin.get)
         tried = {}
-        for name in screened[:SCREEN_KEEP]:
+        for name in sorted(screened[:SCREEN_KEEP], key=lambda c: c == "density_profile"):
             say(f"step {len(chosen) + 1}: {' + '.join(chosen)} + {name}")
             if name == "density_profile":
-                tried[name], knot_trials[f"step {len(chosen) + 1}"] = ctx.fit_density(chosen + [name], current)
+                rival = min((f.bic for f in tried.values()), default=None)
+                tried[name], knot_trials[f"step {len(chosen) + 1}"] = ctx.fit_density(chosen + [name], current, rival)
             else:
                 tried[name] = ctx.fit(chosen + [name], current, knots)
         step_fits.append(tried)
@@ -400,6 +430,7 @@ def identify(
         "noise": {
             "difference_estimate": {g: (noise_diff[g] if np.isfinite(noise_diff[g]) else None)
                                     for g in group_names},
+            "difference_estimate_is": noise_kind,
             "weights": {g: sigma_g[g] for g in group_names},
             "weights_from": weights_from,
             "after_fit_rms": {g: math.sqrt(current.rss_by_group[i] / current.n_by_group[i])
