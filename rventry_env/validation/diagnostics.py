@@ -24,7 +24,7 @@ def log_density_ratio(altitude: np.ndarray, density: np.ndarray, model: EntryMod
 
 
 def measured_density_correction(altitude: np.ndarray, density: np.ndarray, model: EntryModel,
-                                n_knots: int = 8) -> DensityCorrection:  # fmt: skip
+                                n_knots: int = 6) -> DensityCorrection:  # fmt: skip
     """The :class:`DensityCorrection` of ``model``'s atmosphere that best matches measured densities.
 
     Linear least squares of ln(rho_record / rho_model) on the piecewise-linear
