@@ -4,7 +4,8 @@ Generates synthetic CAV-H records through the truth model (one per case), runs
 the full validation loop on each, and prints the wall time, the number of
 batched replays and the result. Run with OMP_NUM_THREADS=1 on a shared machine.
 
-    OMP_NUM_THREADS=1 python scripts/bench_identify.py [--cases drag_coefficient=1.1 none ...] [--json out.json]
+    OMP_NUM_THREADS=1 python scripts/bench_identify.py [--cases drag_coefficient=1.1 none ...]
+        [--json out.json]
 
 A case is effect specs joined by '+' (or ``none``), optionally followed by
 ``@POS_M,VEL_MPS`` for its own noise level, e.g. ``wind=-60,90@5,0.05``.
@@ -26,7 +27,8 @@ DEFAULT_CASES = ("drag_coefficient=1.1", "density_profile=0.2", "none", "drag_co
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--cases", nargs="+", default=list(DEFAULT_CASES), help="effect specs joined by '+', or none")
+    p.add_argument("--cases", nargs="+", default=list(DEFAULT_CASES),
+                   help="effect specs joined by '+', or none")  # fmt: skip
     p.add_argument("--duration", type=float, default=400.0)
     p.add_argument("--rate", type=float, default=1.0)
     p.add_argument("--noise", default="20,0.2", help="default noise POS_M,VEL_MPS")

@@ -25,7 +25,8 @@ def test_shipped_record_and_sidecar():
     assert rec.kind == "reduced" and len(rec.observed_rows) == 45
     side = json.loads(apollo4.record_path().with_suffix(".json").read_text())
     assert side["vehicle"]["mass_kg"] == 5424.6 and side["vehicle"]["reference_area_m2"] == 12.0171
-    assert side["vehicle"]["aerodynamics"] == {"type": "constant", "drag_coefficient": 1.2891, "lift_to_drag": 0.368}
+    aero = side["vehicle"]["aerodynamics"]
+    assert aero == {"type": "constant", "drag_coefficient": 1.2891, "lift_to_drag": 0.368}
     assert side["start_model"] == "drag-only"
     readme = (apollo4.record_path().parent / "README.md").read_text()
     for source in ("TM X-58091", "TN D-5399", "Tacode", "MIT"):

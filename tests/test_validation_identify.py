@@ -19,8 +19,8 @@ DURATION, RATE, H_MAX = 200.0, 0.5, 2.0
 
 
 def _run(tmp_path, specs, noise, seed, observe="ecef"):
-    path = simulate_record(tmp_path / "rec.csv", parse_effects(specs), noise=noise, duration=DURATION, rate=RATE,
-                           seed=seed, observe=observe)  # fmt: skip
+    path = simulate_record(tmp_path / "rec.csv", parse_effects(specs), noise=noise, duration=DURATION,
+                           rate=RATE, seed=seed, observe=observe)  # fmt: skip
     return identify_record(path, h_max=H_MAX).report
 
 
@@ -65,11 +65,13 @@ def test_names_the_undeclared_effect(tmp_path, effect, value, noise):
     assert rep["effect"] == effect, rep["ranking"]
     assert rep["effects"] == [effect], rep["steps"]
     assert rep["margin_to_runner_up"] > 10
-    assert rep["before"]["position_rms_m"] >= 5 * rep["after"]["position_rms_m"], (rep["before"], rep["after"])
+    before, after = rep["before"], rep["after"]
+    assert before["position_rms_m"] >= 5 * after["position_rms_m"], (before, after)
     # after: the residual is the noise (3 components of sigma), and white
     assert rep["after"]["position_rms_m"] < 1.25 * math.sqrt(3) * noise[0]
     assert rep["whiteness"]["after"]["ljung_box_p"] > 1e-3
-    assert rep["whiteness"]["before"]["lag1_autocorrelation"] > rep["whiteness"]["after"]["lag1_autocorrelation"]
+    w = rep["whiteness"]
+    assert w["before"]["lag1_autocorrelation"] > w["after"]["lag1_autocorrelation"]
     _check_parameters(effect, value, rep["parameters"])
 
 
@@ -102,7 +104,8 @@ def test_cli_on_a_reduced_record(tmp_path, capsys):
     assert "drag" not in (tmp_path / "red.json").read_text()  # the sidecar does not tell the effect
     out = tmp_path / "out"
     assert rventry_main(["identify", str(rec), "--json", str(out / "rep.json"), "--plots", str(out / "plots"),
-                         "--model-out", str(out / "model.json"), "--h-max", str(H_MAX), "--quiet"]) == 0  # fmt: skip
+                         "--model-out", str(out / "model.json"), "--h-max", str(H_MAX),
+                         "--quiet"]) == 0  # fmt: skip
     rep = json.loads((out / "rep.json").read_text())
     assert rep["effect"] == "drag_coefficient"
     assert set(rep) >= {"effect", "effects", "parameters", "ranking", "before", "after"}

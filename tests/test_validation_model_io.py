@@ -33,7 +33,8 @@ FULL = EntryModel(
 def test_round_trip(tmp_path):
     path = save_model(FULL, tmp_path / "m.json")
     assert load_model(path) == FULL
-    capsule = EntryModel(vehicle=Vehicle(5424.6, 12.0171, ScaledAerodynamics(ConstantAerodynamics(1.2891, 0.368), 1.04)))
+    aero = ScaledAerodynamics(ConstantAerodynamics(1.2891, 0.368), 1.04)
+    capsule = EntryModel(vehicle=Vehicle(5424.6, 12.0171, aero))
     assert model_from_dict(json.loads(json.dumps(model_to_dict(capsule)))) == capsule
     report = {"effect": "wind", "model": model_to_dict(FULL)}
     assert identified_model(report) == FULL

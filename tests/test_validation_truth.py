@@ -31,7 +31,10 @@ from rventry_env.validation.simulate import Scenario
 WORLDS_AND_MODELS = {
     "no effect": (truth.TruthWorld(), EntryModel()),
     "j2": (truth.TruthWorld(j2=truth.EARTH_J2), EntryModel(gravity=J2Gravity(j2=truth.EARTH_J2))),
-    "wind": (truth.TruthWorld(wind_east=60.0, wind_north=-35.0), EntryModel(wind=HorizontalWind(60.0, -35.0))),
+    "wind": (
+        truth.TruthWorld(wind_east=60.0, wind_north=-35.0),
+        EntryModel(wind=HorizontalWind(60.0, -35.0)),
+    ),
     "aero scales": (
         truth.TruthWorld(cl_scale=0.9, cd_scale=1.15),
         EntryModel(vehicle=Vehicle(aerodynamics=ScaledAerodynamics(CAVHAerodynamics(), 0.9, 1.15))),
@@ -62,22 +65,25 @@ def test_accelerations_agree_pointwise(case):
     for _ in range(25):
         r, v, alpha, mu = _random_state(rng)
         a_truth = truth.acceleration(r, v, alpha, mu, world)
-        x = np.concatenate([rv_euler_from_cartesian(r, v), [alpha, float(paper_bank(rv_euler_from_cartesian(r, v), mu))]])
+        x10 = rv_euler_from_cartesian(r, v)
+        x = np.concatenate([x10, [alpha, float(paper_bank(x10, mu))]])
         x_dot = np.array(entry_rhs(x, (0.0, 0.0), model), dtype=float)
         v_plus = cartesian_from_rv_euler(x + eps * x_dot)[1]
         v_minus = cartesian_from_rv_euler(x - eps * x_dot)[1]
         a_rv = (v_plus - v_minus) / (2 * eps)
         assert np.allclose(a_rv, a_truth, rtol=0, atol=1e-6 * np.linalg.norm(a_truth)), (case, a_rv, a_truth)
         # and the position rate is the velocity
-        r_dot = (cartesian_from_rv_euler(x + eps * x_dot)[0] - cartesian_from_rv_euler(x - eps * x_dot)[0]) / (2 * eps)
+        r_plus = cartesian_from_rv_euler(x + eps * x_dot)[0]
+        r_dot = (r_plus - cartesian_from_rv_euler(x - eps * x_dot)[0]) / (2 * eps)
         assert np.allclose(r_dot, v, rtol=0, atol=1e-6 * np.linalg.norm(v))
 
 
 def _flight_record(world, duration=300.0, rate=1.0, scenario=Scenario()):
     t = np.arange(0.0, duration + 1e-9, 1.0 / rate)
     r0, v0 = truth.ecef_from_spherical(
-        6378137.0 + scenario.altitude, math.radians(scenario.longitude_deg), math.radians(scenario.latitude_deg),
-        scenario.speed, math.radians(scenario.flight_path_deg), math.radians(scenario.azimuth_deg),
+        6378137.0 + scenario.altitude, math.radians(scenario.longitude_deg),
+        math.radians(scenario.latitude_deg), scenario.speed, math.radians(scenario.flight_path_deg),
+        math.radians(scenario.azimuth_deg),
     )  # fmt: skip
     r, v = truth.fly(world, r0, v0, scenario.controls, t)
     ctrl = np.array([scenario.controls(ti) for ti in t])

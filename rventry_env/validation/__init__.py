@@ -58,7 +58,7 @@ def identified_model(source):
 
 
 def save_model(model, path):
-    """Write an :class:`~rventry_env.physics.EntryModel` to JSON (see :mod:`~rventry_env.validation.model_io`)."""
+    """Write an :class:`~rventry_env.physics.EntryModel` to JSON (:mod:`~rventry_env.validation.model_io`)."""
     from rventry_env.validation.model_io import save_model as _save
 
     return _save(model, path)

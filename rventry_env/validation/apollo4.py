@@ -26,7 +26,8 @@ from rventry_env.validation.record import write_record
 RECORD_NAME = "apollo4.csv"
 
 SIDECAR = {
-    "description": "Apollo 4 (AS-501) lunar-return entry, 1967-11-09. t_s from entry interface (GET 29968.54 s).",
+    "description": "Apollo 4 (AS-501) lunar-return entry, 1967-11-09. "
+    "t_s from entry interface (GET 29968.54 s).",
     "sources": [
         "trajectory: NASA TM X-58091 (1972) table I, 45-day best estimated trajectory",
         "vertical L/D and bank: NASA TN D-5399 (1969) figures 16(a) and 6(b), digitised",
@@ -63,7 +64,10 @@ def _read(path: Path) -> dict[str, np.ndarray]:
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
     header = rows[0]
-    return {h: np.array([float(r[i]) if r[i].strip() else math.nan for r in rows[1:]]) for i, h in enumerate(header)}
+    out = {}
+    for i, h in enumerate(header):
+        out[h] = np.array([float(r[i]) if r[i].strip() else math.nan for r in rows[1:]])
+    return out
 
 
 def convert(src: str | Path, out: str | Path) -> Path:
@@ -81,8 +85,8 @@ def convert(src: str | Path, out: str | Path) -> Path:
     keys = sorted({round(t, 3) for d in (bet, ldv, bank) for t in d["t_s"]})
     idx = {k: i for i, k in enumerate(keys)}
     n = len(keys)
-    cols = {c: np.full(n, math.nan) for c in
-            ("altitude_m", "speed_rel_mps", "density_kgpm3", "bank_rad", "lift_to_drag_vertical")}  # fmt: skip
+    names = ("altitude_m", "speed_rel_mps", "density_kgpm3", "bank_rad", "lift_to_drag_vertical")
+    cols = {c: np.full(n, math.nan) for c in names}
     for i, t in enumerate(bet["t_s"]):
         j = idx[round(t, 3)]
         for c in ("altitude_m", "speed_rel_mps", "density_kgpm3"):
@@ -124,4 +128,11 @@ def density_comparison(altitude: np.ndarray, density: np.ndarray, model: EntryMo
     }
 
 
-__all__ = ["RECORD_NAME", "SIDECAR", "PUBLISHED_RMS_ALTITUDE_M", "convert", "record_path", "density_comparison"]
+__all__ = [
+    "RECORD_NAME",
+    "SIDECAR",
+    "PUBLISHED_RMS_ALTITUDE_M",
+    "convert",
+    "record_path",
+    "density_comparison",
+]

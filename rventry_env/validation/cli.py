@@ -25,7 +25,8 @@ def register(subparsers) -> None:
     )
     p.add_argument("record", help="record CSV, or 'apollo4' for the shipped Apollo 4 record")
     p.add_argument("--vehicle", type=Path, help="vehicle JSON overriding the record's sidecar")
-    p.add_argument("--start", choices=("declared", "drag-only"), help="model to start from (default: sidecar's)")
+    p.add_argument("--start", choices=("declared", "drag-only"),
+                   help="model to start from (default: the sidecar's, else declared)")  # fmt: skip
     p.add_argument("--json", type=Path, required=True, help="report file to write")
     p.add_argument("--plots", type=Path, help="folder for the PNG plots")
     p.add_argument("--model-out", type=Path, help="write the identified EntryModel as JSON")
@@ -53,7 +54,7 @@ def register(subparsers) -> None:
     s.add_argument("--rate", type=float, default=1.0, help="samples per second [1]")
     s.add_argument("--seed", type=int, default=0, help="noise seed [0]")
     s.add_argument("--observe", choices=("ecef", "reduced"), default="ecef",
-                   help="full ECEF state, or altitude and speed with an entry-state sidecar [ecef]")  # fmt: skip
+                   help="full ECEF state, or altitude and speed plus a sidecar [ecef]")  # fmt: skip
     s.set_defaults(func=_simulate)
 
 

@@ -121,7 +121,9 @@ def control_schedule(record: FlightRecord, lift_to_drag: float | None, needs_alp
     ldv = _series(t, record.lift_to_drag_vertical)
     notes = []
     if needs_alpha and alpha is None:
-        raise RecordError("missing column alpha_rad: this vehicle's aerodynamics depend on the angle of attack")
+        raise RecordError(
+            "missing column alpha_rad: this vehicle's aerodynamics depend on the angle of attack"
+        )
     if ldv is not None and lift_to_drag is None:
         raise RecordError(
             "column lift_to_drag_vertical needs a capsule with a declared constant L/D "
@@ -136,11 +138,11 @@ def control_schedule(record: FlightRecord, lift_to_drag: float | None, needs_alp
     elif record.alpha is not None and not needs_alpha:
         notes.append("column alpha_rad ignored: the aerodynamic coefficients do not depend on it")
     if ldv is not None:
-        over = np.abs(ldv.v) > lift_to_drag
+        n_over = int(np.count_nonzero(np.abs(ldv.v) > lift_to_drag))
         notes.append(
             f"bank from lift_to_drag_vertical: mu = arccos((L/D)_v / {lift_to_drag:g})"
             + (", sign from bank_rad" if bank is not None else ", sign positive (no bank_rad)")
-            + (f"; {int(np.count_nonzero(over))} sample(s) with |(L/D)_v| > L/D clipped" if np.any(over) else "")
+            + (f"; {n_over} sample(s) with |(L/D)_v| > L/D clipped" if n_over else "")
         )
     for name, s in (("alpha_rad", alpha), ("bank_rad", bank), ("lift_to_drag_vertical", ldv)):
         if s is None:

@@ -16,6 +16,40 @@ import numpy as np
 from rventry_env.core.backend import NUMPY
 from rventry_env.physics import DensityCorrection, EntryModel
 from rventry_env.physics.atmosphere import piecewise_linear
+from rventry_env.validation.effects import build_model
+from rventry_env.validation.fit import FitResult
+from rventry_env.validation.record import FlightRecord
+from rventry_env.validation.replay import Replay
+from rventry_env.validation.selection import FitContext
+
+
+def error_metrics(residual: np.ndarray, kind: str) -> dict:
+    """rms and max position (or altitude) error, rms and max velocity (or speed) error.
+
+    :param residual: replayed - measured ``(n, m)``, NaN in gaps.
+    :param kind: ``"ecef"`` or ``"reduced"``.
+    """
+    e = residual
+    if kind == "ecef":
+        pos = np.linalg.norm(e[:, :3], axis=1)
+        vel = np.linalg.norm(e[:, 3:], axis=1)
+        pos, vel = pos[np.isfinite(pos)], vel[np.isfinite(vel)]
+        return {
+            "position_rms_m": float(np.sqrt(np.mean(pos**2))),
+            "position_max_m": float(np.max(pos)),
+            "velocity_rms_mps": float(np.sqrt(np.mean(vel**2))),
+            "velocity_max_mps": float(np.max(vel)),
+        }
+    alt = e[:, 0][np.isfinite(e[:, 0])]
+    spd = e[:, 1][np.isfinite(e[:, 1])]
+    return {
+        "altitude_rms_m": float(np.sqrt(np.mean(alt**2))),
+        "altitude_max_m": float(np.max(np.abs(alt))),
+        "speed_rms_mps": float(np.sqrt(np.mean(spd**2))),
+        "speed_max_mps": float(np.max(np.abs(spd))),
+    }
+
+
 
 
 def log_density_ratio(altitude: np.ndarray, density: np.ndarray, model: EntryModel) -> np.ndarray:
@@ -39,9 +73,10 @@ def measured_density_correction(altitude: np.ndarray, density: np.ndarray, model
     lr = log_density_ratio(altitude, density, model)
     n = int(max(2, min(n_knots, len(altitude) // 4)))
     knots = tuple(float(k) for k in np.linspace(np.min(altitude), np.max(altitude), n))
-    basis = np.stack(
-        [piecewise_linear(altitude, knots, tuple(float(i == j) for j in range(n)), NUMPY) for i in range(n)], axis=1
-    )
+    # hat function i: the correction with log factor 1 at knot i, 0 elsewhere
+    hats = [piecewise_linear(altitude, knots, tuple(float(i == j) for j in range(n)), NUMPY)
+            for i in range(n)]  # fmt: skip
+    basis = np.stack(hats, axis=1)
     coef, *_ = np.linalg.lstsq(basis, lr, rcond=None)
     return DensityCorrection(model.atmosphere, knots, tuple(float(c) for c in coef))
 
@@ -73,7 +108,61 @@ def with_atmosphere(setup, atmosphere):
     return dataclasses.replace(setup, model=setup.model.replace(atmosphere=atmosphere))
 
 
+def fixed_state_errors(replay: Replay, model: EntryModel, kind: str) -> dict:
+    """Errors of a replay from the declared (or first measured) initial state, nothing fitted."""
+    pred = replay.predict(model, np.zeros((1, replay.init.size)))[..., 0]
+    return error_metrics(pred - replay.y, kind)
+
+
+def run_diagnostics(
+    record: FlightRecord, ctx: FitContext, base: FitResult, current: FitResult, chosen: list, kind: str, say
+) -> dict:
+    """Checks on what remains (see :mod:`rventry_env.validation.diagnostics`)."""
+    replay, setup = ctx.replay, ctx.setup
+    t = replay.t_obs
+    out = {"windows": {"before": window_errors(t, base.residual, kind),
+                       "after": window_errors(t, current.residual, kind)}}  # fmt: skip
+    if kind == "reduced":
+        # like-for-like with replays that keep the declared entry state (e.g. published reconstructions)
+        declared = build_model(setup, (), {"cl_scale": 1.0}) if setup.start == "drag-only" else setup.model
+        out["declared_entry_state"] = {
+            "current_model": fixed_state_errors(replay, setup.model, kind),
+            "declared_vehicle": fixed_state_errors(replay, declared, kind),
+            "identified_model": fixed_state_errors(replay, current.model, kind),
+        }
+    if record.density is None:
+        return out
+    alt = record.altitude()
+    ok = np.isfinite(alt) & np.isfinite(record.density) & (record.density > 0)
+    if ok.sum() < 3:
+        return out
+    h, rho = alt[ok], record.density[ok]
+    say("density check: replay with the record's density")
+    lr_cur = log_density_ratio(h, rho, setup.model)
+    lr_id = log_density_ratio(h, rho, current.model)
+    corr = measured_density_correction(h, rho, setup.model)
+    ctx_md = dataclasses.replace(ctx, setup=with_atmosphere(setup, corr))
+    effects_md = [e for e in chosen if e != "density_profile"]
+    fit_md = ctx_md.fit(effects_md, current, current.extra["knots"])
+    out["density_check"] = {
+        "altitude_m": h.tolist(),
+        "current": {"log_ratio": lr_cur.tolist(), "rms_log_ratio": float(np.sqrt(np.mean(lr_cur**2)))},
+        "identified": {"log_ratio": lr_id.tolist(), "rms_log_ratio": float(np.sqrt(np.mean(lr_id**2)))},
+        "measured_correction": {"knots_m": list(corr.knots), "log_factors": list(corr.log_factors)},
+        "replay_with_measured_density": {
+            "effects": effects_md,
+            "parameters": fit_md.parameters(),
+            "errors": error_metrics(fit_md.residual, kind),
+            "windows": window_errors(t, fit_md.residual, kind),
+        },
+    }
+    return out
+
+
 __all__ = [
+    "error_metrics",
+    "fixed_state_errors",
+    "run_diagnostics",
     "log_density_ratio",
     "measured_density_correction",
     "base_atmosphere",

@@ -66,6 +66,9 @@ def density_knots(altitudes: np.ndarray, n_knots: int = 2) -> tuple:
     """
     h = altitudes[np.isfinite(altitudes)]
     lo, hi = float(np.min(h)), float(np.max(h))
+    if hi - lo < MIN_KNOT_SPACING:  # a level flight: spread the knots so they stay distinct
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - MIN_KNOT_SPACING / 2, mid + MIN_KNOT_SPACING / 2
     # rounded to 100 m so the parameter names stay readable
     return tuple(float(k) for k in np.round(np.linspace(lo, hi, n_knots), -2))
 
@@ -127,4 +130,12 @@ def build_model(setup: ReplaySetup, knots: tuple, values: dict) -> EntryModel:
     return m.replace(**parts)
 
 
-__all__ = ["EFFECT_NAMES", "KNOT_COUNTS", "Effect", "density_knots", "knot_counts", "candidate_effects", "build_model"]
+__all__ = [
+    "EFFECT_NAMES",
+    "KNOT_COUNTS",
+    "Effect",
+    "density_knots",
+    "knot_counts",
+    "candidate_effects",
+    "build_model",
+]

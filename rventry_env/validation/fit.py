@@ -138,15 +138,17 @@ class OutputErrorProblem:
         return np.where(np.isfinite(r), r, BAD_RESIDUAL)
 
     def _evaluate(self, z: np.ndarray):
+        """(residual, Jacobian, prediction) at ``z``, from one batched replay (cached)."""
         key = z.tobytes()
         if key != self._cache_key:
             n = len(z)
             zs = np.repeat(z[None, :], n + 1, axis=0)
             zs[1:] += self.fd_step * np.eye(n)
-            res = self._normalized(self.predict(self.theta(zs)))
+            pred = self.predict(self.theta(zs))
+            res = self._normalized(pred)
             self.nfev += 1
             jac = (res[1:] - res[0]).T / self.fd_step
-            self._cache_key, self._cache = key, (res[0], jac)
+            self._cache_key, self._cache = key, (res[0], jac, pred[..., 0])
         return self._cache
 
     def solve(self, theta0: np.ndarray | None = None, max_nfev: int = 60) -> FitResult:
@@ -190,7 +192,7 @@ class OutputErrorProblem:
         :param theta: the linearization point.
         :param subsets: name -> parameter indices (the initial state should be included).
         """
-        res, jac = self._evaluate(self.z(theta))
+        res, jac, _ = self._evaluate(self.z(theta))
         out = {}
         for name, idx in subsets.items():
             js = jac[:, idx]
@@ -201,9 +203,8 @@ class OutputErrorProblem:
 
     def result(self, z: np.ndarray, message: str = "") -> FitResult:
         """A :class:`FitResult` at scaled unknowns ``z``."""
-        res, jac = self._evaluate(np.asarray(z, float))
+        res, jac, pred = self._evaluate(np.asarray(z, float))
         theta = self.theta(z)
-        pred = self.predict(theta)[..., 0]
         resid = np.where(self.mask, pred - self.replay.y, np.nan)
         rss, nval = [], []
         for g in np.unique(self.groups):

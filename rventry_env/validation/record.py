@@ -220,14 +220,16 @@ def _check_units(cols: dict, lines: np.ndarray) -> None:
         bad = np.isfinite(d) & ((d < 0) | (d > 2.0))
         if np.any(bad):
             raise RecordError(
-                f"row {_first_bad(bad, lines)}, column density_kgpm3: implausible density {d[bad][0]:g} kg/m^3"
+                f"row {_first_bad(bad, lines)}, column density_kgpm3: "
+                f"implausible density {d[bad][0]:g} kg/m^3"
             )
     if "lift_to_drag_vertical" in cols:
         ld = cols["lift_to_drag_vertical"]
         bad = np.isfinite(ld) & (np.abs(ld) > 5.0)
         if np.any(bad):
             raise RecordError(
-                f"row {_first_bad(bad, lines)}, column lift_to_drag_vertical: implausible value {ld[bad][0]:g}"
+                f"row {_first_bad(bad, lines)}, column lift_to_drag_vertical: "
+                f"implausible value {ld[bad][0]:g}"
             )
 
 
@@ -293,7 +295,9 @@ def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: b
     obs = np.stack([cols[c] for c in names], axis=1)
     n_obs_rows = int(np.count_nonzero(np.any(np.isfinite(obs), axis=1)))
     if n_obs_rows < MIN_OBSERVATIONS:
-        raise RecordError(f"only {n_obs_rows} row(s) with observations; at least {MIN_OBSERVATIONS} are needed")
+        raise RecordError(
+            f"only {n_obs_rows} row(s) with observations; at least {MIN_OBSERVATIONS} are needed"
+        )
     gaps = int(np.count_nonzero(~np.isfinite(obs)))
     if gaps:
         notes.append(

@@ -89,7 +89,9 @@ class Replay:
     :param h_max: longest RK4 step (s); the grid also has a node at every observed sample.
     """
 
-    def __init__(self, record: FlightRecord, setup: ReplaySetup, controls: ControlSchedule, h_max: float = 1.0):
+    def __init__(
+        self, record: FlightRecord, setup: ReplaySetup, controls: ControlSchedule, h_max: float = 1.0
+    ):
         self.record = record
         self.controls = controls
         self.notes: list[str] = []
@@ -97,7 +99,9 @@ class Replay:
         if record.kind == "ecef":
             full = np.flatnonzero(np.all(np.isfinite(obs), axis=1))
             if full.size == 0:
-                raise RecordError("no row has the complete ECEF state (x_m .. vz_mps) to start the replay from")
+                raise RecordError(
+                    "no row has the complete ECEF state (x_m .. vz_mps) to start the replay from"
+                )
             t0_row = int(full[0])
             t0 = float(record.t[t0_row])
         else:

@@ -166,4 +166,11 @@ def replay_setup(record: FlightRecord, vehicle: dict | None = None, start: str |
     return ReplaySetup(model, aero, 0.0 if start == "drag-only" else 1.0, lift_to_drag, es, start)
 
 
-__all__ = ["START_MODELS", "EntryState", "ReplaySetup", "vehicle_from_dict", "entry_state_from_dict", "replay_setup"]
+__all__ = [
+    "START_MODELS",
+    "EntryState",
+    "ReplaySetup",
+    "vehicle_from_dict",
+    "entry_state_from_dict",
+    "replay_setup",
+]

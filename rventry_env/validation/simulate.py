@@ -158,7 +158,8 @@ def simulate_record(
     r, v = truth.fly(world, r0, v0, sc.controls, t)
     h = np.linalg.norm(r, axis=1) - world.radius
     if np.any(h < 0):
-        raise ValueError(f"the truth flight reaches the ground at t = {t[np.argmax(h < 0)]:.0f} s; shorten it")
+        t_ground = t[np.argmax(h < 0)]
+        raise ValueError(f"the truth flight reaches the ground at t = {t_ground:.0f} s; shorten it")
     rng = np.random.default_rng(seed)
     ctrl = np.array([sc.controls(ti) for ti in t])
     out = Path(out)

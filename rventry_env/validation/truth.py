@@ -161,7 +161,10 @@ def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world:
 def ecef_from_spherical(
     radius: float, longitude: float, latitude: float, speed: float, flight_path: float, azimuth: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """ECEF position and Earth-relative velocity from spherical coordinates (rad; azimuth from north to east)."""
+    """ECEF position and Earth-relative velocity from spherical coordinates.
+
+    Angles in rad; the azimuth is measured from north toward east.
+    """
     cl, sl, co, so = math.cos(latitude), math.sin(latitude), math.cos(longitude), math.sin(longitude)
     up = np.array([cl * co, cl * so, sl])
     east = np.array([-so, co, 0.0])
