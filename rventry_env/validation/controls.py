@@ -149,7 +149,11 @@ def control_schedule(record: FlightRecord, lift_to_drag: float | None, needs_alp
             continue
         gaps = int(np.count_nonzero(~np.isfinite(getattr(record, _ATTR[name]))))
         if gaps:
-            notes.append(f"{name}: {gaps} empty field(s), interpolated between samples")
+            k = int(np.argmax(np.diff(s.t)))
+            notes.append(
+                f"{name}: {gaps} empty field(s), interpolated between samples; longest gap "
+                f"{s.t[k + 1] - s.t[k]:g} s ({s.t[k]:g} to {s.t[k + 1]:g} s)"
+            )
         obs_t = record.t[record.observed_rows]
         if s.t[0] > obs_t[0] or s.t[-1] < obs_t[-1]:
             notes.append(f"{name}: covers {s.t[0]:g} to {s.t[-1]:g} s only, held at its end values outside")

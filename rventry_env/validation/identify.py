@@ -65,14 +65,16 @@ class Identification:
 
 
 def _progress(enabled: bool):
-    """A tiny progress line on stderr (rich is overkill for ~15 fits, tqdm needs a known total)."""
-    import sys
+    """Progress lines on stderr with the elapsed time (rich; a fit count is not known in advance)."""
+    from rich.console import Console
+    from rich.markup import escape
 
+    console = Console(stderr=True, highlight=False)
     t0 = time.perf_counter()
 
     def say(msg: str) -> None:
         if enabled:
-            print(f"[identify {time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+            console.print(f"[dim]identify {time.perf_counter() - t0:6.1f} s[/dim]  {escape(msg)}")
 
     return say
 
