@@ -21,9 +21,12 @@ def _np_where(cond, a, b):
     return np.where(cond, a, b)
 
 
+_SCALAR_TYPES = (int, float, np.float64, np.float32, np.int64, np.int32)
+
+
 def is_zero(x) -> bool:
-    """True for a Python/NumPy scalar that is exactly zero (never for symbols)."""
-    return isinstance(x, (int, float, np.floating, np.integer)) and x == 0
+    """True for a Python/NumPy scalar that is exactly zero (never for arrays or symbols)."""
+    return type(x) in _SCALAR_TYPES and x == 0
 
 
 NUMPY = SimpleNamespace(
@@ -101,7 +104,7 @@ def sparse(b) -> tuple:
     (g, 0, 0) would waste whole array operations on zeros; find the pattern once
     and dot against it with :func:`sparse_dot`.
     """
-    return tuple((j, bj) for j, bj in enumerate(b) if not is_zero(bj))
+    return tuple([(j, bj) for j, bj in enumerate(b) if not (type(bj) in _SCALAR_TYPES and bj == 0)])
 
 
 def sparse_dot(a, nz: tuple):

@@ -58,13 +58,14 @@ def frame_rates_in_a(e_a, omega_e=ZERO3, alpha_e=ZERO3, c_ae=None):
     """omega_E and alpha_E (given in E components) carried into A: (C_AE omega_E, C_AE alpha_E).
 
     Only the columns of C_AE that meet a non-zero component are formed, so the
-    planet's spin (0, 0, w) costs one column, not the whole matrix.
+    planet's spin (0, 0, w) costs one column, not the whole matrix. A vector of
+    literal zeros comes back as ``None`` (no such term).
     """
     out = []
     for vec in (omega_e, alpha_e):
         nz = sparse(vec)
         if not nz:
-            out.append(ZERO3)
+            out.append(None)
             continue
         acc = None
         for j, wj in nz:
@@ -75,7 +76,7 @@ def frame_rates_in_a(e_a, omega_e=ZERO3, alpha_e=ZERO3, c_ae=None):
     return out[0], out[1]
 
 
-def apparent_force(r, v, c_ba, accel_b, omega_e_a=ZERO3, alpha_e_a=ZERO3):
+def apparent_force(r, v, c_ba, accel_b, omega_e_a=None, alpha_e_a=None):
     """Apparent specific force f~/m in B components, Eq. ``F-apparent-3``.
 
     ``f~/m = f/m - 2 omega_E x v - alpha_E x r - omega_E x (omega_E x r)``. The
@@ -88,16 +89,15 @@ def apparent_force(r, v, c_ba, accel_b, omega_e_a=ZERO3, alpha_e_a=ZERO3):
     * Euler r C_BA [0; C_AE(3,:) alpha; -C_AE(2,:) alpha] = r C_BA [0; alpha_A3; -alpha_A2];
     * centrifugal r C_BE (w w^T - |w|^2 I) C_EA(:,1) = r C_BA (w_A w_A1 - |w|^2 e_1).
 
-    ``accel_b`` is the applied f/m in B components.
+    ``accel_b`` is the applied f/m in B components; ``None`` for a frame rate means
+    the frame does not rotate (or accelerate).
     """
     f1, f2, f3 = accel_b
-    w_nz = sparse(omega_e_a)
-    al_nz = sparse(alpha_e_a)
-    if not (w_nz or al_nz):
+    if omega_e_a is None and alpha_e_a is None:
         return f1, f2, f3
     # specific-force terms in A components, gathered before one C_BA product
     t1, t2, t3 = 0.0, 0.0, 0.0
-    if w_nz:
+    if omega_e_a is not None:
         w_a = omega_e_a
         w_sq = dot3(w_a, w_a)
         # -(w x (w x r)) = r (|w|^2 a1 - w_A w_A1), A components
@@ -108,7 +108,7 @@ def apparent_force(r, v, c_ba, accel_b, omega_e_a=ZERO3, alpha_e_a=ZERO3):
         w_b3 = dot3(c_ba[2], w_a)
         f2 = f2 - 2 * v * w_b3
         f3 = f3 + 2 * v * w_b2
-    if al_nz:
+    if alpha_e_a is not None:
         t2 = t2 - r * alpha_e_a[2]
         t3 = t3 + r * alpha_e_a[1]
     t = (t1, t2, t3)
@@ -163,14 +163,13 @@ def rv_euler_rates(
     :param alpha_e: angular acceleration of E relative to N, E components (rad/s^2).
     :param c_ae: C_AE if the caller already has it (saves work).
     :param c_ba: C_BA if the caller already has it.
-    :param omega_e_a: omega_E already in A components (then ``omega_e`` is ignored).
-    :param alpha_e_a: alpha_E already in A components (then ``alpha_e`` is ignored).
+    :param omega_e_a: omega_E already in A components (then ``omega_e`` is ignored);
+        pass it with ``alpha_e_a`` (``None`` for "no such term").
+    :param alpha_e_a: alpha_E already in A components, or ``None``.
     :return: :class:`RvEulerRates`.
     """
-    if omega_e_a is None or alpha_e_a is None:
-        w_a, al_a = frame_rates_in_a(e_a, omega_e, alpha_e, c_ae)
-        omega_e_a = w_a if omega_e_a is None else omega_e_a
-        alpha_e_a = al_a if alpha_e_a is None else alpha_e_a
+    if omega_e_a is None and alpha_e_a is None:
+        omega_e_a, alpha_e_a = frame_rates_in_a(e_a, omega_e, alpha_e, c_ae)
     if c_ba is None:
         c_ba = dcm(*e_b)
     eb1, eb2, eb3, etab = e_b

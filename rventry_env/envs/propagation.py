@@ -156,7 +156,7 @@ class Propagator:
             hit = x_new[0] < radius
             if batched:
                 hit &= status == FLYING
-            if np.any(hit):
+            if hit.any() if batched else hit:
                 idx = np.nonzero(hit)[0] if batched else None
                 x_hit, tau_hit = self._locate_impact(
                     _take(x, idx), _take(k1, idx), (ua[idx], u_sigma[idx]) if batched else u, h,
@@ -194,7 +194,7 @@ class Propagator:
             path = path + tau * (w.load_violation * load_x + w.q_violation * q_x)
             max_load = ns.fmax(max_load, forces.aero_accel / g0)
             min_q = ns.fmin(min_q, forces.dynamic_pressure)
-            if not np.any(status == FLYING):
+            if not ((status == FLYING).any() if batched else status == FLYING):
                 break
         return StepOutcome(x, forces, elapsed, status, cost, path, max_load, min_q, saturated)
 

@@ -119,7 +119,7 @@ class EntryTask:
     weights: RewardWeights = field(default_factory=RewardWeights)
     success: SuccessThresholds = field(default_factory=SuccessThresholds)
     dt: float = 1.0
-    substeps: int = 2
+    substeps: int = 1
     ceiling_altitude: float = 80e3
     min_speed: float = 50.0
 

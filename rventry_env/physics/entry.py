@@ -111,7 +111,7 @@ def entry_rhs(x: Sequence, u: Sequence, model: EntryModel, ns=NUMPY, forces: Ent
     w = model.planet.omega  # E spins about e3: omega_E in A is w C_AE(:, 3)
     rates = rv_euler_rates(
         x[0], tuple(x[1:5]), x[5], tuple(x[6:10]), f.accel_b, c_ba=f.c_ba,
-        omega_e_a=(w * f.e3_a[0], w * f.e3_a[1], w * f.e3_a[2]), alpha_e_a=(0.0, 0.0, 0.0),
+        omega_e_a=(w * f.e3_a[0], w * f.e3_a[1], w * f.e3_a[2]), alpha_e_a=None,
     )  # fmt: skip
     return (*rates.as_tuple(), u[0], u[1])
 
