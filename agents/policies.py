@@ -15,13 +15,16 @@ from rventry_env.evaluation.policies import ReferencePolicy
 SHIPPED_PPO = Path(rventry_env.__file__).resolve().parent / "data" / "ppo"
 
 
-def make_policy(predict, mode: str, scale: float, task: EntryTask | None = None):
-    """A rollout policy from ``predict(observations) -> actions``: direct, or residual on the reference."""
+def make_policy(predict, mode: str, authority=None, task: EntryTask | None = None):
+    """A rollout policy from ``predict(observations) -> actions``: direct, or residual on the reference.
+
+    :param authority: residual mode: (alpha, sigma) offsets in rad at a residual of 1.
+    """
     if mode == "direct":
         return lambda obs, time_s, state: predict(obs)
     from agents.residual import ReferenceSchedule, ResidualPolicy
 
-    return ResidualPolicy(predict, ReferenceSchedule(task), scale)
+    return ResidualPolicy(predict, ReferenceSchedule(task), authority)
 
 
 class SB3Policy:
@@ -58,8 +61,8 @@ class SB3Policy:
         self.metadata = json.loads(meta.read_text()) if meta.exists() else {}
         # policy.json sits beside the model (or one level up, for checkpoints/)
         spec = next((d / "policy.json" for d in (path.parent, path.parent.parent) if (d / "policy.json").exists()), None)
-        self.spec = json.loads(spec.read_text()) if spec is not None else {"mode": "direct", "residual_scale": 1.0}
-        self._act = make_policy(self._predict, self.spec["mode"], float(self.spec.get("residual_scale", 1.0)))
+        self.spec = json.loads(spec.read_text()) if spec is not None else {"mode": "direct"}
+        self._act = make_policy(self._predict, self.spec["mode"], self.spec.get("authority_rad"))
 
     def _predict(self, obs):
         return self.model.predict(self.normalize(obs), deterministic=True)[0]

@@ -17,6 +17,7 @@ A run writes into its output directory:
 from __future__ import annotations
 
 import json
+import math
 import shlex
 import sys
 import time
@@ -31,14 +32,17 @@ from rventry_env.envs.task import Dispersion, EntryTask
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
 
 
-def load_config(path: str | Path | None = None) -> dict:
-    """The training configuration (TOML). Raises with the offending key on a malformed file."""
-    path = Path(path) if path is not None else DEFAULT_CONFIG
-    with open(path, "rb") as f:
-        cfg = tomllib.load(f)
+def load_config(path: str | Path | dict | None = None) -> dict:
+    """The training configuration: a TOML file (default ``agents/ppo.toml``) or an already-loaded dict."""
+    if isinstance(path, dict):
+        cfg, where = path, "config"
+    else:
+        where = Path(path) if path is not None else DEFAULT_CONFIG
+        with open(where, "rb") as f:
+            cfg = tomllib.load(f)
     for section in ("env", "normalize", "ppo", "policy", "train"):
         if section not in cfg:
-            raise ValueError(f"{path}: missing section [{section}]")
+            raise ValueError(f"{where}: missing section [{section}]")
     return cfg
 
 
@@ -52,12 +56,16 @@ def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:
 POLICY_MODES = ("direct", "residual")
 
 
-def policy_mode(cfg: dict) -> tuple[str, float]:
-    """("direct" | "residual", residual scale) from the config's [policy] section."""
-    mode = cfg["policy"].get("mode", "direct")
+def policy_mode(cfg: dict) -> tuple[str, list[float]]:
+    """("direct" | "residual", (alpha, sigma) authority in rad) from the config's [policy] section."""
+    pol = cfg["policy"]
+    mode = pol.get("mode", "direct")
     if mode not in POLICY_MODES:
         raise ValueError(f"[policy] mode must be one of {POLICY_MODES}, got {mode!r}")
-    return mode, float(cfg["policy"].get("residual_scale", 1.0))
+    authority = [math.radians(float(pol.get("alpha_authority_deg", 0.0))), math.radians(float(pol.get("sigma_authority_deg", 0.0)))]
+    if mode == "residual" and not all(a > 0 for a in authority):
+        raise ValueError("[policy] mode = 'residual' needs alpha_authority_deg > 0 and sigma_authority_deg > 0")
+    return mode, authority
 
 
 def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
@@ -76,9 +84,9 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
         n_envs or int(e["num_envs"]), task=task, dispersion=Dispersion.parse(dict(e.get("dispersion", {}))),
         max_episode_steps=int(e["max_episode_steps"]), time_limit_is_failure=bool(e["time_limit_is_failure"]),
     )  # fmt: skip
-    mode, scale = policy_mode(cfg)
+    mode, authority = policy_mode(cfg)
     if mode == "residual":
-        venv = ResidualVecEnv(venv, ReferenceSchedule(task), scale)
+        venv = ResidualVecEnv(venv, ReferenceSchedule(task), authority)
     venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
     shaping = cfg.get("shaping", {})
     if float(shaping.get("range_weight", 0.0)) > 0:
@@ -97,8 +105,8 @@ def live_policy(model, vecnorm, cfg: dict, task: EntryTask):
     def predict(obs):
         return model.predict(vecnorm.normalize_obs(obs), deterministic=True)[0]
 
-    mode, scale = policy_mode(cfg)
-    return make_policy(predict, mode, scale, task)
+    mode, authority = policy_mode(cfg)
+    return make_policy(predict, mode, authority, task)
 
 
 def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None):
@@ -177,11 +185,11 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
     return TaskMetricEval(), ckpt
 
 
-def train_ppo(config: str | Path | None = None, timesteps: int | None = None, seed: int | None = None,
+def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = None, seed: int | None = None,
               out: str | Path = "runs/ppo", task: EntryTask | None = None, progress_bar: bool = True) -> Path:  # fmt: skip
     """Train PPO as the config says; returns the output directory.
 
-    :param config: TOML config path (default ``agents/ppo.toml``).
+    :param config: TOML config path (default ``agents/ppo.toml``) or a loaded config dict.
     :param timesteps: override ``[train] total_timesteps``.
     :param seed: override ``[train] seed``.
     :param out: output directory.
@@ -200,9 +208,9 @@ def train_ppo(config: str | Path | None = None, timesteps: int | None = None, se
         raise ValueError(f"timesteps must be positive, got {timesteps}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    mode, scale = policy_mode(cfg)
+    mode, authority = policy_mode(cfg)
     # how to fly any model saved under ``out`` (best, final, checkpoints)
-    (out / "policy.json").write_text(json.dumps({"mode": mode, "residual_scale": scale}))
+    (out / "policy.json").write_text(json.dumps({"mode": mode, "authority_rad": authority}))
     torch.set_num_threads(int(t.get("torch_threads", 1)))
     task = make_task(cfg, task)
     try:
@@ -227,6 +235,11 @@ def train_ppo(config: str | Path | None = None, timesteps: int | None = None, se
         tb = None
     model = PPO("MlpPolicy", venv, seed=seed, device="cpu", tensorboard_log=tb, policy_kwargs=policy_kwargs, verbose=0,
                 **{k: v for k, v in p.items()})  # fmt: skip
+    if mode == "residual" and bool(pol.get("zero_init_residual", False)):
+        # start exactly on the reference: a residual of 0.02 alone moves the impact by ~265 km
+        with torch.no_grad():
+            model.policy.action_net.weight.zero_()
+            model.policy.action_net.bias.zero_()
     evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost)
     start = time.time()
     model.learn(timesteps, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar)
