@@ -36,7 +36,7 @@ def register(subparsers) -> None:
                    help="uniform part of the first mesh (default 39 intervals of 6 LGR points)")
     p.add_argument("--end-fraction", type=float, default=0.025,
                    help="last fraction of the time meshed finer in the first mesh (default 0.025; 0 for none)")
-    p.add_argument("--norm-mode", choices=("projection", "paper"), default="projection",
+    p.add_argument("--norm-mode", choices=("projection", "paper", "none"), default="projection",
                    help="how the quaternion norms are kept (see docs/reference.md)")  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="no per-pass table")
     p.set_defaults(func=_solve)

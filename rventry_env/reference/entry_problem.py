@@ -36,6 +36,11 @@ equal a unit vector) become inconsistent. Two remedies are available here:
     conditions are written with the homogeneous (norm-free) direction of a1 so
     they never contradict a slightly non-unit quaternion.
 
+``norm_mode="none"``
+    No remedy, for comparison only: the plain Eq. ``Ex2-EOM`` and the three
+    equations of Eq. ``Ex2-endpoint`` exactly as printed (non-homogeneous a1).
+    This is the transcription the paper warns about.
+
 The vertical impact eB1(tf) = etaB(tf) = 0 is imposed exactly as final-state
 bounds in both modes. For the continuation used by the initial-guess generator
 the final flight-path condition can instead be relaxed to gamma(tf) <= gamma_max
@@ -60,7 +65,7 @@ from rventry_env.reference.collocation.problem import (
 )
 
 DEG = math.pi / 180.0
-NORM_MODES = ("projection", "paper")
+NORM_MODES = ("projection", "paper", "none")
 
 
 @dataclass(frozen=True)
@@ -86,10 +91,12 @@ class EntryProblemConfig:
     :param alpha_f_deg: final angle of attack.
     :param target_lon_deg: target longitude (Earth-relative, deg E).
     :param target_lat_deg: target geocentric latitude (deg).
-    :param norm_mode: ``"projection"`` or ``"paper"`` (module docstring).
+    :param norm_mode: ``"projection"``, ``"paper"`` or ``"none"`` (module docstring).
     :param delta: band of the paper's remedy.
     :param final_gamma_max_deg: ``None`` for the exact vertical impact, else the
-        relaxed condition gamma(tf) <= this (continuation only).
+        relaxed condition gamma(tf) <= this (continuation and the singularity study).
+    :param final_gamma_equality: with ``final_gamma_max_deg``, impose gamma(tf) = that
+        angle instead (the singularity study compares equal terminal angles).
     :param tf_bounds: (smallest, largest) final time (s).
     """
 
@@ -115,6 +122,7 @@ class EntryProblemConfig:
     norm_mode: str = "projection"
     delta: float = 1e-6
     final_gamma_max_deg: float | None = None
+    final_gamma_equality: bool = False
     tf_bounds: tuple = (50.0, 3000.0)
 
     def __post_init__(self):
@@ -142,6 +150,8 @@ class EntryProblemConfig:
         lo, hi = self.tf_bounds
         if not 0 < lo < hi:
             raise ValueError(f"tf_bounds must satisfy 0 < lower < upper, got {self.tf_bounds}")
+        if self.final_gamma_equality and self.final_gamma_max_deg is None:
+            raise ValueError("final_gamma_equality needs final_gamma_max_deg (the exact vertical impact is the default)")
         if self.final_gamma_max_deg is not None and not -90.0 < self.final_gamma_max_deg <= 90.0:
             raise ValueError(f"final_gamma_max_deg must lie in (-90, 90], got {self.final_gamma_max_deg}")
 
@@ -208,9 +218,17 @@ def sin_flight_path(e_b):
     return 1 - 2 * (e2 * e2 + e3 * e3)
 
 
+def _printed_a1(e_a):
+    """The first row of C_AE as printed in Eq. ``Ex2-endpoint`` (unit norm assumed)."""
+    e1, e2, e3, eta = e_a
+    return (1 - 2 * (e2 * e2 + e3 * e3), 2 * (e1 * e2 + e3 * eta), 2 * (e1 * e3 - e2 * eta))
+
+
 def control_names(config: EntryProblemConfig) -> tuple[str, ...]:
     if config.norm_mode == "projection":
         return ("u_alpha", "u_sigma", "lambda_A", "lambda_B")
+    if config.norm_mode == "none":
+        return ("u_alpha", "u_sigma")
     return ("u_alpha", "u_sigma", "u1", "u2", "u3", "u4")
 
 
@@ -231,6 +249,9 @@ def entry_dynamics(config: EntryProblemConfig, ns=None):
             return d
 
         return f
+
+    if config.norm_mode == "none":
+        return lambda x, u, t: entry_rhs(x, u[:2], model, ns)
 
     def f_paper(x, u, t):
         d = list(entry_rhs(x, u[:2], model, ns))
@@ -278,7 +299,7 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
             Invariant("unit_q_A", lambda x: x[1] * x[1] + x[2] * x[2] + x[3] * x[3] + x[4] * x[4] - 1.0),
             Invariant("unit_q_B", lambda x: x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9] - 1.0),
         ]
-    else:
+    elif config.norm_mode == "paper":
         path += [_rate_band(config, ns, s, c) for s, c in ((2, 2), (3, 3), (7, 4), (8, 5))]
 
     # --- endpoint, Eq. Ex2-endpoint: two independent equations plus the sign
@@ -296,11 +317,18 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
         EndpointConstraint("target_north", along(north), lower=0.0, upper=0.0),
         EndpointConstraint("target_side", along(target), lower=0.5),
     ]
+    if config.norm_mode == "none":  # Eq. Ex2-endpoint verbatim: three equations on the printed a1
+        endpoint = [
+            EndpointConstraint(f"endpoint_{i + 1}", (lambda i: lambda x0, xf, t0, tf: _printed_a1(xf[1:5])[i])(i),
+                               lower=float(target[i]), upper=float(target[i]))
+            for i in range(3)
+        ]  # fmt: skip
     if config.final_gamma_max_deg is not None:
         limit = math.sin(config.final_gamma_max_deg * DEG)
         endpoint.append(
-            EndpointConstraint("final_gamma", lambda x0, xf, t0, tf: sin_flight_path(xf[6:10]), upper=limit)
-        )
+            EndpointConstraint("final_gamma", lambda x0, xf, t0, tf: sin_flight_path(xf[6:10]), upper=limit,
+                               lower=limit if config.final_gamma_equality else -math.inf)
+        )  # fmt: skip
 
     # --- bounds and boundary conditions, Table tab:Ex2-BCs
     q_lo, q_hi = -1.5, 1.5  # never active: the norms are 1

@@ -218,10 +218,13 @@ def extra_controls(config: EntryProblemConfig, x: np.ndarray, u: np.ndarray) -> 
     """Values of the formulation's extra controls along a simulated flight.
 
     ``projection``: lambda_A = lambda_B = 0 (the simulation keeps the norms);
+    ``none``: no extra controls;
     ``paper``: u1..u4 = the Eq. ``Ex2-EOM`` rates of eA2, eA3, eB2, eB3.
     """
     if config.norm_mode == "projection":
         return np.zeros((x.shape[0], 2))
+    if config.norm_mode == "none":
+        return np.zeros((x.shape[0], 0))
     d = np.array(entry_rhs(list(x.T), list(u.T), config.model))
     return d[[2, 3, 7, 8]].T
 
