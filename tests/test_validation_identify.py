@@ -147,4 +147,4 @@ def test_gaps_are_handled_and_reported(tmp_path):
     assert rep["parameters"]["cd_scale"] == pytest.approx(1.1, rel=0.01)
     assert rep["before"]["position_rms_m"] >= 5 * rep["after"]["position_rms_m"]
     notes = " ".join(rep["record"]["notes"])
-    assert "empty observation field" in notes and "alpha_rad:" in notes and "longest gap" in notes
+    assert "empty observation field(s) are left out" in notes and "alpha_rad:" in notes and "longest gap" in notes

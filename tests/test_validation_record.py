@@ -41,7 +41,7 @@ def test_valid_record_loads_and_reports(tmp_path):
     assert np.isnan(rec.observations[3, 0]) and np.isfinite(rec.observations[3, 1])
     notes = " ".join(rec.notes)
     assert "comment" in notes and "ignored" in notes
-    assert "1 empty observation field" in notes
+    assert "12 row(s) carry observations" in notes and "the 1 empty observation field" in notes
 
 
 def test_missing_required_column(tmp_path):

@@ -301,8 +301,8 @@ def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: b
     gaps = int(np.count_nonzero(~np.isfinite(obs)))
     if gaps:
         notes.append(
-            f"{gaps} empty observation field(s) in {len(obs) - n_obs_rows} row(s) without observations and "
-            f"{n_obs_rows} with: gaps are left out of the residual"
+            f"{n_obs_rows} row(s) carry observations, {len(obs) - n_obs_rows} none (controls only); "
+            f"the {gaps} empty observation field(s) are left out of the residual"
         )
     sc = sidecar
     if sc is None and use_sidecar:
