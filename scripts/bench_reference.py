@@ -72,7 +72,8 @@ def _one_betts(limit) -> dict:
 
 
 def _run_child(kind: str, arg: str = "") -> dict:
-    out = subprocess.run([sys.executable, __file__, "--child", kind, arg], capture_output=True, text=True, check=False)
+    cmd = [sys.executable, __file__, "--child", kind, arg]
+    out = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if out.returncode != 0:
         raise RuntimeError(f"benchmark child {kind} failed:\n{out.stderr[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -93,7 +94,8 @@ def main(argv=None) -> int:
         parser.error("--repeat must be >= 1")
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"machine: {os.cpu_count()} cores, load average {load:.2f} at start, OMP_NUM_THREADS={os.environ['OMP_NUM_THREADS']}")
+    omp = os.environ["OMP_NUM_THREADS"]
+    print(f"machine: {os.cpu_count()} cores, load average {load:.2f} at start, OMP_NUM_THREADS={omp}")
     runs = [_run_child("entry") for _ in range(args.repeat)]
     print("\nEntry problem (paper Example 2, exact vertical impact), cold start in a fresh process")
     print(f"{'run':>3s} {'wall s':>7s} {'cpu s':>7s} {'import s':>8s} {'guess s':>7s} {'rss MB':>7s} "

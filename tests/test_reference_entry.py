@@ -12,7 +12,11 @@ from rventry_env.reference import load_reference
 from rventry_env.reference.collocation.solver import CompiledProblem
 from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem, position_direction
 from rventry_env.reference.guess import generate_guess
-from rventry_env.reference.spherical_entry import spherical_from_entry_states, spherical_problem, spherical_rhs
+from rventry_env.reference.spherical_entry import (
+    spherical_from_entry_states,
+    spherical_problem,
+    spherical_rhs,
+)
 
 MODEL = EntryModel()
 

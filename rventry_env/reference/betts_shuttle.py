@@ -122,7 +122,9 @@ def heating_rate(x, u, c: ShuttleConstants = ShuttleConstants(), ns=NUMPY):
     return q_a * q_r * BTU_PER_FT2_S
 
 
-def shuttle_problem(heating_limit_btu: float | None = None, c: ShuttleConstants = ShuttleConstants()) -> OptimalControlProblem:
+def shuttle_problem(
+    heating_limit_btu: float | None = None, c: ShuttleConstants = ShuttleConstants()
+) -> OptimalControlProblem:
     """The maximum-crossrange problem, optionally with q <= ``heating_limit_btu`` BTU/ft^2/s."""
     from rventry_env.core.backend import casadi_ns
 
@@ -135,7 +137,8 @@ def shuttle_problem(heating_limit_btu: float | None = None, c: ShuttleConstants 
     path = []
     if heating_limit_btu is not None:
         limit = heating_limit_btu * BTU_PER_FT2_S
-        path.append(PathConstraint("heating", lambda x, u, t: heating_rate(x, u, c, ns), upper=limit, scale=limit))
+        heat = PathConstraint("heating", lambda x, u, t: heating_rate(x, u, c, ns), upper=limit, scale=limit)
+        path.append(heat)
     return OptimalControlProblem(
         name="betts-shuttle" + ("" if heating_limit_btu is None else f"-q{heating_limit_btu:g}"),
         state_names=STATE_NAMES,
@@ -161,7 +164,12 @@ def shuttle_problem(heating_limit_btu: float | None = None, c: ShuttleConstants 
     )
 
 
-def shuttle_guess(alpha_deg: float = 17.0, beta_deg: float = -45.0, c: ShuttleConstants = ShuttleConstants(), dt: float = 2.0):
+def shuttle_guess(
+    alpha_deg: float = 17.0,
+    beta_deg: float = -45.0,
+    c: ShuttleConstants = ShuttleConstants(),
+    dt: float = 2.0,
+):
     """A guess simulated under constant alpha and beta until v falls to the final speed.
 
     :param alpha_deg: angle of attack held throughout (deg).
@@ -213,7 +221,9 @@ class ShuttleResult:
         return abs(self.latitude_deg - self.published["latitude_deg"]) / self.published["latitude_deg"]
 
 
-def solve_shuttle(heating_limit_btu: float | None = None, mesh_tolerance: float = 1e-7, progress=None) -> ShuttleResult:
+def solve_shuttle(
+    heating_limit_btu: float | None = None, mesh_tolerance: float = 1e-7, progress=None
+) -> ShuttleResult:
     """Solve one benchmark case from the simulated guess.
 
     :param heating_limit_btu: ``None`` or 70 (BTU/ft^2/s) for the two published cases.

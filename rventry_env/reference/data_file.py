@@ -54,7 +54,8 @@ class Reference:
         self.u_extra = None if u_extra is None else np.asarray(u_extra, dtype=float)
         n = self.t.size
         if self.x.shape != (n, len(ENTRY_STATE_NAMES)) or self.u.shape != (n, len(CONTROL_NAMES)):
-            raise ValueError(f"reference arrays disagree: t {self.t.shape}, x {self.x.shape}, u {self.u.shape}")
+            shapes = f"t {self.t.shape}, x {self.x.shape}, u {self.u.shape}"
+            raise ValueError(f"reference arrays disagree: {shapes}")
         if mesh.n_nodes != n:
             raise ValueError(f"mesh has {mesh.n_nodes} nodes but the reference has {n}")
         self.mesh = mesh
@@ -98,7 +99,9 @@ class Reference:
         return f"Reference(n={self.t.size}, tf={self.tf:.3f} s, cost={self.cost:.6g})"
 
 
-def write_reference(path: str | Path, t, x, u, u_extra, mesh: Mesh, cost: float, summary: dict) -> tuple[Path, Path]:
+def write_reference(
+    path: str | Path, t, x, u, u_extra, mesh: Mesh, cost: float, summary: dict
+) -> tuple[Path, Path]:
     """Write the ``.npz`` and its ``.json`` summary; returns both paths."""
     path = Path(path)
     if path.suffix != ".npz":
@@ -146,4 +149,11 @@ def load_reference(path: str | Path | None = None) -> Reference:
     return _cached(str(Path(path).resolve() if path is not None else DEFAULT_PATH))
 
 
-__all__ = ["FORMAT_VERSION", "DEFAULT_PATH", "Reference", "write_reference", "read_reference", "load_reference"]
+__all__ = [
+    "FORMAT_VERSION",
+    "DEFAULT_PATH",
+    "Reference",
+    "write_reference",
+    "read_reference",
+    "load_reference",
+]

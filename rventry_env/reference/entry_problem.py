@@ -151,7 +151,7 @@ class EntryProblemConfig:
         if not 0 < lo < hi:
             raise ValueError(f"tf_bounds must satisfy 0 < lower < upper, got {self.tf_bounds}")
         if self.final_gamma_equality and self.final_gamma_max_deg is None:
-            raise ValueError("final_gamma_equality needs final_gamma_max_deg (the exact vertical impact is the default)")
+            raise ValueError("final_gamma_equality needs final_gamma_max_deg (default: exact impact)")
         if self.final_gamma_max_deg is not None and not -90.0 < self.final_gamma_max_deg <= 90.0:
             raise ValueError(f"final_gamma_max_deg must lie in (-90, 90], got {self.final_gamma_max_deg}")
 
@@ -224,6 +224,10 @@ def _printed_a1(e_a):
     return (1 - 2 * (e2 * e2 + e3 * e3), 2 * (e1 * e2 + e3 * eta), 2 * (e1 * e3 - e2 * eta))
 
 
+def _printed_a1_component(i: int):
+    return lambda x0, xf, t0, tf: _printed_a1(xf[1:5])[i]
+
+
 def control_names(config: EntryProblemConfig) -> tuple[str, ...]:
     if config.norm_mode == "projection":
         return ("u_alpha", "u_sigma", "lambda_A", "lambda_B")
@@ -288,8 +292,8 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
 
     # --- path constraints, Eq. Ex2-path (alpha and the rates are bounds below)
     path = [
-        PathConstraint("aero_accel", lambda x, u, t: entry_forces(x, model, ns).aero_accel, upper=config.a_max,
-                       scale=config.a_max),
+        PathConstraint("aero_accel", lambda x, u, t: entry_forces(x, model, ns).aero_accel,
+                       upper=config.a_max, scale=config.a_max),
         PathConstraint("dynamic_pressure", lambda x, u, t: entry_forces(x, model, ns).dynamic_pressure,
                        lower=config.q_min, scale=1e5),
     ]  # fmt: skip
@@ -319,7 +323,7 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     ]
     if config.norm_mode == "none":  # Eq. Ex2-endpoint verbatim: three equations on the printed a1
         endpoint = [
-            EndpointConstraint(f"endpoint_{i + 1}", (lambda i: lambda x0, xf, t0, tf: _printed_a1(xf[1:5])[i])(i),
+            EndpointConstraint(f"endpoint_{i + 1}", _printed_a1_component(i),
                                lower=float(target[i]), upper=float(target[i]))
             for i in range(3)
         ]  # fmt: skip

@@ -37,6 +37,8 @@ from rventry_env.core.integrate import rk4_step
 from rventry_env.physics.entry import entry_forces, entry_rhs
 from rventry_env.reference.entry_problem import DEG, EntryProblemConfig
 
+_PARAMS = ("kr", "dive_range", "v_dive")
+
 #: the default grid: energy gain, dive range (m), dive speed (m/s)
 DEFAULT_GRID = {
     "kr": (0.5, 0.7),
@@ -123,13 +125,16 @@ def _law(x, p, state, config: EntryProblemConfig, gains: GuidanceGains, rho_fit)
     rho_req = k * 2.0 * veh.mass / (veh.reference_area * f.cd)
     h_ref = np.clip(scale_h * np.log(rho0 / rho_req), 15e3, 60e3)
     g = model.planet.mu / (r * r)
-    lift_up_needed = (g - v * v / r * (1 - sin_g * sin_g)) + gains.kp * (h_ref - (r - re)) - gains.kd * v * sin_g
+    # vertical lift: balance gravity less centrifugal, plus a PD pull toward h_ref
+    h = r - re
+    lift_up_needed = g - v * v / r * (1 - sin_g * sin_g) + gains.kp * (h_ref - h) - gains.kd * v * sin_g
     mu_glide = np.arccos(np.clip(lift_up_needed / np.maximum(f.lift_accel, 1e-3), -1.0, 1.0))
     db = gains.deadband_deg * DEG
     state["side"] = np.where(heading_error > db, 1.0, np.where(heading_error < -db, -1.0, state["side"]))
     mu = np.where(glide, state["side"] * mu_glide, math.pi - gains.k_lateral * heading_error)
     steep = sin_g < math.sin(gains.gamma_steep_deg * DEG)
-    alpha_cmd = np.where(glide, config.alpha_bar, np.where(steep, config.alpha_f_deg * DEG, gains.alpha_pull_deg * DEG))
+    alpha_dive = np.where(steep, config.alpha_f_deg * DEG, gains.alpha_pull_deg * DEG)
+    alpha_cmd = np.where(glide, config.alpha_bar, alpha_dive)
     theta_u, _ = lift_up_angle(x[6:10])
     sigma_cmd = mu + theta_u  # paper's sigma from the conventional bank (PROBLEM.md)
     sigma_cmd = x[11] + (sigma_cmd - x[11] + math.pi) % (2 * math.pi) - math.pi  # nearest turn
@@ -156,7 +161,7 @@ def simulate_batch(
     """
     if not dt > 0:
         raise ValueError(f"dt must be positive, got {dt}")
-    arrays = np.broadcast_arrays(*[np.asarray(params[k], dtype=float) for k in ("kr", "dive_range", "v_dive")])
+    arrays = np.broadcast_arrays(*[np.asarray(params[k], dtype=float) for k in _PARAMS])
     p = {k: a.ravel() for k, a in zip(("kr", "dive_range", "v_dive"), arrays)}
     n = p["kr"].size
     model = config.model
@@ -182,7 +187,8 @@ def simulate_batch(
             xe = x + frac * (xn - x)
             t_end[hit] = t + frac[hit] * dt
             x_end[:, hit] = xe[:, hit]
-        lost = ((xn[5] < 0.25 * config.vf) | (xn[0] > re + 150e3) | ~np.all(np.isfinite(xn), axis=0)) & ~done & ~hit
+        bad = (xn[5] < 0.25 * config.vf) | (xn[0] > re + 150e3) | ~np.all(np.isfinite(xn), axis=0)
+        lost = bad & ~done & ~hit
         t_end[lost] = t
         x_end[:, lost] = x[:, lost]
         done |= hit | lost
@@ -252,7 +258,7 @@ def generate_guess(
     missing = {"kr", "dive_range", "v_dive"} - set(grid)
     if missing:
         raise ValueError(f"the guess grid lacks {sorted(missing)}")
-    axes = np.meshgrid(*[np.asarray(grid[k], dtype=float) for k in ("kr", "dive_range", "v_dive")], indexing="ij")
+    axes = np.meshgrid(*[np.asarray(grid[k], dtype=float) for k in _PARAMS], indexing="ij")
     flights = simulate_batch(config, dict(zip(("kr", "dive_range", "v_dive"), axes)), gains, dt)
     best = min(flights, key=lambda f: f.score)
     if not math.isfinite(best.score):
@@ -261,4 +267,11 @@ def generate_guess(
     return SampledGuess(best.t, best.x, u), best
 
 
-__all__ = ["DEFAULT_GRID", "GuidanceGains", "GuessFlight", "simulate_batch", "extra_controls", "generate_guess"]
+__all__ = [
+    "DEFAULT_GRID",
+    "GuidanceGains",
+    "GuessFlight",
+    "simulate_batch",
+    "extra_controls",
+    "generate_guess",
+]

@@ -20,7 +20,9 @@ from rventry_env.reference.collocation.progress import Progress, RecordingProgre
 from rventry_env.reference.entry_problem import DEG, EntryProblemConfig, entry_problem, position_direction
 
 
-def end_clustered_mesh(n_intervals: int, degree: int, end_fraction: float, end_intervals: int, end_degree: int) -> Mesh:
+def end_clustered_mesh(
+    n_intervals: int, degree: int, end_fraction: float, end_intervals: int, end_degree: int
+) -> Mesh:
     """Uniform intervals plus a finer block over the last ``end_fraction`` of the time.
 
     The entry problem ends with a pull-up-to-vertical dive at the load limit and
@@ -32,8 +34,9 @@ def end_clustered_mesh(n_intervals: int, degree: int, end_fraction: float, end_i
         raise ValueError(f"end_fraction must lie in (0, 1), got {end_fraction}")
     if n_intervals < 1 or end_intervals < 1:
         raise ValueError("need at least one interval in each block")
+    split = 1.0 - end_fraction
     breaks = np.concatenate(
-        [np.linspace(0.0, 1.0 - end_fraction, n_intervals + 1), np.linspace(1.0 - end_fraction, 1.0, end_intervals + 1)[1:]]
+        [np.linspace(0.0, split, n_intervals + 1), np.linspace(split, 1.0, end_intervals + 1)[1:]]
     )
     return Mesh(breaks, np.array([degree] * n_intervals + [end_degree] * end_intervals))
 
@@ -95,11 +98,16 @@ def diagnostics(config: EntryProblemConfig, sol) -> dict:
     xf = x[-1]
     a1 = np.array(position_direction(xf[1:5]))
     target = config.target_e()
+    cos_miss = a1 @ target / np.linalg.norm(a1)
+    sin_gamma_f = 1 - 2 * (xf[7] ** 2 + xf[8] ** 2)
     # norms: at the nodes and on a dense grid of the interpolant (between nodes)
     dense_t = np.linspace(t[0], t[-1], 20001)
     xd = sol.state(dense_t)
-    norm_nodes = np.abs(np.stack([np.linalg.norm(x[:, 1:5], axis=1), np.linalg.norm(x[:, 6:10], axis=1)]) - 1.0)
-    norm_dense = np.abs(np.stack([np.linalg.norm(xd[:, 1:5], axis=1), np.linalg.norm(xd[:, 6:10], axis=1)]) - 1.0)
+    def norm_error(states):
+        norms = [np.linalg.norm(states[:, 1:5], axis=1), np.linalg.norm(states[:, 6:10], axis=1)]
+        return np.abs(np.stack(norms) - 1)
+
+    norm_nodes, norm_dense = norm_error(x), norm_error(xd)
     f_nodes = entry_forces(list(x.T), model)
     f_dense = entry_forces(list(xd.T), model)
     u_all = sol.interpolant.node_controls()
@@ -110,8 +118,9 @@ def diagnostics(config: EntryProblemConfig, sol) -> dict:
         "final_alpha_deg": float(xf[10] / DEG),
         "final_eB1": float(xf[6]),
         "final_etaB": float(xf[9]),
-        "final_flight_path_deg": float(np.degrees(np.arcsin(np.clip(1 - 2 * (xf[7] ** 2 + xf[8] ** 2), -1, 1)))),
-        "target_miss_m": float(model.planet.radius * np.arccos(np.clip(a1 @ target / np.linalg.norm(a1), -1, 1))),
+        # as the dynamics see it: r_dot = v (1 - 2 (eB2^2 + eB3^2))
+        "final_flight_path_deg": float(np.degrees(np.arcsin(np.clip(sin_gamma_f, -1, 1)))),
+        "target_miss_m": float(model.planet.radius * np.arccos(np.clip(cos_miss, -1, 1))),
         "norm_drift_nodes": float(norm_nodes.max()),
         "norm_drift_between_nodes": float(norm_dense.max()),
         "max_aero_accel_g": float(max(f_nodes.aero_accel.max(), f_dense.aero_accel.max()) / model.planet.g0),
@@ -163,7 +172,8 @@ def solve_reference(
     stages = ["exact"]
     if not res.solution.success:
         # continuation: a relaxed final flight-path angle first, then the exact condition
-        relaxed = CompiledProblem(entry_problem(config.replace(final_gamma_max_deg=options.relaxed_gamma_deg)))
+        relaxed_config = config.replace(final_gamma_max_deg=options.relaxed_gamma_deg)
+        relaxed = CompiledProblem(entry_problem(relaxed_config))
         res_r = solve(relaxed, guess, first, solver_opts, recorder, label="r")
         stages.append(f"relaxed gamma <= {options.relaxed_gamma_deg:g} deg")
         if res_r.solution.success:
@@ -209,7 +219,7 @@ def summary_of(rs: ReferenceSolve) -> dict:
         "converged": rs.converged,
         "nlp_status": sol.status,
         "max_constraint_violation": sol.max_violation,
-        "max_constraint_violation_note": "largest violation of the scaled NLP constraints and bounds (IPOPT's view)",
+        "max_constraint_violation_note": "largest violation of the scaled NLP constraints and bounds",
         "constraint_violation_by_group": sol.violations,
         "solve_time_s": rs.timings["solve_time_s"],
         "solve_cpu_s": rs.timings["solve_cpu_s"],
@@ -236,7 +246,16 @@ def save_reference(rs: ReferenceSolve, path=None):
     sol = rs.solution
     u_nodes = sol.interpolant.node_controls()
     summary = summary_of(rs)
-    return write_reference(path or DEFAULT_PATH, sol.t, sol.x, u_nodes[:, :2], u_nodes[:, 2:], sol.mesh, sol.cost, summary)
+    u_main, u_extra = u_nodes[:, :2], u_nodes[:, 2:]
+    return write_reference(path or DEFAULT_PATH, sol.t, sol.x, u_main, u_extra, sol.mesh, sol.cost, summary)
 
 
-__all__ = ["end_clustered_mesh", "ReferenceOptions", "ReferenceSolve", "diagnostics", "solve_reference", "summary_of", "save_reference"]
+__all__ = [
+    "end_clustered_mesh",
+    "ReferenceOptions",
+    "ReferenceSolve",
+    "diagnostics",
+    "solve_reference",
+    "summary_of",
+    "save_reference",
+]

@@ -97,7 +97,7 @@ def replay_controls(
     nfev = 0
     for a, b in zip(breaks[:-1], breaks[1:]):
         sel = (t_out >= a) & ((t_out < b) | (b == tf))
-        sol = solve_ivp(f, (a, b), x, method=method, rtol=rtol, atol=atol, t_eval=t_out[sel], dense_output=False)
+        sol = solve_ivp(f, (a, b), x, method=method, rtol=rtol, atol=atol, t_eval=t_out[sel])
         if not sol.success:
             raise RuntimeError(f"replay integration failed on [{a:.3f}, {b:.3f}] s: {sol.message}")
         xs[sel] = sol.y.T
@@ -118,7 +118,7 @@ def _end_state(f, a, b, x, method, rtol, atol):
 
 
 def entry_rhs_numpy(model=None) -> Rhs:
-    """``rhs(x, u)`` of :func:`rventry_env.physics.entry.entry_rhs` for ``model`` (default :class:`EntryModel`)."""
+    """``rhs(x, u)`` of :func:`rventry_env.physics.entry.entry_rhs` for ``model`` (default: the defaults)."""
     from rventry_env.physics.entry import entry_rhs
     from rventry_env.physics.model import EntryModel
 

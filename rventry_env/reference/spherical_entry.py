@@ -36,7 +36,11 @@ import numpy as np
 
 from rventry_env.core.backend import NUMPY, casadi_ns
 from rventry_env.physics.gravity import PointMassGravity
-from rventry_env.reference.collocation.problem import EndpointConstraint, OptimalControlProblem, PathConstraint
+from rventry_env.reference.collocation.problem import (
+    EndpointConstraint,
+    OptimalControlProblem,
+    PathConstraint,
+)
 from rventry_env.reference.entry_problem import DEG, EntryProblemConfig
 
 STATE_NAMES = ("r", "lon", "lat", "v", "gamma", "psi", "alpha", "mu")
@@ -78,7 +82,8 @@ def spherical_rhs(x, u, model, ns=NUMPY):
         v * cg * sp / (r * cl),
         v * cg * cp / r,
         -drag - g * sg + w * w * r * cl * (sg * cl - cg * sl * cp),
-        (lift * cm - g * cg + v * v * cg / r + 2 * w * v * cl * sp + w * w * r * cl * (cg * cl + sg * sl * cp)) / v,
+        (lift * cm - g * cg + v * v * cg / r + 2 * w * v * cl * sp
+         + w * w * r * cl * (cg * cl + sg * sl * cp)) / v,
         lift * sm / (v * cg) + v * cg * sp * sl / (r * cl) - 2 * w * (sg / cg * cp * cl - sl)
         + w * w * r * sp * sl * cl / (v * cg),
         u[0],
@@ -130,7 +135,8 @@ def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg:
     fin_lo[6] = fin_hi[6] = config.alpha_f_deg * DEG
     endpoint = []
     if relaxed:
-        endpoint.append(EndpointConstraint("final_gamma", lambda a, b, t0, tf: b[4], upper=final_gamma_deg * DEG))
+        limit = final_gamma_deg * DEG
+        endpoint.append(EndpointConstraint("final_gamma", lambda a, b, t0, tf: b[4], upper=limit))
     else:
         fin_lo[4] = fin_hi[4] = final_gamma_deg * DEG
     return OptimalControlProblem(
@@ -139,7 +145,8 @@ def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg:
         control_names=CONTROL_NAMES,
         dynamics=lambda x, u, t: spherical_rhs(x, u, model, ns),
         state_lower=[re - 1.0, -math.pi, -80 * DEG, 50.0, -90 * DEG, -4 * math.pi, 0.0, -4 * math.pi],
-        state_upper=[re + 150e3, math.pi, 80 * DEG, 8000.0, 90 * DEG, 4 * math.pi, config.alpha_max, 4 * math.pi],
+        state_upper=[re + 150e3, math.pi, 80 * DEG, 8000.0, 90 * DEG, 4 * math.pi, config.alpha_max,
+                     4 * math.pi],
         control_lower=[-uam, -usm],
         control_upper=[uam, usm],
         initial_lower=init_lo,

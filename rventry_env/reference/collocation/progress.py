@@ -86,7 +86,9 @@ class RichMeshTable:
     @staticmethod
     def _fmt(cells) -> str:
         widths = (6, 9, 6, 14, 26, 5, 7, 12, 10)
-        return " ".join(str(c).ljust(w) if i == 4 else str(c).rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+        # the status column is text: left-aligned; numbers right-aligned
+        cols = [str(c).ljust(w) if i == 4 else str(c).rjust(w) for i, (c, w) in enumerate(zip(cells, widths))]
+        return " ".join(cols)
 
 
 class RecordingProgress:

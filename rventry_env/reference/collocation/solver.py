@@ -262,7 +262,7 @@ class Transcription:
 
 
 def _block_matrices(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Global D (n_col x n_nodes, sparse pattern), per-column interval length and quadrature weight, node s."""
+    """Global D (n_col x n_nodes, sparse), per-column interval length and weight, node times s."""
     import scipy.sparse as sp
 
     rows, cols, vals = [], [], []
@@ -428,7 +428,8 @@ def transcribe(
         b = cp.endpoint_function()(xs[:, 0], xs[:, nn - 1], tf)
         add("endpoint", b, cp.end_lower / cp.end_scale, cp.end_upper / cp.end_scale)
 
-    cost = ca.mtimes((tf_col - t0) * 0.5 * lag, ca.DM(h_col * w_col)) + cp.mayer_function()(xs[:, 0], xs[:, nn - 1], tf)
+    cost = ca.mtimes((tf_col - t0) * 0.5 * lag, ca.DM(h_col * w_col))  # Radau quadrature
+    cost = cost + cp.mayer_function()(xs[:, 0], xs[:, nn - 1], tf)
     nlp = {"x": ca.vertcat(*zs), "f": cost / p.cost_scale, "g": ca.vertcat(*g)}
 
     # variable bounds (scaled)
@@ -579,7 +580,7 @@ def _violations(tr: Transcription, z: np.ndarray, gval: np.ndarray) -> tuple[flo
     return max(out.values()), out
 
 
-def solve_on_mesh(tr: Transcription, guess: TrajectoryLike, ipopt_overrides: dict | None = None) -> CollocationSolution:
+def solve_on_mesh(tr: Transcription, guess: TrajectoryLike) -> CollocationSolution:
     """Solve the transcribed NLP from a guess interpolated onto the mesh nodes."""
     p, mesh = tr.problem, tr.mesh
     tf_guess = float(np.clip(guess.tf, p.tf_lower, p.tf_upper))
