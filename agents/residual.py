@@ -96,13 +96,20 @@ class ReferenceSchedule:
         return target, o
 
     def augment(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(augmented observation (N, 52) = [o, o - o_ref], target angles (N, 2))."""
+        """(augmented observation (N, 51) = [o, (o - o_ref) without time], target angles (N, 2)).
+
+        The time deviation is zero by construction (the reference is read at the
+        observation's own time); left in, normalization would blow its float32
+        round-off up into a unit-variance noise input.
+        """
         target, o_ref = self.lookup(obs)
-        return np.concatenate([obs, obs - o_ref], axis=1).astype(np.float32), target
+        dev = np.delete(obs - o_ref, self._time_index, axis=1)
+        return np.concatenate([obs, dev], axis=1).astype(np.float32), target
 
     def augmented_space(self) -> spaces.Box:
         low, high = observation_box(self.task, self.radius)
-        return spaces.Box(np.concatenate([low, low - high]), np.concatenate([high, high - low]), dtype=np.float32)
+        dlow, dhigh = np.delete(low - high, self._time_index), np.delete(high - low, self._time_index)
+        return spaces.Box(np.concatenate([low, dlow]), np.concatenate([high, dhigh]), dtype=np.float32)
 
 
 def compose(obs: np.ndarray, target: np.ndarray, residual: np.ndarray, authority, task: EntryTask) -> np.ndarray:
