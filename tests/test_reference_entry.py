@@ -5,6 +5,8 @@ import math
 import numpy as np
 import pytest
 
+from rventry_env.problem import EntryProblem
+
 from rventry_env.core.euler_parameters import omega_from_rates
 from rventry_env.physics.entry import entry_rhs
 from rventry_env.physics.model import EntryModel
@@ -74,17 +76,29 @@ def test_position_direction_is_homogeneous():
     "kw, match",
     [
         (dict(norm_mode="free"), "norm_mode"),
-        (dict(alpha_bar_deg=30.0), "alpha_bar_deg"),
-        (dict(e_a0=(0.0, 0.0, 0.0, 2.0)), "unit norm"),
         (dict(tf_bounds=(10.0, 5.0)), "tf_bounds"),
-        (dict(u_sigma_max_deg=0.0), "u_sigma_max_deg"),
-        (dict(h0=-1.0), "h0"),
         (dict(final_gamma_max_deg=-95.0), "final_gamma_max_deg"),
+        (dict(delta=0.0), "delta"),
     ],
 )
 def test_bad_entry_config_is_rejected(kw, match):
     with pytest.raises(ValueError, match=match):
         EntryProblemConfig(**kw)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(alpha_bar=math.radians(30.0)), "alpha_bar"),
+        (dict(initial_e_a=(0.0, 0.0, 0.0, 2.0)), "unit norm"),
+        (dict(u_sigma_max=0.0), "u_sigma_max"),
+        (dict(initial_altitude=-1.0), "initial_altitude"),
+        (dict(q_min=float("nan")), "q_min"),
+    ],
+)
+def test_bad_problem_constants_are_rejected(kw, match):
+    with pytest.raises(ValueError, match=match):
+        EntryProblem(**kw)
 
 
 def test_generated_guess_reaches_the_ground_near_the_target():

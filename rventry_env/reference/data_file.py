@@ -63,8 +63,12 @@ class Reference:
         self._summary = dict(summary)
         self._poly = PiecewiseLGR(mesh, float(self.t[0]), float(self.t[-1]), self.x, self.u)
         const = self._summary.get("constants", {})
-        bounds = [const.get("u_alpha_max_deg"), const.get("u_sigma_max_deg")]
-        self._u_max = np.array([np.radians(b) if b is not None else np.inf for b in bounds])
+        prob = const.get("problem", {})
+        if "u_alpha_max" in prob:  # format 1 since the constants moved to rventry_env.problem (rad)
+            bounds = [prob["u_alpha_max"], prob["u_sigma_max"]]
+        else:  # files written before that (deg)
+            bounds = [np.radians(b) if b is not None else None for b in (const.get("u_alpha_max_deg"), const.get("u_sigma_max_deg"))]
+        self._u_max = np.array([b if b is not None else np.inf for b in bounds])
         for arr in (self.t, self.x, self.u):
             arr.setflags(write=False)  # shared by every caller of the cached loader
 

@@ -57,6 +57,7 @@ import numpy as np
 from rventry_env.core.backend import casadi_ns
 from rventry_env.physics.entry import ENTRY_STATE_NAMES, entry_forces, entry_rhs
 from rventry_env.physics.model import EntryModel
+from rventry_env.problem import EntryProblem
 from rventry_env.reference.collocation.problem import (
     EndpointConstraint,
     Invariant,
@@ -70,27 +71,11 @@ NORM_MODES = ("projection", "paper", "none")
 
 @dataclass(frozen=True)
 class EntryProblemConfig:
-    """Constants of Example 2 (PROBLEM.md defaults; angles in degrees at this interface).
+    """How the collocation solver poses Example 2: the problem's constants plus solver options.
 
+    :param problem: the Example 2 constants (:class:`rventry_env.problem.EntryProblem`,
+        SI units), the same object the environment reads.
     :param model: the force model (default :class:`EntryModel`).
-    :param k1: weight of the angle-of-attack term of Eq. ``Ex2-Cost``.
-    :param k2: weight of the angle-of-attack-rate term.
-    :param k3: weight of the bank-rate term.
-    :param alpha_bar_deg: angle of attack of maximum L/D.
-    :param alpha_max_deg: largest angle of attack.
-    :param u_alpha_max_deg: largest |d alpha/dt| (deg/s).
-    :param u_sigma_max_deg: largest |d sigma/dt| (deg/s).
-    :param a_max_g: largest sqrt(L^2 + D^2)/m in units of g0.
-    :param q_min: smallest dynamic pressure (Pa).
-    :param h0: initial altitude (m).
-    :param v0: initial speed (m/s).
-    :param e_a0: initial C_AE Euler parameters (eA1, eA2, eA3, etaA).
-    :param e_b0: initial C_BA Euler parameters.
-    :param vf: final speed (m/s).
-    :param hf: final altitude (m).
-    :param alpha_f_deg: final angle of attack.
-    :param target_lon_deg: target longitude (Earth-relative, deg E).
-    :param target_lat_deg: target geocentric latitude (deg).
     :param norm_mode: ``"projection"``, ``"paper"`` or ``"none"`` (module docstring).
     :param delta: band of the paper's remedy.
     :param final_gamma_max_deg: ``None`` for the exact vertical impact, else the
@@ -100,25 +85,8 @@ class EntryProblemConfig:
     :param tf_bounds: (smallest, largest) final time (s).
     """
 
+    problem: EntryProblem = field(default_factory=EntryProblem)
     model: EntryModel = field(default_factory=EntryModel)
-    k1: float = 1.0
-    k2: float = 1.0
-    k3: float = 1.0
-    alpha_bar_deg: float = 11.86
-    alpha_max_deg: float = 25.0
-    u_alpha_max_deg: float = 10.0
-    u_sigma_max_deg: float = 30.0
-    a_max_g: float = 12.0
-    q_min: float = 12e3
-    h0: float = 37e3
-    v0: float = 7138.0
-    e_a0: tuple = (0.0, 0.0, 0.0, 1.0)
-    e_b0: tuple = (0.0, 0.0, math.sqrt(2.0) / 2.0, math.sqrt(2.0) / 2.0)
-    vf: float = 1219.0
-    hf: float = 0.0
-    alpha_f_deg: float = 0.0
-    target_lon_deg: float = 25.15
-    target_lat_deg: float = 0.0
     norm_mode: str = "projection"
     delta: float = 1e-6
     final_gamma_max_deg: float | None = None
@@ -128,25 +96,8 @@ class EntryProblemConfig:
     def __post_init__(self):
         if self.norm_mode not in NORM_MODES:
             raise ValueError(f"norm_mode must be one of {NORM_MODES}, got {self.norm_mode!r}")
-        positive = ("alpha_max_deg", "u_alpha_max_deg", "u_sigma_max_deg", "a_max_g", "v0", "vf", "delta")
-        for name in positive:
-            val = getattr(self, name)
-            if not (val > 0 and math.isfinite(val)):
-                raise ValueError(f"{name} must be positive and finite, got {val}")
-        if not 0 <= self.alpha_bar_deg <= self.alpha_max_deg:
-            raise ValueError(f"alpha_bar_deg ({self.alpha_bar_deg}) must lie in [0, alpha_max_deg]")
-        if not 0 <= self.alpha_f_deg <= self.alpha_max_deg:
-            raise ValueError(f"alpha_f_deg ({self.alpha_f_deg}) must lie in [0, alpha_max_deg]")
-        if self.q_min < 0:
-            raise ValueError(f"q_min must be >= 0, got {self.q_min}")
-        for name in ("e_a0", "e_b0"):
-            q = np.asarray(getattr(self, name), dtype=float)
-            if q.shape != (4,) or abs(np.linalg.norm(q) - 1.0) > 1e-12:
-                raise ValueError(f"{name} must be 4 Euler parameters of unit norm, got {getattr(self, name)}")
-        if self.h0 <= self.hf:
-            raise ValueError(f"h0 ({self.h0}) must exceed hf ({self.hf})")
-        if not -90.0 <= self.target_lat_deg <= 90.0:
-            raise ValueError(f"target_lat_deg must lie in [-90, 90], got {self.target_lat_deg}")
+        if not (self.delta > 0 and math.isfinite(self.delta)):
+            raise ValueError(f"delta must be positive and finite, got {self.delta}")
         lo, hi = self.tf_bounds
         if not 0 < lo < hi:
             raise ValueError(f"tf_bounds must satisfy 0 < lower < upper, got {self.tf_bounds}")
@@ -158,43 +109,43 @@ class EntryProblemConfig:
     def replace(self, **changes) -> "EntryProblemConfig":
         return replace(self, **changes)
 
-    # derived, SI
+    # the problem's constants, SI
     @property
     def alpha_bar(self) -> float:
-        return self.alpha_bar_deg * DEG
+        return self.problem.alpha_bar
 
     @property
     def alpha_max(self) -> float:
-        return self.alpha_max_deg * DEG
+        return self.problem.alpha_max
 
     @property
     def u_alpha_max(self) -> float:
-        return self.u_alpha_max_deg * DEG
+        return self.problem.u_alpha_max
 
     @property
     def u_sigma_max(self) -> float:
-        return self.u_sigma_max_deg * DEG
+        return self.problem.u_sigma_max
 
     @property
     def a_max(self) -> float:
-        return self.a_max_g * self.model.planet.g0
+        return self.problem.a_max_g * self.model.planet.g0
 
     def target_e(self) -> np.ndarray:
         """Unit vector to the target in E."""
-        lon, lat = self.target_lon_deg * DEG, self.target_lat_deg * DEG
-        return np.array([math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)])
+        return self.problem.target_unit_vector()
 
     def target_frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(target, east, north) unit vectors in E at the target."""
-        lon, lat = self.target_lon_deg * DEG, self.target_lat_deg * DEG
+        lon, lat = self.problem.target_longitude, self.problem.target_latitude
         east = np.array([-math.sin(lon), math.cos(lon), 0.0])
         north = np.array([-math.sin(lat) * math.cos(lon), -math.sin(lat) * math.sin(lon), math.cos(lat)])
         return self.target_e(), east, north
 
     def initial_state(self, alpha: float, sigma: float) -> np.ndarray:
         """The 12-state initial condition of Table ``tab:Ex2-BCs`` with the given alpha, sigma (rad)."""
-        r0 = self.model.planet.radius + self.h0
-        return np.array([r0, *self.e_a0, self.v0, *self.e_b0, alpha, sigma], dtype=float)
+        p = self.problem
+        r0 = self.model.planet.radius + p.initial_altitude
+        return np.array([r0, *p.initial_e_a, p.initial_speed, *p.initial_e_b, alpha, sigma], dtype=float)
 
 
 def position_direction(e_a):
@@ -285,7 +236,7 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     nan_free = math.inf
     # --- cost, Eq. Ex2-Cost
     ab, am, uam, usm = config.alpha_bar, config.alpha_max, config.u_alpha_max, config.u_sigma_max
-    k1, k2, k3 = config.k1, config.k2, config.k3
+    k1, k2, k3 = config.problem.k1, config.problem.k2, config.problem.k3
 
     def lagrange(x, u, t):
         return k1 * ((x[10] - ab) / am) ** 2 + k2 * (u[0] / uam) ** 2 + k3 * (u[1] / usm) ** 2
@@ -295,7 +246,7 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
         PathConstraint("aero_accel", lambda x, u, t: entry_forces(x, model, ns).aero_accel,
                        upper=config.a_max, scale=config.a_max),
         PathConstraint("dynamic_pressure", lambda x, u, t: entry_forces(x, model, ns).dynamic_pressure,
-                       lower=config.q_min, scale=1e5),
+                       lower=config.problem.q_min, scale=1e5),
     ]  # fmt: skip
     invariants = []
     if config.norm_mode == "projection":
@@ -345,9 +296,9 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     initial_upper[10:12] = (config.alpha_max, 8 * math.pi)
     final_lower = np.full(12, -nan_free)
     final_upper = np.full(12, nan_free)
-    final_lower[0] = final_upper[0] = re + config.hf
-    final_lower[5] = final_upper[5] = config.vf
-    final_lower[10] = final_upper[10] = config.alpha_f_deg * DEG
+    final_lower[0] = final_upper[0] = re + config.problem.final_altitude
+    final_lower[5] = final_upper[5] = config.problem.final_speed
+    final_lower[10] = final_upper[10] = config.problem.final_alpha
     if config.final_gamma_max_deg is None:
         final_lower[6] = final_upper[6] = 0.0  # eB1(tf) = 0 } vertical impact, exact
         final_lower[9] = final_upper[9] = 0.0  # etaB(tf) = 0 }

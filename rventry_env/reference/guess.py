@@ -133,7 +133,7 @@ def _law(x, p, state, config: EntryProblemConfig, gains: GuidanceGains, rho_fit)
     state["side"] = np.where(heading_error > db, 1.0, np.where(heading_error < -db, -1.0, state["side"]))
     mu = np.where(glide, state["side"] * mu_glide, math.pi - gains.k_lateral * heading_error)
     steep = sin_g < math.sin(gains.gamma_steep_deg * DEG)
-    alpha_dive = np.where(steep, config.alpha_f_deg * DEG, gains.alpha_pull_deg * DEG)
+    alpha_dive = np.where(steep, config.problem.final_alpha, gains.alpha_pull_deg * DEG)
     alpha_cmd = np.where(glide, config.alpha_bar, alpha_dive)
     theta_u, _ = lift_up_angle(x[6:10])
     sigma_cmd = mu + theta_u  # paper's sigma from the conventional bank (PROBLEM.md)
@@ -181,13 +181,13 @@ def simulate_batch(
         u = _law(x, p, state, config, gains, rho_fit)
         us.append(u)
         xn = rk4_step(lambda tt, xx: np.array(entry_rhs(list(xx), u, model)), t, x, dt)
-        hit = (xn[0] < re + config.hf) & ~done
+        hit = (xn[0] < re + config.problem.final_altitude) & ~done
         if hit.any():  # linear interpolation of the ground crossing within the step
-            frac = (x[0] - re - config.hf) / (x[0] - xn[0])
+            frac = (x[0] - re - config.problem.final_altitude) / (x[0] - xn[0])
             xe = x + frac * (xn - x)
             t_end[hit] = t + frac[hit] * dt
             x_end[:, hit] = xe[:, hit]
-        bad = (xn[5] < 0.25 * config.vf) | (xn[0] > re + 150e3) | ~np.all(np.isfinite(xn), axis=0)
+        bad = (xn[5] < 0.25 * config.problem.final_speed) | (xn[0] > re + 150e3) | ~np.all(np.isfinite(xn), axis=0)
         lost = bad & ~done & ~hit
         t_end[lost] = t
         x_end[:, lost] = x[:, lost]
@@ -209,7 +209,7 @@ def simulate_batch(
         t_i = np.append(ts[:k], t_end[i])
         x_i = np.vstack([xs[:k, :, i], x_end[:, i]])
         u_i = us[: k + 1, :, i]
-        speed_err = abs(float(x_end[5, i]) - config.vf)
+        speed_err = abs(float(x_end[5, i]) - config.problem.final_speed)
         score = miss[i] / 10e3 + speed_err / 100.0 + abs(gamma[i] + 90.0) / 10.0
         if not np.isfinite(score):
             score = math.inf

@@ -113,8 +113,8 @@ def diagnostics(config: EntryProblemConfig, sol) -> dict:
     u_all = sol.interpolant.node_controls()
     out = {
         "initial_state_error": float(np.max(np.abs(x[0] - x0_expected))),
-        "final_radius_error_m": float(xf[0] - (model.planet.radius + config.hf)),
-        "final_speed_error_mps": float(xf[5] - config.vf),
+        "final_radius_error_m": float(xf[0] - (model.planet.radius + config.problem.final_altitude)),
+        "final_speed_error_mps": float(xf[5] - config.problem.final_speed),
         "final_alpha_deg": float(xf[10] / DEG),
         "final_eB1": float(xf[6]),
         "final_etaB": float(xf[9]),
@@ -206,7 +206,8 @@ def summary_of(rs: ReferenceSolve) -> dict:
 
     sol = rs.solution
     cfg = rs.config
-    constants = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name != "model"}
+    constants = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name not in ("model", "problem")}
+    constants["problem"] = dataclasses.asdict(cfg.problem)  # SI units, rad
     constants["model"] = cfg.model.describe()
     passes = rs.timings["passes"]
     return {

@@ -107,7 +107,7 @@ def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg:
     model = config.model
     re = model.planet.radius
     ab, am, uam, usm = config.alpha_bar, config.alpha_max, config.u_alpha_max, config.u_sigma_max
-    k1, k2, k3 = config.k1, config.k2, config.k3
+    k1, k2, k3 = config.problem.k1, config.problem.k2, config.problem.k3
 
     def lagrange(x, u, t):
         return k1 * ((x[6] - ab) / am) ** 2 + k2 * (u[0] / uam) ** 2 + k3 * (u[1] / usm) ** 2
@@ -119,20 +119,20 @@ def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg:
     path = [
         PathConstraint("aero_accel", aero_norm, upper=config.a_max, scale=config.a_max),
         PathConstraint("dynamic_pressure", lambda x, u, t: aero_accelerations(x, model, ns)[2],
-                       lower=config.q_min, scale=1e5),
+                       lower=config.problem.q_min, scale=1e5),
     ]  # fmt: skip
     # the rv-Euler initial state of Table tab:Ex2-BCs is horizontal flight due east at (0, 0)
-    x0 = np.array([re + config.h0, 0.0, 0.0, config.v0, 0.0, 90 * DEG, 0.0, 0.0])
+    x0 = np.array([re + config.problem.initial_altitude, 0.0, 0.0, config.problem.initial_speed, 0.0, 90 * DEG, 0.0, 0.0])
     init_lo, init_hi = x0.copy(), x0.copy()
     init_lo[6:8] = (0.0, -4 * math.pi)
     init_hi[6:8] = (config.alpha_max, 4 * math.pi)
     fin_lo = np.full(8, -math.inf)
     fin_hi = np.full(8, math.inf)
-    fin_lo[0] = fin_hi[0] = re + config.hf
-    fin_lo[1] = fin_hi[1] = config.target_lon_deg * DEG
-    fin_lo[2] = fin_hi[2] = config.target_lat_deg * DEG
-    fin_lo[3] = fin_hi[3] = config.vf
-    fin_lo[6] = fin_hi[6] = config.alpha_f_deg * DEG
+    fin_lo[0] = fin_hi[0] = re + config.problem.final_altitude
+    fin_lo[1] = fin_hi[1] = config.problem.target_longitude
+    fin_lo[2] = fin_hi[2] = config.problem.target_latitude
+    fin_lo[3] = fin_hi[3] = config.problem.final_speed
+    fin_lo[6] = fin_hi[6] = config.problem.final_alpha
     endpoint = []
     if relaxed:
         limit = final_gamma_deg * DEG
