@@ -158,7 +158,7 @@ def _table(runs, agent, label, checks):
     n = runs[("dispersed", agent)][1]["episodes"]
     t = Table(title="RvEntry-v0: learned guidance vs the open-loop collocation reference")
     t.add_column("metric")
-    for col in (f"{label} nominal", "reference nominal", f"{label} dispersed mean (p95)", f"reference dispersed mean (p95)"):
+    for col in (f"{label} nominal", "reference nominal", f"{label} dispersed mean (p95)", "reference dispersed mean (p95)"):
         t.add_column(col, justify="right")
     t.add_column("target", justify="right")
     targets = {"miss_km": "<= 5 nominal", "vertical_error_deg": "<= 2 nominal", "abs_speed_error_mps": "<= 50 nominal",

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
-from rventry_env.core.backend import dot3, sparse, sparse_dot
+from rventry_env.core.backend import dot3, sparse
 from rventry_env.core.euler_parameters import dcm, dcm_column
 
 STATE_NAMES = ("r", "eA1", "eA2", "eA3", "etaA", "v", "eB1", "eB2", "eB3", "etaB")

@@ -6,6 +6,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from gymnasium import spaces
 
 from rventry_env.core import conversions as cv
 from rventry_env.envs.task import Dispersion, EntryTask
@@ -13,6 +14,34 @@ from rventry_env.physics.aerodynamics import ScaledAerodynamics
 from rventry_env.physics.atmosphere import ScaledAtmosphere
 from rventry_env.physics.entry import N_STATE
 from rventry_env.physics.model import EntryModel
+
+
+class EntryEnvSetup:
+    """Construction shared by :class:`RvEntryEnv` and :class:`RvEntryVectorEnv`."""
+
+    def _configure(self, model, task, dt, substeps, dispersion, render_mode, ns) -> tuple[spaces.Box, spaces.Box]:
+        """Validate and store the arguments; return the single-copy (observation, action) spaces."""
+        from rventry_env.envs.observation import observation_box
+        from rventry_env.envs.propagation import Propagator
+
+        self.model = make_model(model)
+        self.task = make_task(task, dt, substeps)
+        self.dispersion = Dispersion.parse(dispersion)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.dt = self.task.dt
+        self._radius = self.model.planet.radius
+        self._g0 = self.model.planet.g0
+        self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
+        self._nominal = self.task.problem.initial_state(self.model)
+        self._obs_low, self._obs_high = observation_box(self.task, self._radius)
+        self._prop = Propagator(self.task, ns)
+        self._x = None
+        return (
+            spaces.Box(self._obs_low, self._obs_high, dtype=np.float32),
+            spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32),
+        )
 
 
 def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) -> EntryTask:

@@ -7,13 +7,12 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from rventry_env.core.backend import MATH
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import common
-from rventry_env.envs.observation import features, observation_box, observe, terminal_metrics, terminal_penalty
-from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT, Propagator
+from rventry_env.envs.observation import features, observe, terminal_metrics, terminal_penalty
+from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.physics.model import EntryModel
@@ -21,7 +20,7 @@ from rventry_env.physics.model import EntryModel
 _RESET_OPTIONS = {"state", "dispersion"}
 
 
-class RvEntryEnv(gym.Env):
+class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     """
     ## Description
 
@@ -156,23 +155,9 @@ class RvEntryEnv(gym.Env):
         dispersion: Dispersion | dict | str | None = None,
         render_mode: str | None = None,
     ):
-        self.model = common.make_model(model)
-        self.task = common.make_task(task, dt, substeps)
-        self.dispersion = Dispersion.parse(dispersion)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
-        self.dt = self.task.dt
-        self._radius = self.model.planet.radius
-        self._g0 = self.model.planet.g0
-        self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
-        self._nominal = self.task.problem.initial_state(self.model)
-        low, high = observation_box(self.task, self._radius)
-        self._obs_low, self._obs_high = low, high
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        self._prop = Propagator(self.task, MATH)
-        self._x: tuple | None = None
+        self.observation_space, self.action_space = self._configure(
+            model, task, dt, substeps, dispersion, render_mode, MATH
+        )
         self._ended = False
 
     # ------------------------------------------------------------------ state
@@ -323,7 +308,6 @@ class RvEntryEnv(gym.Env):
 
     def _record(self):
         if self._track is not None:
-            f = self._forces
             lat, lon = common.latitude_longitude(self._c_ae[0], MATH)
             self._track.append(self._t, self._x[0] - self._radius, self._x[5], lat, lon)
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -14,8 +13,8 @@ from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.allocator import keep_freed_memory
-from rventry_env.envs.observation import observation_box, observe, terminal_metrics, terminal_penalty
-from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT, Propagator
+from rventry_env.envs.observation import observe, terminal_metrics, terminal_penalty
+from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.physics.model import EntryModel
@@ -27,7 +26,7 @@ TERMINAL_KEYS = (
 RENDER_COPIES = 16
 
 
-class RvEntryVectorEnv(VectorEnv):
+class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     """N independent copies of :class:`~rventry_env.envs.rv_entry.RvEntryEnv`, batched.
 
     Every copy runs the single environment's propagation code on arrays (state
@@ -81,28 +80,14 @@ class RvEntryVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": autoreset_mode}
         self.num_envs = int(num_envs)
         self.max_episode_steps = max_episode_steps
-        self.model = common.make_model(model)
-        self.task = common.make_task(task, dt, substeps)
-        self.dispersion = Dispersion.parse(dispersion)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
-        self.dt = self.task.dt
-        self._radius = self.model.planet.radius
-        self._g0 = self.model.planet.g0
-        self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
-        self._nominal = self.task.problem.initial_state(self.model)
-        low, high = observation_box(self.task, self._radius)
-        self._obs_low, self._obs_high = low, high
-        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
-        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self.single_observation_space, self.single_action_space = self._configure(
+            model, task, dt, substeps, dispersion, render_mode, NUMPY
+        )
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._prop = Propagator(self.task, NUMPY)
         if self.num_envs >= 2048:
             keep_freed_memory()  # 3-6x faster array temporaries at large N (see allocator.py)
         self._rngs: list[np.random.Generator] | None = None
-        self._x: tuple | None = None
 
     # ------------------------------------------------------------------ state
     @property
@@ -311,7 +296,6 @@ class RvEntryVectorEnv(VectorEnv):
     def _record(self, only=None):
         if self._tracks is None:
             return
-        f = self._forces
         lat, lon = common.latitude_longitude(self._c_ae[0], NUMPY)
         for i in range(len(self._tracks)) if only is None else only:
             self._tracks[i].append(self._t[i], self._x[0][i] - self._radius, self._x[5][i], lat[i], lon[i])
