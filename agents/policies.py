@@ -55,8 +55,9 @@ class SB3Policy:
         if normalize_path is not None:
             with open(normalize_path, "rb") as f:
                 vn = pickle.load(f)
-            self.obs_mean, self.obs_var = vn.obs_rms.mean.copy(), vn.obs_rms.var.copy()
-            self.clip_obs, self.epsilon = vn.clip_obs, vn.epsilon
+            if vn.norm_obs:  # statistics exist even when they were not used
+                self.obs_mean, self.obs_var = vn.obs_rms.mean.copy(), vn.obs_rms.var.copy()
+                self.clip_obs, self.epsilon = vn.clip_obs, vn.epsilon
         meta = path.with_name("metadata.json")
         self.metadata = json.loads(meta.read_text()) if meta.exists() else {}
         # policy.json sits beside the model (or one level up, for checkpoints/)

@@ -44,6 +44,10 @@ from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs.observation import TIME_SCALE, feature_index, observation_box, observe
 
 _ALPHA, _SIN_SIGMA, _COS_SIGMA = feature_index("alpha"), feature_index("sin_sigma"), feature_index("cos_sigma")
+# Deviations from the reference are a few hundredths of a feature's range; a fixed gain
+# (not running normalization) brings them to order one and keeps "on the reference"
+# at exactly zero input, which ZeroOnReferencePolicy relies on.
+DEVIATION_GAIN = 10.0
 from rventry_env.envs.task import EntryTask
 from rventry_env.physics.entry import entry_forces
 from rventry_env.physics.model import EntryModel
@@ -96,19 +100,20 @@ class ReferenceSchedule:
         return target, o
 
     def augment(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(augmented observation (N, 51) = [o, (o - o_ref) without time], target angles (N, 2)).
+        """(augmented observation (N, 51) = [o, gain (o - o_ref) without time], target angles (N, 2)).
 
         The time deviation is zero by construction (the reference is read at the
         observation's own time); left in, normalization would blow its float32
         round-off up into a unit-variance noise input.
         """
         target, o_ref = self.lookup(obs)
-        dev = np.delete(obs - o_ref, self._time_index, axis=1)
+        dev = DEVIATION_GAIN * np.delete(obs - o_ref, self._time_index, axis=1)
         return np.concatenate([obs, dev], axis=1).astype(np.float32), target
 
     def augmented_space(self) -> spaces.Box:
         low, high = observation_box(self.task, self.radius)
-        dlow, dhigh = np.delete(low - high, self._time_index), np.delete(high - low, self._time_index)
+        dlow = DEVIATION_GAIN * np.delete(low - high, self._time_index)
+        dhigh = DEVIATION_GAIN * np.delete(high - low, self._time_index)
         return spaces.Box(np.concatenate([low, dlow]), np.concatenate([high, dhigh]), dtype=np.float32)
 
 

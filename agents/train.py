@@ -233,7 +233,16 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
         tb = str(out / "tb")
     except ImportError:
         tb = None
-    model = PPO("MlpPolicy", venv, seed=seed, device="cpu", tensorboard_log=tb, policy_kwargs=policy_kwargs, verbose=0,
+    if mode == "residual":
+        from agents.zero_policy import ZeroOnReferencePolicy
+
+        from rventry_env.envs.observation import feature_index
+
+        policy_cls = ZeroOnReferencePolicy
+        policy_kwargs["n_raw_features"] = feature_index("load_factor") + 1  # the raw features come first
+    else:
+        policy_cls = "MlpPolicy"
+    model = PPO(policy_cls, venv, seed=seed, device="cpu", tensorboard_log=tb, policy_kwargs=policy_kwargs, verbose=0,
                 **{k: v for k, v in p.items()})  # fmt: skip
     if mode == "residual" and bool(pol.get("zero_init_residual", False)):
         # start exactly on the reference: a residual of 0.02 alone moves the impact by ~265 km

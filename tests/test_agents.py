@@ -42,11 +42,31 @@ def test_training_pipeline_trains_saves_and_reloads(tmp_path):
     evals = json.loads((out / "evaluations.json").read_text())
     assert evals and all(0.0 <= e["success_rate"] <= 1.0 for e in evals)
     policy = SB3Policy(out)
-    assert policy.obs_mean is not None  # normalization statistics travel with the model
     assert policy.spec["mode"] == "residual" and len(policy.spec["authority_rad"]) == 2
     a = rollout(policy, 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
     b = rollout(SB3Policy(out), 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
     np.testing.assert_array_equal(a.miss_km, b.miss_km)
+
+
+def test_residual_policy_mean_is_exactly_zero_on_the_reference():
+    """Whatever the weights, a vehicle on the reference gets no correction (agents/zero_policy.py)."""
+    import torch
+    from gymnasium import spaces
+
+    from agents.zero_policy import ZeroOnReferencePolicy
+
+    obs_space = spaces.Box(-10, 10, (51,), np.float32)
+    policy = ZeroOnReferencePolicy(obs_space, spaces.Box(-1, 1, (2,), np.float32), lambda _: 1e-4,
+                                   n_raw_features=26, use_sde=True)  # fmt: skip
+    with torch.no_grad():
+        for p in policy.parameters():
+            p.normal_(0.0, 1.0)
+    rng = np.random.default_rng(0)
+    obs = rng.uniform(-1, 1, (64, 51)).astype(np.float32)
+    obs[:32, 26:] = 0.0  # the first half sits on the reference
+    actions, _ = policy.predict(obs, deterministic=True)
+    np.testing.assert_array_equal(actions[:32], 0.0)
+    assert np.all(np.abs(actions[32:]).max(axis=1) > 1e-3)  # off the reference it does act
 
 
 def test_loading_something_that_is_not_a_policy_fails_clearly(tmp_path):
