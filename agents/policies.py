@@ -22,9 +22,9 @@ def make_policy(predict, mode: str, authority=None, task: EntryTask | None = Non
     """
     if mode == "direct":
         return lambda obs, time_s, state: predict(obs)
-    from agents.residual import ReferenceSchedule, ResidualPolicy
+    from agents.residual import ResidualGuidance, ResidualPolicy
 
-    return ResidualPolicy(predict, ReferenceSchedule(task), authority)
+    return ResidualPolicy(predict, ResidualGuidance(authority, task))
 
 
 class SB3Policy:
@@ -79,9 +79,14 @@ class SB3Policy:
 
 
 def load_policy(agent: str, task: EntryTask | None = None):
-    """``"ppo"`` (the shipped policy), ``"reference"``, or a path to any saved SB3 PPO policy."""
+    """``"ppo"`` (the shipped policy), ``"reference"`` (open-loop optimum), ``"lqr"`` (TV-LQR
+    around the guidance reference), or a path to any saved SB3 PPO policy."""
     if agent == "reference":
         return ReferencePolicy(task)
+    if agent == "lqr":
+        from rventry_env.evaluation.tvlqr import NeighboringOptimalGuidance
+
+        return NeighboringOptimalGuidance(task=task)
     if agent == "ppo":
         if not (SHIPPED_PPO / "model.zip").exists():
             raise FileNotFoundError(f"the shipped PPO policy is missing from {SHIPPED_PPO}")

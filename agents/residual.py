@@ -1,36 +1,38 @@
-"""Residual guidance: the collocation reference as feedforward, a learned policy as feedback.
+"""Residual guidance: a classical guidance law plus a learned correction.
 
-The shipped PPO baseline commands angles, not rates. Over the control step
-[t, t + dt] it steers alpha and sigma to
+The shipped PPO baseline flies, over each control step,
 
-    alpha_cmd = alpha_ref(t + dt) + alpha_authority * pi_0
-    sigma_cmd = sigma_ref(t + dt) + sigma_authority * pi_1
+    u = u_lqr(t, x) + authority * pi(o, gain * (o - o_ref(t))) / dt,
 
-with a deadbeat tracker, rate = clip((angle_cmd - angle) / dt, -rate limit,
-+rate limit), which is the environment's action. Here
+clipped to the rate limits, where
 
-* alpha_ref, sigma_ref: the collocation reference (its states);
-* pi = pi(o, o - o_ref(t)) in [-1, 1]^2: the learned policy, seeing its
-  observation and its deviation from the reference's observation o_ref(t).
+* u_lqr is neighboring-optimal feedback (:class:`NeighboringOptimalGuidance`,
+  time-varying LQR) around the *guidance reference*, Example 2 solved with 5 % / 4 %
+  margins on the q and load bounds (:func:`~rventry_env.reference.load_guidance_reference`);
+* pi in [-1, 1]^2 is the learned policy. It sees its observation o and the scaled
+  deviation from the observation o_ref(t) the guidance reference would give, and
+  by construction its mean is exactly zero on that reference
+  (:class:`agents.zero_policy.ZeroOnReferencePolicy`);
+* authority * pi is an angle offset (alpha, sigma) reached in one step.
 
-With pi = 0 and the vehicle on the reference this is exactly the open-loop
-replay (:class:`~rventry_env.evaluation.policies.ReferencePolicy`): the rate is
-the reference's step-mean rate. Why angles: a residual on the *rates* turns any
-small bias of the network into an integrating drift (0.015 of the bank-rate
-limit held for 1000 s is 450 deg of bank). Measured: after 1.5M PPO steps the
-rate residual was still worse than no feedback at all (dispersed mean miss 275 km
-vs 222 km, vertical error 64 vs 16 deg). An angle offset stays an offset.
+With pi = 0 this is the TV-LQR law, which nominally flies the guidance reference.
 
-Indexed by time, not energy: specific energy falls monotonically along the
-reference and is the classical index for entry guidance, but on this skipping
-trajectory an energy-indexed feedforward feeds dissipation errors back into the
-bank schedule. Measured with pi = 0: nominal miss 43 km (time-indexed: 0.14 km),
-dispersed mean miss 1024 km (time-indexed: 222 km).
+Why this structure (each step measured; see docs/ppo.md):
 
-Everything is computed from the observation alone (its time feature), so the
-same code serves training (a VecEnv wrapper) and evaluation (a policy). The
-final ``clip`` is part of the policy: the environment never sees an
-out-of-range action from it.
+* A direct policy (pi is the rates) learned to reach the target but settled in a
+  low-alpha glide and a 5 km/s plunge at 87 g, far from J*.
+* A residual on the open-loop reference was at best 52 km mean miss on the
+  dispersed set (open loop 222 km) and never stable: this skip-glide is so
+  sensitive that 0.9 deg of constant bank moves the impact by 265 km, and PPO's
+  updates swing the closed loop across that.
+* TV-LQR alone cuts the median miss from 201 km to 3 km, but cannot see density
+  or aero errors except through the state, and knows nothing of the path bounds:
+  its failures are path violations and a divergent tail. That is what the
+  learned correction is for; it sees q and the load factor directly.
+
+Everything the correction needs is computed from the observation and the state,
+so the same code serves training (:class:`ResidualVecEnv`) and evaluation
+(:class:`ResidualPolicy`).
 """
 
 from __future__ import annotations
@@ -41,9 +43,9 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
+from rventry_env.evaluation.tvlqr import NeighboringOptimalGuidance
 from rventry_env.envs.observation import TIME_SCALE, feature_index, observation_box, observe
 
-_ALPHA, _SIN_SIGMA, _COS_SIGMA = feature_index("alpha"), feature_index("sin_sigma"), feature_index("cos_sigma")
 # Deviations from the reference are a few hundredths of a feature's range; a fixed gain
 # (not running normalization) brings them to order one and keeps "on the reference"
 # at exactly zero input, which ZeroOnReferencePolicy relies on.
@@ -54,34 +56,27 @@ from rventry_env.physics.model import EntryModel
 
 
 class ReferenceSchedule:
-    """The reference's angles one step ahead and its observation features, tabulated against time.
+    """The observation features of a reference state, tabulated against time.
 
-    :param task: the task (its problem gives the rate limits and the target; its dt the step).
-    :param model: the nominal model the reference was solved with.
-    :param reference: a loaded reference (default :func:`rventry_env.reference.load_reference`).
+    :param reference: the reference trajectory.
+    :param task: the task (the target and the observation scales).
+    :param model: the nominal model.
     :param spacing: tabulation step (s).
     """
 
-    def __init__(self, task: EntryTask | None = None, model: EntryModel | None = None, reference=None,
+    def __init__(self, reference, task: EntryTask | None = None, model: EntryModel | None = None,
                  spacing: float = 0.05):  # fmt: skip
-        if reference is None:
-            from rventry_env.reference import load_reference
-
-            reference = load_reference()
         self.task = EntryTask() if task is None else task
         self.model = EntryModel() if model is None else model
-        p, dt = self.task.problem, self.task.dt
+        p = self.task.problem
         t = np.arange(0.0, reference.tf + spacing, spacing)
         x = reference.state(np.minimum(t, reference.tf))
-        x1 = reference.state(np.minimum(t + dt, reference.tf))
         planet = self.model.planet
         comps = tuple(x.T)
         forces = entry_forces(comps, self.model, NUMPY)
         target = tuple(float(c) for c in p.target_unit_vector())
         obs = observe(comps, forces, dcm(*comps[1:5]), t, self.task, target, planet.radius, planet.g0, NUMPY)
         self.t = t
-        self.tf = float(reference.tf)
-        self.angles_next = x1[:, 10:12].copy()  # where the reference's alpha, sigma are one step later
         self.obs = np.stack(obs, axis=-1).astype(np.float64)
         self.radius = planet.radius
         self._time_index = feature_index("time")
@@ -90,25 +85,21 @@ class ReferenceSchedule:
         """Time since the episode's start, from the observations' time feature."""
         return obs[:, self._time_index].astype(np.float64) * TIME_SCALE
 
-    def lookup(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """((alpha, sigma)_ref at t + dt (N, 2), o_ref(t) (N, 26)) at the times of ``obs``."""
+    def lookup(self, obs: np.ndarray) -> np.ndarray:
+        """o_ref (N, 26) at the times of ``obs`` (held at t_f afterwards)."""
         t = np.clip(self.time_of(obs), 0.0, self.t[-1])
         k = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, self.t.size - 2)
         w = ((t - self.t[k]) / (self.t[k + 1] - self.t[k]))[:, None]
-        target = (1 - w) * self.angles_next[k] + w * self.angles_next[k + 1]
-        o = (1 - w) * self.obs[k] + w * self.obs[k + 1]
-        return target, o
+        return (1 - w) * self.obs[k] + w * self.obs[k + 1]
 
-    def augment(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(augmented observation (N, 51) = [o, gain (o - o_ref) without time], target angles (N, 2)).
+    def augment(self, obs: np.ndarray) -> np.ndarray:
+        """The policy's input (N, 51): [o, gain (o - o_ref) without the time deviation].
 
         The time deviation is zero by construction (the reference is read at the
-        observation's own time); left in, normalization would blow its float32
-        round-off up into a unit-variance noise input.
+        observation's own time); left in, its float32 round-off would be noise.
         """
-        target, o_ref = self.lookup(obs)
-        dev = DEVIATION_GAIN * np.delete(obs - o_ref, self._time_index, axis=1)
-        return np.concatenate([obs, dev], axis=1).astype(np.float32), target
+        dev = DEVIATION_GAIN * np.delete(obs - self.lookup(obs), self._time_index, axis=1)
+        return np.concatenate([obs, dev], axis=1).astype(np.float32)
 
     def augmented_space(self) -> spaces.Box:
         low, high = observation_box(self.task, self.radius)
@@ -117,70 +108,69 @@ class ReferenceSchedule:
         return spaces.Box(np.concatenate([low, dlow]), np.concatenate([high, dhigh]), dtype=np.float32)
 
 
-def compose(obs: np.ndarray, target: np.ndarray, residual: np.ndarray, authority, task: EntryTask) -> np.ndarray:
-    """The environment action that steers (alpha, sigma) to ``target + authority * residual`` in one step.
+class ResidualGuidance:
+    """TV-LQR around the guidance reference plus a residual angle offset.
 
-    :param obs: raw observations (N, 26): alpha and sigma are read from them.
-    :param target: the reference's (alpha, sigma) at the end of the step (N, 2).
-    :param residual: the policy's output (N, 2) in [-1, 1].
-    :param authority: (alpha, sigma) offsets at residual = 1 (rad).
-    :param task: rate limits and the control step.
+    :param authority: (alpha, sigma) offsets in rad reached in one step at a residual of 1.
+    :param task: the task.
+    :param base: the classical law (default :class:`NeighboringOptimalGuidance` on the guidance reference).
     """
-    p, dt = task.problem, task.dt
-    alpha = 0.5 * (obs[:, _ALPHA].astype(np.float64) + 1.0) * p.alpha_max
-    sigma = np.arctan2(obs[:, _SIN_SIGMA].astype(np.float64), obs[:, _COS_SIGMA].astype(np.float64))
-    cmd = target + np.asarray(authority) * np.clip(np.asarray(residual, dtype=np.float64), -1.0, 1.0)
-    d_alpha = cmd[:, 0] - alpha
-    d_sigma = (cmd[:, 1] - sigma + np.pi) % (2 * np.pi) - np.pi  # the short way round
-    a = np.column_stack([d_alpha / (dt * p.u_alpha_max), d_sigma / (dt * p.u_sigma_max)])
-    return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+    def __init__(self, authority, task: EntryTask | None = None, base: NeighboringOptimalGuidance | None = None):
+        self.task = EntryTask() if task is None else task
+        self.base = NeighboringOptimalGuidance(task=self.task) if base is None else base
+        self.schedule = ReferenceSchedule(self.base.reference, self.task, self.base.model)
+        self.authority = np.asarray(authority, dtype=np.float64)
+        if self.authority.shape != (2,) or np.any(self.authority < 0):
+            raise ValueError(f"authority must be two non-negative angles (rad), got {authority}")
+
+    def actions(self, obs: np.ndarray, state: np.ndarray, residual: np.ndarray) -> np.ndarray:
+        """Environment actions for observations (N, 26), states (N, 12) and residuals (N, 2)."""
+        t = self.schedule.time_of(obs)
+        u = self.base.rates(t, state)
+        u = u + self.authority * np.clip(np.asarray(residual, dtype=np.float64), -1.0, 1.0) / self.task.dt
+        return np.clip(u / self.base.u_max, -1.0, 1.0).astype(np.float32)
 
 
 class ResidualVecEnv(VecEnvWrapper):
     """Presents the residual problem to the learner: augmented observations, residual actions.
 
-    :param venv: a VecEnv of raw RvEntry-v0 observations (26 features).
-    :param schedule: the time-indexed reference.
-    :param authority: (alpha, sigma) offsets (rad) at a residual of 1.
+    :param venv: an :class:`agents.sb3_vec.RvEntrySB3VecEnv` (raw observations, and the states).
+    :param guidance: the classical law and the residual's authority.
     """
 
-    def __init__(self, venv, schedule: ReferenceSchedule, authority):
-        super().__init__(venv, observation_space=schedule.augmented_space(), action_space=venv.action_space)
-        self.schedule, self.authority = schedule, np.asarray(authority, dtype=np.float64)
-        self._obs = self._target = None
+    def __init__(self, venv, guidance: ResidualGuidance):
+        super().__init__(venv, observation_space=guidance.schedule.augmented_space(), action_space=venv.action_space)
+        self.guidance = guidance
+        self._obs = None
 
     def reset(self):
         self._obs = self.venv.reset()
-        aug, self._target = self.schedule.augment(self._obs)
-        return aug
+        return self.guidance.schedule.augment(self._obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self.venv.step_async(compose(self._obs, self._target, actions, self.authority, self.schedule.task))
+        self.venv.step_async(self.guidance.actions(self._obs, self.venv.venv.state, actions))
 
     def step_wait(self):
         obs, reward, dones, infos = self.venv.step_wait()
         self._obs = obs
-        aug, self._target = self.schedule.augment(obs)
         for i in np.nonzero(dones)[0]:
             term = infos[i].get("terminal_observation")
             if term is not None:
-                infos[i]["terminal_observation"] = self.schedule.augment(term[None])[0][0]
-        return aug, reward, dones, infos
+                infos[i]["terminal_observation"] = self.guidance.schedule.augment(term[None])[0]
+        return self.guidance.schedule.augment(obs), reward, dones, infos
 
 
 class ResidualPolicy:
     """A trained residual model as a :func:`rventry_env.evaluation.rollout` policy.
 
-    :param predict: maps augmented observations to residuals (normalizing them as the model expects).
-    :param schedule: the time-indexed reference.
-    :param authority: (alpha, sigma) offsets (rad) at a residual of 1.
+    :param predict: maps augmented observations to residuals.
+    :param guidance: the classical law and the residual's authority.
     """
 
-    def __init__(self, predict, schedule: ReferenceSchedule, authority):
-        self.predict, self.schedule = predict, schedule
-        self.authority = np.asarray(authority, dtype=np.float64)
+    def __init__(self, predict, guidance: ResidualGuidance):
+        self.predict, self.guidance = predict, guidance
 
     def __call__(self, obs, time_s, state):
         obs = np.asarray(obs)
-        aug, target = self.schedule.augment(obs)
-        return compose(obs, target, self.predict(aug), self.authority, self.schedule.task)
+        return self.guidance.actions(obs, state, self.predict(self.guidance.schedule.augment(obs)))

@@ -76,7 +76,7 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
     """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from agents.residual import ReferenceSchedule, ResidualVecEnv
+    from agents.residual import ResidualGuidance, ResidualVecEnv
     from agents.sb3_vec import RangePotentialShaping, RvEntrySB3VecEnv
 
     e = cfg["env"]
@@ -86,7 +86,7 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
     )  # fmt: skip
     mode, authority = policy_mode(cfg)
     if mode == "residual":
-        venv = ResidualVecEnv(venv, ReferenceSchedule(task), authority)
+        venv = ResidualVecEnv(venv, ResidualGuidance(authority, task))
     venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
     shaping = cfg.get("shaping", {})
     if float(shaping.get("range_weight", 0.0)) > 0:
@@ -177,6 +177,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
 
         def _on_training_start(self) -> None:
             self.t0 = time.time()
+            self.evaluate()  # the untrained policy competes too: the residual starts as the classical law
 
     ckpt = CheckpointCallback(
         save_freq=max(int(t["checkpoint_every"]) // int(cfg["env"]["num_envs"]), 1),

@@ -3,6 +3,8 @@
 * :func:`load_reference` - the shipped optimal trajectory (:class:`Reference`),
   cached; ``.t``, ``.x (n, 12)``, ``.u (n, 2)``, ``.tf``, ``.cost``,
   ``.state(t)``, ``.control(t)``, ``.summary()``. NumPy only.
+* :func:`load_guidance_reference` - the same problem solved with 5 % / 4 % margins on
+  the q and load-factor bounds: the feedforward the guidance laws track.
 * :mod:`.collocation` - the general LGR collocation solver with hp refinement
   (CasADi + IPOPT, imported only when used).
 * :mod:`.entry_problem`, :mod:`.guess`, :mod:`.pipeline` - Example 2, its
@@ -12,6 +14,13 @@
 * :mod:`.replay` - open-loop replay of the reference controls.
 """
 
-from rventry_env.reference.data_file import DEFAULT_PATH, Reference, load_reference, read_reference
+from rventry_env.reference.data_file import (
+    DEFAULT_PATH,
+    GUIDANCE_PATH,
+    Reference,
+    load_guidance_reference,
+    load_reference,
+    read_reference,
+)
 
-__all__ = ["DEFAULT_PATH", "Reference", "load_reference", "read_reference"]
+__all__ = ["DEFAULT_PATH", "GUIDANCE_PATH", "Reference", "load_guidance_reference", "load_reference", "read_reference"]

@@ -38,6 +38,10 @@ def register(subparsers) -> None:
                    help="last fraction of the time meshed finer in the first mesh (0.025; 0 for none)")
     p.add_argument("--norm-mode", choices=("projection", "paper", "none"), default="projection",
                    help="how the quaternion norms are kept (see docs/reference.md)")  # fmt: skip
+    p.add_argument("--q-margin", type=float, default=0.0, metavar="FRACTION",
+                   help="solve with q >= q_min (1 + FRACTION): a guidance reference with room for dispersions (0)")
+    p.add_argument("--load-margin", type=float, default=0.0, metavar="FRACTION",
+                   help="solve with the load factor <= a_max (1 - FRACTION) (0)")
     p.add_argument("--quiet", action="store_true", help="no per-pass table")
     p.set_defaults(func=_solve)
 
@@ -69,14 +73,23 @@ def _solve(args) -> int:
     from rventry_env.reference.entry_problem import EntryProblemConfig
     from rventry_env.reference.pipeline import ReferenceOptions, save_reference, solve_reference
 
+    from rventry_env.problem import EntryProblem
+
     if not 0.0 <= args.end_fraction < 1.0:
         raise ValueError(f"--end-fraction must lie in [0, 1), got {args.end_fraction}")
+    for name in ("q_margin", "load_margin"):
+        if not 0.0 <= getattr(args, name) < 0.5:
+            raise ValueError(f"--{name.replace('_', '-')} must lie in [0, 0.5), got {getattr(args, name)}")
     opts = ReferenceOptions(
         first_mesh=tuple(args.first_mesh), end_fraction=args.end_fraction, mesh_tolerance=args.mesh_tolerance
     )
+    base = EntryProblem()
+    problem = EntryProblem(q_min=base.q_min * (1 + args.q_margin), a_max_g=base.a_max_g * (1 - args.load_margin))
     title = "LGR collocation, paper Example 2 (rv-Euler, exact vertical impact)"
+    if args.q_margin or args.load_margin:
+        title += f", path margins q +{args.q_margin:.0%} load -{args.load_margin:.0%}"
     progress = None if args.quiet else RichMeshTable(title)
-    rs = solve_reference(EntryProblemConfig(norm_mode=args.norm_mode), opts, progress)
+    rs = solve_reference(EntryProblemConfig(problem=problem, norm_mode=args.norm_mode), opts, progress)
     npz, js = save_reference(rs, args.out)
     sol = rs.solution
     print(

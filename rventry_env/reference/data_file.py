@@ -30,6 +30,7 @@ from rventry_env.reference.collocation.mesh import Mesh
 FORMAT_VERSION = 1
 DATA_DIR = Path(__file__).resolve().parent / "data"
 DEFAULT_PATH = DATA_DIR / f"entry_reference_v{FORMAT_VERSION}.npz"
+GUIDANCE_PATH = DATA_DIR / f"guidance_reference_v{FORMAT_VERSION}.npz"
 
 
 class Reference:
@@ -145,6 +146,18 @@ def _cached(path: str) -> Reference:
     return read_reference(path)
 
 
+def load_guidance_reference() -> Reference:
+    """The shipped *guidance* reference: Example 2 re-solved with path-constraint margins.
+
+    ``rventry reference solve --q-margin 0.05 --load-margin 0.04 --out
+    rventry_env/reference/data/guidance_reference_v1.npz``: q >= 12.6 kPa and a load
+    factor <= 11.52 g, so that a guidance law tracking it under dispersions has room
+    before the true bounds. Its cost is higher than J*; :func:`load_reference` stays
+    the optimum the paper's problem asks for.
+    """
+    return _cached(str(GUIDANCE_PATH))
+
+
 def load_reference(path: str | Path | None = None) -> Reference:
     """The shipped reference (cached per path; the arrays are read-only).
 
@@ -160,4 +173,6 @@ __all__ = [
     "write_reference",
     "read_reference",
     "load_reference",
+    "load_guidance_reference",
+    "GUIDANCE_PATH",
 ]
