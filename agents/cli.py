@@ -18,6 +18,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     ppo.add_argument("--config", help="TOML config (default agents/ppo.toml)")
     ppo.add_argument("--no-progress", action="store_true", help="no progress bar")
     ppo.set_defaults(func=_run_ppo)
+    ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
+    ship.add_argument("run_dir", help="the --out directory of a finished `rventry train ppo`")
+    ship.add_argument("--dest", help="destination (default: the packaged policy, rventry_env/data/ppo)")
+    ship.set_defaults(func=_ship)
 
 
 def _run_ppo(args) -> int:
@@ -25,4 +29,11 @@ def _run_ppo(args) -> int:
 
     out = train_ppo(args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress)
     print(f"wrote {out}/model.zip (best on the task metric), learning_curve.png, metadata.json")
+    return 0
+
+
+def _ship(args) -> int:
+    from agents.ship import ship
+
+    print(f"shipped {args.run_dir} -> {ship(args.run_dir, args.dest)}")
     return 0

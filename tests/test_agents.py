@@ -46,6 +46,15 @@ def test_training_pipeline_trains_saves_and_reloads(tmp_path):
     a = rollout(policy, 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
     b = rollout(SB3Policy(out), 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
     np.testing.assert_array_equal(a.miss_km, b.miss_km)
+    # shipping keeps the behaviour and drops the optimizer state
+    from agents.ship import ship
+
+    shipped = ship(out, tmp_path / "shipped")
+    assert (shipped / "model.zip").stat().st_size < (out / "model.zip").stat().st_size
+    c = rollout(SB3Policy(shipped), 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
+    np.testing.assert_array_equal(a.miss_km, c.miss_km)
+    with pytest.raises(FileNotFoundError, match="not a finished training run"):
+        ship(tmp_path / "nothing", tmp_path / "x")
 
 
 def test_residual_policy_mean_is_exactly_zero_on_the_reference():
