@@ -14,9 +14,9 @@ copy of the physics), evaluated along the reference sampled at the control steps
 Costs, with deviations measured in engineering units (km of position, 10 m/s of
 speed, degrees of the velocity direction and of alpha, sigma):
 
-* stage: ``q_weight`` on every scaled deviation (a light regularization: the
-  guidance goal is the terminal state);
-* control: ``r_weight * (du_alpha / u_alpha_max)^2 + (du_sigma / u_sigma_max)^2``;
+* stage: ``q_weight`` (1e-5) on every scaled deviation (a light regularization:
+  the guidance goal is the terminal state);
+* control: ``r_weight`` (100) ``* (du_alpha / u_alpha_max)^2 + (du_sigma / u_sigma_max)^2``;
 * terminal: 1/(5 km)^2 on position, 1/(5 deg)^2 on the velocity direction (the
   vertical impact), 1/(10 m/s)^2 on speed, 1/(5 deg)^2 on alpha: the success
   thresholds, roughly, as quadratic weights.
@@ -25,6 +25,12 @@ The law knows only the nominal model: it cannot see a density or aerodynamic
 error except through the state it causes, and it knows nothing of the path
 constraints, which is why it tracks a reference solved with margins on them
 (:func:`rventry_env.reference.load_guidance_reference`).
+
+The defaults come from a scan on 100 dispersed episodes (seed 100000): stage
+weights 1e-5 to 1e-4 and control weights 30 to 300 give 66-77 % success around the
+30 % / 6 % guidance reference; 1e-5 / 100 gives 75 % there and the best median
+miss (2.3 km). Around the optimum itself (no margins) every setting violated a
+path bound in nearly every episode.
 """
 
 from __future__ import annotations
@@ -55,7 +61,7 @@ class NeighboringOptimalGuidance:
     """
 
     def __init__(self, reference=None, task: EntryTask | None = None, model: EntryModel | None = None,
-                 q_weight: float = 1e-4, r_weight: float = 100.0):  # fmt: skip
+                 q_weight: float = 1e-5, r_weight: float = 100.0):  # fmt: skip
         if reference is None:
             from rventry_env.reference import load_guidance_reference
 

@@ -3,7 +3,7 @@
 * :func:`load_reference` - the shipped optimal trajectory (:class:`Reference`),
   cached; ``.t``, ``.x (n, 12)``, ``.u (n, 2)``, ``.tf``, ``.cost``,
   ``.state(t)``, ``.control(t)``, ``.summary()``. NumPy only.
-* :func:`load_guidance_reference` - the same problem solved with 5 % / 4 % margins on
+* :func:`load_guidance_reference` - the same problem solved with 30 % / 6 % margins on
   the q and load-factor bounds: the feedforward the guidance laws track.
 * :mod:`.collocation` - the general LGR collocation solver with hp refinement
   (CasADi + IPOPT, imported only when used).
