@@ -47,10 +47,17 @@ def load_config(path: str | Path | dict | None = None) -> dict:
 
 
 def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:
-    from dataclasses import replace
+    """The training task: the base task with the config's dt, substeps and [reward] weight overrides."""
+    from dataclasses import fields, replace
 
     base = EntryTask() if base is None else base
-    return replace(base, dt=float(cfg["env"]["dt"]), substeps=int(cfg["env"]["substeps"]))
+    overrides = dict(cfg.get("reward", {}))
+    known = {f.name for f in fields(base.weights)}
+    unknown = set(overrides) - known
+    if unknown:
+        raise ValueError(f"[reward] has unknown weight(s) {sorted(unknown)}; known: {sorted(known)}")
+    weights = replace(base.weights, **{k: float(v) for k, v in overrides.items()})
+    return replace(base, dt=float(cfg["env"]["dt"]), substeps=int(cfg["env"]["substeps"]), weights=weights)
 
 
 POLICY_MODES = ("direct", "residual")

@@ -332,3 +332,48 @@ def test_dispersion_draws_change_the_model_per_copy():
     d = venv.dispersion_draw
     assert np.all(np.abs(d[:, 0]) <= 0.05) and np.all(np.abs(d[:, 1:3]) <= 0.03) and np.unique(d[:, 0]).size == 4
     np.testing.assert_allclose(venv._density, 1 + d[:, 0])
+
+
+def test_success_bonus_is_paid_only_at_a_successful_impact():
+    from dataclasses import replace
+
+    from rventry_env.evaluation.policies import ReferencePolicy
+
+    def last_reward(task):
+        env = RvEntryEnv(task=task)
+        policy = ReferencePolicy(task)
+        obs, info = env.reset(seed=0)
+        while True:
+            obs, r, term, trunc, info = env.step(policy(obs[None], np.array([info["time_s"]]), None)[0])
+            if term or trunc:
+                return r, info
+
+    base = EntryTask()
+    r0, i0 = last_reward(base)
+    r1, i1 = last_reward(replace(base, weights=replace(base.weights, success_bonus=7.0)))
+    assert i0["is_success"] and r1 == pytest.approx(r0 + 7.0, abs=1e-9)
+    # a failed episode gets no bonus
+    fail = EntryTask(problem=EntryProblem(initial_alpha=math.radians(11.86), initial_sigma=math.pi))
+    ra, ia = run_episode(RvEntryEnv(task=fail), policy=lambda o: np.zeros(2, np.float32))[1:]
+    rb, ib = run_episode(RvEntryEnv(task=replace(fail, weights=replace(fail.weights, success_bonus=7.0))),
+                         policy=lambda o: np.zeros(2, np.float32))[1:]  # fmt: skip
+    assert not ia["is_success"] and ra == rb
+
+
+def test_vector_env_pays_the_same_success_bonus():
+    from dataclasses import replace
+
+    from rventry_env.evaluation.policies import ReferencePolicy
+
+    task = replace(EntryTask(), weights=replace(EntryTask().weights, success_bonus=7.0))
+    venv, env, policy = RvEntryVectorEnv(num_envs=1, task=task), RvEntryEnv(task=task), ReferencePolicy(task)
+    obs_v, info_v = venv.reset(seed=0)
+    obs, info = env.reset(seed=0)
+    while True:
+        a = policy(obs[None], np.array([info["time_s"]]), None)
+        obs_v, rv, tv, _, info_v = venv.step(a)
+        obs, r, term, trunc, info = env.step(a[0])
+        assert rv[0] == pytest.approx(r, rel=1e-9, abs=1e-12)
+        if term:
+            assert tv[0] and info["is_success"] and info_v["is_success"][0]
+            break

@@ -292,6 +292,8 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             penalty = terminal_penalty(m, self.task, MATH)
             if status != IMPACT:
                 penalty = self.task.weights.failure + (penalty if math.isfinite(penalty) else 0.0)
+            elif success:
+                penalty -= self.task.weights.success_bonus
         info.update(
             miss_km=m.miss_km,
             vertical_error_deg=m.vertical_error_deg,

@@ -26,7 +26,9 @@ class RewardWeights:
     + q_violation * max(0, 1 - q/q_min - tol), sampled at every RK4 node, with
     tol the 1 % margin of :class:`SuccessThresholds` (what counts as a violation).
     ``failure`` is added when an episode ends without impact (skip-out, non-finite
-    state, stall).
+    state, stall). ``success_bonus`` (default 0) is *paid* at a successful impact
+    (:class:`SuccessThresholds`): a learner's handle on the threshold-shaped task
+    metric, off in the environment's own definition.
     """
 
     miss_per_km: float = 0.2
@@ -36,6 +38,7 @@ class RewardWeights:
     load_violation: float = 10.0
     q_violation: float = 10.0
     failure: float = 200.0
+    success_bonus: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -279,7 +279,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         with np.errstate(invalid="ignore"):
             terms = terminal_penalty(m, self.task, NUMPY)
         terms = np.where(np.isfinite(terms), terms, 0.0)
-        penalty = np.where(terminated, np.where(impact, terms, terms + self.task.weights.failure), 0.0)
+        w = self.task.weights
+        penalty = np.where(terminated, np.where(impact, terms - w.success_bonus * success, terms + w.failure), 0.0)
         failure = np.array([FAILURE_NAMES.get(int(c), "") for c in status], dtype=object)
         failure = np.where(terminated, failure, "time limit")
         values = {
