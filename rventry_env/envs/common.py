@@ -44,6 +44,14 @@ class EntryEnvSetup:
         )
 
 
+def clip_observation(obs: np.ndarray, low: np.ndarray, high: np.ndarray):
+    """Clip observations into the Box, and say which rows needed it (never silently)."""
+    clipped = ((obs < low) | (obs > high)).any(axis=-1)
+    if np.any(clipped):
+        obs = np.clip(obs, low, high)
+    return obs, clipped
+
+
 def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) -> EntryTask:
     task = EntryTask() if task is None else task
     if not isinstance(task, EntryTask):

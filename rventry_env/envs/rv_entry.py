@@ -246,11 +246,8 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     # ------------------------------------------------------------------ helpers
     def _observe(self):
         raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, MATH)
-        obs = np.array(raw, dtype=np.float32)
-        clipped = bool(np.any(obs < self._obs_low) or np.any(obs > self._obs_high))
-        if clipped:
-            obs = np.clip(obs, self._obs_low, self._obs_high)
-        return obs, clipped
+        obs, clipped = common.clip_observation(np.array(raw, dtype=np.float32), self._obs_low, self._obs_high)
+        return obs, bool(clipped)
 
     def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
         f = self._forces

@@ -230,12 +230,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
 
     def _observe(self):
         raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, NUMPY)
-        obs = np.stack(raw, axis=-1).astype(np.float32)
-        out = (obs < self._obs_low) | (obs > self._obs_high)
-        clipped = out.any(axis=1)
-        if np.any(clipped):
-            obs = np.clip(obs, self._obs_low, self._obs_high)
-        return obs, clipped
+        return common.clip_observation(np.stack(raw, axis=-1).astype(np.float32), self._obs_low, self._obs_high)
 
     def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
         f = self._forces

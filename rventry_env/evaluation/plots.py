@@ -23,6 +23,17 @@ def _ground_track(x: np.ndarray):
     return lat, lon
 
 
+def _save(fig, path) -> Path:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_trajectories(
     batches: dict[str, EpisodeBatch], path: str | Path, reference=None, target_deg=(0.0, 25.15), title: str = ""
 ) -> Path:
@@ -79,12 +90,7 @@ def plot_trajectories(
         a.grid(alpha=0.3)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds) -> Path:
@@ -116,9 +122,4 @@ def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds
         ax.set(xlabel=label, ylabel="episodes")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
