@@ -133,7 +133,7 @@ def _tight_replay(x0, actions, task, model, solve_ivp, entry_rhs):
             # the env's rule: the applied alpha rate lands alpha on a bound at the substep's end
             ua = (min(max(x[10] + u[k, 0] * h, 0.0), p.alpha_max) - x[10]) / h
             uk = (ua, u[k, 1])
-            sol = solve_ivp(lambda _t, y: np.array(entry_rhs(list(y), uk, model)), (t, t + h), x, method="DOP853",
+            sol = solve_ivp(lambda _t, y, uk=uk: np.array(entry_rhs(list(y), uk, model)), (t, t + h), x, method="DOP853",
                             rtol=1e-12, atol=1e-10, dense_output=True, events=ground)  # fmt: skip
             segs.append((t, sol))
             if sol.status == 1:

@@ -127,7 +127,7 @@ def throughput(name: str, batches=BATCHES, min_time: float = 0.3) -> dict:
     out["scalar"] = _rate(lambda: f(xs, MATH), min_time)
     for b in batches:
         x = tuple(random_states(name, b))  # component arrays of shape (b,)
-        out[b] = b * _rate(lambda: f(x, NUMPY), min_time)
+        out[b] = b * _rate(lambda x=x: f(x, NUMPY), min_time)
     return out
 
 

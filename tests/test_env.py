@@ -312,7 +312,7 @@ def test_vector_env_autoreset_next_step_and_same_step():
 def test_vector_env_truncates_at_its_time_limit():
     venv = RvEntryVectorEnv(num_envs=2, task=TASK, max_episode_steps=3)
     venv.reset(seed=0)
-    for k in range(3):
+    for _ in range(3):
         _, _, term, trunc, info = venv.step(np.zeros((2, 2)))
     assert trunc.all() and not term.any() and (info["failure"] == "time limit").all()
 

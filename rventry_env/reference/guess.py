@@ -180,7 +180,7 @@ def simulate_batch(
     while t < t_max and not done.all():
         u = _law(x, p, state, config, gains, rho_fit)
         us.append(u)
-        xn = rk4_step(lambda tt, xx: np.array(entry_rhs(list(xx), u, model)), t, x, dt)
+        xn = rk4_step(lambda tt, xx, u=u: np.array(entry_rhs(list(xx), u, model)), t, x, dt)
         hit = (xn[0] < re + config.problem.final_altitude) & ~done
         if hit.any():  # linear interpolation of the ground crossing within the step
             frac = (x[0] - re - config.problem.final_altitude) / (x[0] - xn[0])

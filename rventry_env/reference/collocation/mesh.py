@@ -99,9 +99,6 @@ class Mesh:
         s = np.asarray(s, dtype=float)
         return np.clip(np.searchsorted(self.breaks, s, side="right") - 1, 0, self.n_intervals - 1)
 
-    def to_dict(self) -> dict:
-        return {"breaks": self.breaks.tolist(), "degrees": self.degrees.tolist()}
-
 
 def refine_ph(mesh: Mesh, errors: np.ndarray, tol: float, n_min: int = 3, n_max: int = 12) -> Mesh:
     """One ph refinement step (Patterson, Hager & Rao 2015).
