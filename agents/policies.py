@@ -27,6 +27,19 @@ def make_policy(predict, mode: str, authority=None, task: EntryTask | None = Non
     return ResidualPolicy(predict, ResidualGuidance(authority, task))
 
 
+def _load_sb3(path: Path):
+    """Load a saved model of any stable-baselines3 algorithm with a continuous-action policy."""
+    from stable_baselines3 import A2C, DDPG, PPO, SAC, TD3
+
+    errors = []
+    for algo in (PPO, SAC, TD3, A2C, DDPG):
+        try:
+            return algo.load(path, device="cpu")
+        except Exception as exc:  # the zip names its policy class; a mismatch fails here
+            errors.append(f"{algo.__name__}: {type(exc).__name__}")
+    raise ValueError(f"{path} is not a saved stable-baselines3 model ({'; '.join(errors)})")
+
+
 class SB3Policy:
     """A saved stable-baselines3 model (zip) with optional VecNormalize statistics, acting deterministically.
 
@@ -36,7 +49,6 @@ class SB3Policy:
     """
 
     def __init__(self, model_path: str | Path, normalize_path: str | Path | None = None):
-        from stable_baselines3 import PPO
         from stable_baselines3.common.base_class import BaseAlgorithm
 
         path = Path(model_path)
@@ -46,10 +58,7 @@ class SB3Policy:
             path = path / "model.zip"
         if not path.exists():
             raise FileNotFoundError(f"no saved policy at {path}")
-        try:
-            self.model: BaseAlgorithm = PPO.load(path, device="cpu")
-        except Exception as exc:  # an SB3 zip of another algorithm
-            raise ValueError(f"{path} is not a stable-baselines3 PPO model: {exc}") from exc
+        self.model: BaseAlgorithm = _load_sb3(path)
         self.obs_mean = self.obs_var = None
         self.clip_obs, self.epsilon = 10.0, 1e-8
         if normalize_path is not None:

@@ -86,8 +86,21 @@ def test_loading_something_that_is_not_a_policy_fails_clearly(tmp_path):
         load_policy(str(tmp_path / "nothing.zip"))
     bogus = tmp_path / "bogus.zip"
     bogus.write_bytes(b"not a zip")
-    with pytest.raises(ValueError, match="not a stable-baselines3 PPO model"):
+    with pytest.raises(ValueError, match="not a saved stable-baselines3 model"):
         load_policy(str(bogus))
+
+
+def test_any_saved_sb3_algorithm_loads(tmp_path):
+    """`rventry evaluate --agent PATH` takes any SB3 policy, not only PPO: here an untrained SAC."""
+    from stable_baselines3 import SAC
+
+    from rventry_env.envs.rv_entry import RvEntryEnv
+
+    SAC("MlpPolicy", RvEntryEnv(), learning_starts=10, buffer_size=100, device="cpu").save(tmp_path / "sac.zip")
+    policy = load_policy(str(tmp_path / "sac.zip"))
+    assert type(policy.model).__name__ == "SAC"
+    batch = rollout(policy, 2, seed=1, max_episode_steps=5)
+    assert batch.miss_km.shape == (2,)
 
 
 def test_shipped_policy_is_present_and_deterministic_for_a_seed():
