@@ -46,14 +46,14 @@ from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.evaluation.tvlqr import NeighboringOptimalGuidance
 from rventry_env.envs.observation import TIME_SCALE, feature_index, observation_box, observe
+from rventry_env.envs.task import EntryTask
+from rventry_env.physics.entry import entry_forces
+from rventry_env.physics.model import EntryModel
 
 # Deviations from the reference are a few hundredths of a feature's range; a fixed gain
 # (not running normalization) brings them to order one and keeps "on the reference"
 # at exactly zero input, which ZeroOnReferencePolicy relies on.
 DEVIATION_GAIN = 10.0
-from rventry_env.envs.task import EntryTask
-from rventry_env.physics.entry import entry_forces
-from rventry_env.physics.model import EntryModel
 
 
 class ReferenceSchedule:

@@ -116,6 +116,11 @@ def live_policy(model, vecnorm, cfg: dict, task: EntryTask):
     return make_policy(predict, mode, authority, task)
 
 
+def task_metric_key(rec: dict) -> tuple[float, float]:
+    """How evaluations are ranked: success rate first, then the smaller mean miss."""
+    return (rec["success_rate"] or 0.0, -(rec["miss_km"] if rec["miss_km"] is not None else np.inf))
+
+
 def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None):
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
@@ -166,21 +171,20 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
                       "impact_rate"):  # fmt: skip
                 if rec[k] is not None:
                     self.logger.record(f"task/{k}", rec[k])
-            key = (rec["success_rate"] or 0.0, -(rec["miss_km"] if rec["miss_km"] is not None else np.inf))
+            key = task_metric_key(rec)
             if key > self.best_key:
                 self.best_key = key
                 self.model.save(out / "model.zip")
                 vecnorm.save(str(out / "vecnormalize.pkl"))
                 rec["best"] = True
             (out / "evaluations.json").write_text(json.dumps(self.history, indent=1))
-            if self.verbose or True:
-                print(
-                    f"[eval @ {rec['timesteps']:,}] success {rec['success_rate']:.2f} miss {rec['miss_km']:.1f} km "
-                    f"(median {rec['median_miss_km']:.1f}) vertical {rec['vertical_error_deg']:.1f} deg "
-                    f"|dv| {rec['abs_speed_error_mps']:.0f} m/s impact {rec['impact_rate']:.2f}"
-                    + (" *best*" if rec.get("best") else ""),
-                    flush=True,
-                )
+            print(
+                f"[eval @ {rec['timesteps']:,}] success {rec['success_rate']:.2f} miss {rec['miss_km']:.1f} km "
+                f"(median {rec['median_miss_km']:.1f}) vertical {rec['vertical_error_deg']:.1f} deg "
+                f"|dv| {rec['abs_speed_error_mps']:.0f} m/s impact {rec['impact_rate']:.2f}"
+                + (" *best*" if rec.get("best") else ""),
+                flush=True,
+            )
 
         def _on_training_start(self) -> None:
             self.t0 = time.time()
@@ -264,7 +268,7 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
     wall = time.time() - start
     model.save(out / "final_model.zip")
     venv.save(str(out / "final_vecnormalize.pkl"))
-    best = max(evaluator.history, key=lambda r: (r["success_rate"] or 0.0, -(r["miss_km"] or np.inf)))
+    best = max(evaluator.history, key=task_metric_key)
     meta = {
         "command": " ".join(shlex.quote(a) for a in sys.argv),
         "seed": seed,
