@@ -1,8 +1,11 @@
 """The ``rventry`` command line.
 
 Each capability registers its own subcommands from its own module, so this file
-only lists where they live. Modules keep heavy imports (CasADi, torch) inside the
-functions that run a command, so ``rventry --help`` stays fast.
+only lists where they live. Commands from other installed packages (the learning
+agents' ``rventry train``) arrive through the ``rventry.commands`` entry-point
+group, so this library never imports them by name. Modules keep heavy imports
+(CasADi, torch) inside the functions that run a command, so ``rventry --help``
+stays fast.
 """
 
 from __future__ import annotations
@@ -10,14 +13,16 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from importlib.metadata import entry_points
 
 # module -> it defines ``register(subparsers)`` adding one or more subcommands
 COMMAND_MODULES = (
-    "rventry_env.examples.orbit",
+    "rventry_env.examples.orbit.cli",
     "rventry_env.reference.cli",
-    "agents.cli",
+    "rventry_env.evaluation.cli",
     "rventry_env.validation.cli",
 )
+COMMAND_GROUP = "rventry.commands"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -27,13 +32,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name is not None and name.startswith(exc.name):
-                continue  # capability not installed in this build
-            raise
-        module.register(sub)
+        importlib.import_module(name).register(sub)
+    for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        ep.load()(sub)
     return parser
 
 
@@ -45,9 +46,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         print(f"rventry {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"rventry {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

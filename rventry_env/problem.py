@@ -1,7 +1,8 @@
 """The paper's Example 2 entry problem: boundary conditions, cost and path-constraint constants.
 
-One definition shared by the environment, the collocation reference and the
-evaluation (PROBLEM.md defaults, every value configurable). SI units and radians.
+One definition shared by the environment, the collocation reference, the guidance
+laws and the evaluation (the defaults of ``docs/conventions.md``, every value
+configurable). SI units and radians.
 """
 
 from __future__ import annotations
@@ -11,18 +12,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rventry_env.physics.model import EntryModel
-
 SQRT_HALF = math.sqrt(0.5)
 
 
 @dataclass(frozen=True)
 class EntryProblem:
-    """The optimal-control problem of the paper's Example 2 (PROBLEM.md defaults), SI units.
+    """The optimal-control problem of the paper's Example 2 (``docs/conventions.md`` defaults), SI units.
 
-    Initial state: Table ``tab:Ex2-BCs``. ``initial_alpha`` / ``initial_sigma``
-    ``None`` means "take the shipped collocation reference's values" (the paper
-    leaves them free). Final conditions: r = R_e + ``final_altitude``,
+    Initial state: Table ``tab:Ex2-BCs``. The paper leaves the initial alpha and
+    sigma free; the defaults here are the values the shipped collocation optimum
+    chose (``rventry reference show``: 11.8845 deg and 271.2381 deg, a test keeps
+    them equal to the shipped file's). Final conditions: r = R_e + ``final_altitude``,
     v = ``final_speed``, alpha = ``final_alpha``, vertical impact, position on the
     target (Eq. ``Ex2-endpoint``). Cost Eq. ``Ex2-Cost``; path constraints Eq.
     ``Ex2-path``. The collocation reference (:mod:`rventry_env.reference`) and the
@@ -33,8 +33,8 @@ class EntryProblem:
     initial_speed: float = 7138.0
     initial_e_a: tuple = (0.0, 0.0, 0.0, 1.0)
     initial_e_b: tuple = (0.0, 0.0, SQRT_HALF, SQRT_HALF)
-    initial_alpha: float | None = None
-    initial_sigma: float | None = None
+    initial_alpha: float = 0.20742414957518163  # rad; the shipped optimum's alpha(0)
+    initial_sigma: float = 4.733997792450303  # rad; its sigma(0) (paper's bank, 271.2 deg)
     target_longitude: float = math.radians(25.15)
     target_latitude: float = 0.0
     final_altitude: float = 0.0
@@ -66,6 +66,10 @@ class EntryProblem:
             raise ValueError(f"alpha_bar ({math.degrees(self.alpha_bar):g} deg) must lie in [0, alpha_max]")
         if not 0 <= self.final_alpha <= self.alpha_max:
             raise ValueError(f"final_alpha ({math.degrees(self.final_alpha):g} deg) must lie in [0, alpha_max]")
+        if not 0 <= self.initial_alpha <= self.alpha_max:
+            raise ValueError(f"initial_alpha ({math.degrees(self.initial_alpha):g} deg) must lie in [0, alpha_max]")
+        if not math.isfinite(self.initial_sigma):
+            raise ValueError(f"initial_sigma must be finite, got {self.initial_sigma}")
         for name in ("initial_e_a", "initial_e_b"):
             q = np.asarray(getattr(self, name), dtype=float)
             if q.shape != (4,) or abs(np.linalg.norm(q) - 1.0) > 1e-12:
@@ -82,20 +86,40 @@ class EntryProblem:
             [cl * math.cos(self.target_longitude), cl * math.sin(self.target_longitude), math.sin(self.target_latitude)]
         )
 
-    def initial_state(self, model: EntryModel) -> np.ndarray:
-        """The nominal 12-component initial state (float64)."""
-        alpha, sigma = self.initial_alpha, self.initial_sigma
-        if alpha is None or sigma is None:
-            from rventry_env.reference import load_reference  # the reference's own free initial values
+    def initial_state(self, radius: float, alpha: float | None = None, sigma: float | None = None) -> np.ndarray:
+        """The 12-component initial state of Table ``tab:Ex2-BCs`` (float64).
 
-            ref_alpha, ref_sigma = load_reference().x[0, 10:12]
-            alpha = ref_alpha if alpha is None else alpha
-            sigma = ref_sigma if sigma is None else sigma
+        :param radius: the planet's radius R_e (m); r(0) = R_e + ``initial_altitude``.
+        :param alpha: alpha(0) in rad (default ``initial_alpha``).
+        :param sigma: sigma(0) in rad (default ``initial_sigma``).
+        """
+        alpha = self.initial_alpha if alpha is None else alpha
+        sigma = self.initial_sigma if sigma is None else sigma
         return np.array(
-            [model.planet.radius + self.initial_altitude, *self.initial_e_a, self.initial_speed,
-             *self.initial_e_b, alpha, sigma],
+            [radius + self.initial_altitude, *self.initial_e_a, self.initial_speed, *self.initial_e_b, alpha, sigma],
             dtype=float,
-        )  # fmt: skip
+        )
+
+    def cost_integrand(self, alpha, u_alpha, u_sigma):
+        """The running cost of Eq. ``Ex2-Cost`` (floats, arrays or CasADi symbols)."""
+        return (
+            self.k1 * ((alpha - self.alpha_bar) / self.alpha_max) ** 2
+            + self.k2 * (u_alpha / self.u_alpha_max) ** 2
+            + self.k3 * (u_sigma / self.u_sigma_max) ** 2
+        )
+
+    def cost_over_hold(self, alpha0, u_alpha_applied, u_alpha_cmd, u_sigma_cmd, tau):
+        """Eq. ``Ex2-Cost`` integrated exactly over [0, tau] with alpha = alpha0 + u_alpha_applied t.
+
+        The rate terms charge the *commanded* rates (what the controller asked for,
+        held over the interval), the alpha term the applied motion (which may stop at
+        a saturation bound).
+        """
+        d0 = alpha0 - self.alpha_bar
+        ua = u_alpha_applied
+        int_da2 = d0 * d0 * tau + d0 * ua * tau * tau + ua * ua * tau * tau * tau / 3.0
+        rates = self.k2 * (u_alpha_cmd / self.u_alpha_max) ** 2 + self.k3 * (u_sigma_cmd / self.u_sigma_max) ** 2
+        return self.k1 * int_da2 / (self.alpha_max * self.alpha_max) + rates * tau
 
 
 __all__ = ["EntryProblem"]

@@ -35,7 +35,7 @@ def main(argv=None) -> int:
 
     from rventry_env.reference import load_reference
     from rventry_env.reference.collocation.progress import RichMeshTable
-    from rventry_env.reference.collocation.solver import SampledGuess, SolverOptions
+    from rventry_env.reference.collocation import SampledGuess, SolverOptions
     from rventry_env.reference.entry_problem import EntryProblemConfig
     from rventry_env.reference.guess import generate_guess
     from rventry_env.reference.pipeline import end_clustered_mesh

@@ -1,4 +1,4 @@
-"""PPO baseline: the training pipeline, the shipped policy, and the evaluation JSON schema."""
+"""Learning agents: the training pipeline, the shipped policy, loading saved policies, the evaluation JSON schema."""
 
 from __future__ import annotations
 
@@ -10,15 +10,16 @@ import numpy as np
 import pytest
 
 from rventry_env.envs.task import Dispersion, EntryTask
-from agents.policies import SHIPPED_PPO, SB3Policy, load_policy
+from rventry_agents.sb3_policy import SHIPPED_PPO, SB3Policy
+from rventry_env.evaluation.agents import load_agent as load_policy
 from rventry_env.evaluation.rollout import rollout
 
 SMOKE_TASK = EntryTask()
 
 
 def _smoke_config() -> dict:
-    """The shipped config, shrunk to a smoke test (every key still comes from agents/ppo.toml)."""
-    from agents.train import load_config
+    """The shipped config, shrunk to a smoke test (every key still comes from rventry_agents/ppo.toml)."""
+    from rventry_agents.train import load_config
 
     cfg = load_config()
     cfg["env"].update(num_envs=8, max_episode_steps=60)
@@ -29,7 +30,7 @@ def _smoke_config() -> dict:
 
 
 def test_training_pipeline_trains_saves_and_reloads(tmp_path):
-    from agents.train import train_ppo
+    from rventry_agents.train import train_ppo
 
     out = train_ppo(_smoke_config(), timesteps=2048, seed=3, out=tmp_path / "run", task=SMOKE_TASK,
                     progress_bar=False)  # fmt: skip
@@ -47,7 +48,7 @@ def test_training_pipeline_trains_saves_and_reloads(tmp_path):
     b = rollout(SB3Policy(out), 2, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
     np.testing.assert_array_equal(a.miss_km, b.miss_km)
     # shipping keeps the behaviour and drops the optimizer state
-    from agents.ship import ship
+    from rventry_agents.ship import ship
 
     from stable_baselines3.common.save_util import load_from_zip_file
 
@@ -58,14 +59,18 @@ def test_training_pipeline_trains_saves_and_reloads(tmp_path):
     np.testing.assert_array_equal(a.miss_km, c.miss_km)
     with pytest.raises(FileNotFoundError, match="not a finished training run"):
         ship(tmp_path / "nothing", tmp_path / "x")
+    # a run's model without its observation statistics is refused, never flown on raw observations
+    (shipped / "vecnormalize.pkl").unlink()
+    with pytest.raises(FileNotFoundError, match="vecnormalize.pkl are missing"):
+        SB3Policy(shipped)
 
 
 def test_residual_policy_mean_is_exactly_zero_on_the_reference():
-    """Whatever the weights, a vehicle on the reference gets no correction (agents/zero_policy.py)."""
+    """Whatever the weights, a vehicle on the reference gets no correction (rventry_agents/zero_policy.py)."""
     import torch
     from gymnasium import spaces
 
-    from agents.zero_policy import ZeroOnReferencePolicy
+    from rventry_agents.zero_policy import ZeroOnReferencePolicy
 
     obs_space = spaces.Box(-10, 10, (51,), np.float32)
     policy = ZeroOnReferencePolicy(obs_space, spaces.Box(-1, 1, (2,), np.float32), lambda _: 1e-4,
@@ -84,6 +89,8 @@ def test_residual_policy_mean_is_exactly_zero_on_the_reference():
 def test_loading_something_that_is_not_a_policy_fails_clearly(tmp_path):
     with pytest.raises(FileNotFoundError, match="no saved policy"):
         load_policy(str(tmp_path / "nothing.zip"))
+    with pytest.raises(ValueError, match="unknown agent 'lqrr'.*reference, lqr"):
+        load_policy("lqrr")
     bogus = tmp_path / "bogus.zip"
     bogus.write_bytes(b"not a zip")
     with pytest.raises(ValueError, match="not a saved stable-baselines3 model"):

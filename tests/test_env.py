@@ -337,7 +337,7 @@ def test_dispersion_draws_change_the_model_per_copy():
 def test_success_bonus_is_paid_only_at_a_successful_impact():
     from dataclasses import replace
 
-    from rventry_env.evaluation.policies import ReferencePolicy
+    from rventry_env.guidance.reference_replay import ReferencePolicy
 
     def last_reward(task):
         env = RvEntryEnv(task=task)
@@ -363,7 +363,7 @@ def test_success_bonus_is_paid_only_at_a_successful_impact():
 def test_vector_env_pays_the_same_success_bonus():
     from dataclasses import replace
 
-    from rventry_env.evaluation.policies import ReferencePolicy
+    from rventry_env.guidance.reference_replay import ReferencePolicy
 
     task = replace(EntryTask(), weights=replace(EntryTask().weights, success_bonus=7.0))
     venv, env, policy = RvEntryVectorEnv(num_envs=1, task=task), RvEntryEnv(task=task), ReferencePolicy(task)

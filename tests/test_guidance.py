@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from rventry_env.envs.task import Dispersion
-from rventry_env.evaluation.policies import ReferencePolicy
+from rventry_env.guidance.reference_replay import ReferencePolicy
 from rventry_env.evaluation.rollout import rollout
-from rventry_env.evaluation.tvlqr import NeighboringOptimalGuidance
+from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
 from rventry_env.physics import EntryModel, entry_forces
 from rventry_env.reference import load_guidance_reference, load_reference
 

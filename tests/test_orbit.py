@@ -105,4 +105,4 @@ def test_bad_input_is_named(call, match):
 def test_cli_rejects_a_bad_n(capsys):
     with pytest.raises(SystemExit):
         main(["orbit", "--n", "0"])
-    assert "N must be a positive integer, got '0'" in capsys.readouterr().err
+    assert "argument --n: must be a positive integer, got '0'" in capsys.readouterr().err

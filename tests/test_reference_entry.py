@@ -11,7 +11,7 @@ from rventry_env.core.euler_parameters import omega_from_rates
 from rventry_env.physics.entry import entry_rhs
 from rventry_env.physics.model import EntryModel
 from rventry_env.reference import load_reference
-from rventry_env.reference.collocation.solver import CompiledProblem
+from rventry_env.reference.collocation import CompiledProblem
 from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem, position_direction
 from rventry_env.reference.guess import generate_guess
 from rventry_env.reference.spherical_entry import (

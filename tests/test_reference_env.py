@@ -9,14 +9,14 @@ import pytest
 import rventry_env  # noqa: F401
 from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
-from rventry_env.envs.observation import terminal_metrics, terminal_penalty
-from rventry_env.envs.propagation import path_violation, running_cost
+from rventry_env.envs.outcome import terminal_metrics, terminal_penalty
+from rventry_env.envs.propagation import path_violation
 from rventry_env.envs.rv_entry import RvEntryEnv
 from rventry_env.envs.task import EntryTask
-from rventry_env.evaluation.policies import ReferencePolicy
+from rventry_env.guidance.reference_replay import ReferencePolicy
 from rventry_env.physics import EntryModel, entry_forces
 from rventry_env.reference import load_reference
-from rventry_env.reference.replay import entry_rhs_numpy, replay_controls
+from rventry_env.reference.open_loop import entry_rhs_numpy, replay_controls
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +43,7 @@ def test_env_reward_along_the_tight_replay_is_minus_j_star_with_no_terminal_pena
     u = ref.control(0.5 * (t[1:] + t[:-1]))  # each segment holds its midpoint rates
     tau = np.diff(t)
     u_alpha_applied = np.diff(x[:, 10]) / tau  # alpha is linear within a segment, as in the env
-    cost = np.sum(running_cost(x[:-1, 10], u_alpha_applied, u[:, 0], u[:, 1], tau, task))
+    cost = np.sum(task.problem.cost_over_hold(x[:-1, 10], u_alpha_applied, u[:, 0], u[:, 1], tau))
     assert cost == pytest.approx(ref.cost, rel=1e-3)
     forces = entry_forces(tuple(x.T), model, NUMPY)
     load_x, q_x = path_violation(forces, task, model, NUMPY)

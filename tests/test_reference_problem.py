@@ -13,7 +13,7 @@ from rventry_env.reference.collocation import (
     PathConstraint,
     RecordingProgress,
 )
-from rventry_env.reference.collocation.solver import SampledGuess, SolverOptions, solve
+from rventry_env.reference.collocation import SampledGuess, SolverOptions, solve
 
 
 def _double_integrator(**overrides):

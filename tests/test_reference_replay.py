@@ -7,7 +7,7 @@ import pytest
 
 from rventry_env.physics.model import EntryModel
 from rventry_env.reference import load_reference
-from rventry_env.reference.replay import entry_rhs_numpy, replay_controls
+from rventry_env.reference.open_loop import entry_rhs_numpy, replay_controls
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from rventry_env.validation import identified_model, load_model, save_model
 from rventry_env.validation.effects import build_model, candidate_effects
 from rventry_env.validation.model_io import model_from_dict, model_to_dict
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.setup import replay_setup
+from rventry_env.validation.replay_setup import replay_setup
 
 FULL = EntryModel(
     gravity=J2Gravity(j2=1.1e-3),

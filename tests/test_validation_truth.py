@@ -24,8 +24,8 @@ from rventry_env.physics import (
 from rventry_env.validation import truth
 from rventry_env.validation.controls import control_schedule
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.replay import Replay
-from rventry_env.validation.setup import replay_setup
+from rventry_env.validation.record_replay import Replay
+from rventry_env.validation.replay_setup import replay_setup
 from rventry_env.validation.simulate import Scenario
 
 WORLDS_AND_MODELS = {

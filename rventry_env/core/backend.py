@@ -42,6 +42,7 @@ NUMPY = SimpleNamespace(
     fmax=np.maximum,
     fmin=np.minimum,
     where=_np_where,
+    isfinite=np.isfinite,
 )
 
 
@@ -59,6 +60,7 @@ MATH = SimpleNamespace(
     fmax=max,
     fmin=min,
     where=lambda cond, a, b: a if cond else b,
+    isfinite=math.isfinite,
 )
 
 

@@ -1,4 +1,9 @@
-"""Gymnasium environments: ``RvEntry-v0`` (single) and its numpy-batched vector version."""
+"""Gymnasium environments: ``RvEntry-v0`` (single) and its numpy-batched vector version.
+
+Importing this package registers ``RvEntry-v0`` (``gym.make("rventry_env.envs:RvEntry-v0")``
+therefore works with no other import); ``import rventry_env`` registers it as soon as
+Gymnasium is imported.
+"""
 
 from __future__ import annotations
 
@@ -18,3 +23,6 @@ def register_envs() -> None:
         vector_entry_point="rventry_env.envs.vector:RvEntryVectorEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
     )
+
+
+register_envs()

@@ -34,7 +34,7 @@ class EntryEnvSetup:
         self._radius = self.model.planet.radius
         self._g0 = self.model.planet.g0
         self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
-        self._nominal = self.task.problem.initial_state(self.model)
+        self._nominal = self.task.problem.initial_state(self.model.planet.radius)
         self._obs_low, self._obs_high = observation_box(self.task, self._radius)
         self._prop = Propagator(self.task, ns)
         self._x = None

@@ -123,46 +123,6 @@ def observe(x: tuple, forces: EntryForces, c_ae, t, task: EntryTask, target_e, r
     )  # fmt: skip
 
 
-class TerminalMetrics(NamedTuple):
-    miss_km: object
-    vertical_error_deg: object
-    speed_error_mps: object
-    alpha_final_deg: object
-
-
-def terminal_metrics(x: tuple, c_ae, task: EntryTask, target_e, radius: float, ns) -> TerminalMetrics:
-    """Miss (great-circle, at the surface), vertical-impact error, speed error and final alpha.
-
-    The vertical error is the angle between the velocity and straight down:
-    cos = -b1 . a1 = 2 (eB2^2 + eB3^2) - 1 = 1 - 2 (eB1^2 + etaB^2), i.e.
-    2 asin(sqrt(eB1^2 + etaB^2)); zero exactly when eB1 = etaB = 0 (Table tab:Ex2-BCs).
-    """
-    ta = tuple(c_ae[i][0] * target_e[0] + c_ae[i][1] * target_e[1] + c_ae[i][2] * target_e[2] for i in range(3))
-    theta = ns.arctan2(ns.sqrt(ta[1] * ta[1] + ta[2] * ta[2]), ta[0])
-    s = ns.sqrt(ns.fmin(x[6] * x[6] + x[9] * x[9], 1.0))
-    vertical = 2.0 * _asin(s, ns)
-    return TerminalMetrics(
-        radius * theta / 1000.0,
-        vertical * (180.0 / math.pi),
-        x[5] - task.problem.final_speed,
-        x[10] * (180.0 / math.pi),
-    )
-
-
-def _asin(s, ns):
-    return ns.arctan2(s, ns.sqrt(ns.fmax(1.0 - s * s, 0.0)))
-
-
-def terminal_penalty(m: TerminalMetrics, task: EntryTask, ns):
-    w = task.weights
-    return (
-        w.miss_per_km * m.miss_km
-        + w.vertical_per_deg * m.vertical_error_deg
-        + w.speed_per_mps * ns.fabs(m.speed_error_mps)
-        + w.alpha_per_deg * ns.fabs(m.alpha_final_deg)
-    )
-
-
 def observation_box(task: EntryTask, radius: float) -> tuple[np.ndarray, np.ndarray]:
     table = features(task, radius)
     return (
@@ -176,8 +136,5 @@ __all__ = [
     "features",
     "feature_index",
     "observe",
-    "TerminalMetrics",
-    "terminal_metrics",
-    "terminal_penalty",
     "observation_box",
 ]

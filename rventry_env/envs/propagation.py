@@ -15,7 +15,7 @@ Integration (see DESIGN notes in the env docstring):
   bound at the substep's end, and held there afterwards. The *commanded* rate is
   what the cost charges;
 * the running cost of Eq. ``Ex2-Cost`` is integrated exactly (alpha is linear in
-  time within a substep);
+  time within a substep; :meth:`~rventry_env.problem.EntryProblem.cost_over_hold`);
 * impact (r = R_e) is located inside the substep by root-finding on the RK4 map
   tau -> r(RK4(x, tau)) (Illinois regula falsi to 1e-6 m), and the state returned
   is the state at impact;
@@ -63,16 +63,6 @@ def take_model(model: Any, idx) -> Any:
 
 def _take(x: tuple, idx) -> tuple:
     return x if idx is None else tuple(c[idx] for c in x)
-
-
-def running_cost(alpha0, u_alpha_applied, u_alpha_cmd, u_sigma_cmd, tau, task: EntryTask):
-    """Integral of Eq. ``Ex2-Cost``'s integrand over [0, tau] with alpha = alpha0 + u t (exact)."""
-    p = task.problem
-    d0 = alpha0 - p.alpha_bar
-    ua = u_alpha_applied
-    int_da2 = d0 * d0 * tau + d0 * ua * tau * tau + ua * ua * tau * tau * tau / 3.0
-    ctrl = p.k2 * (u_alpha_cmd / p.u_alpha_max) ** 2 + p.k3 * (u_sigma_cmd / p.u_sigma_max) ** 2
-    return p.k1 * int_da2 / (p.alpha_max * p.alpha_max) + ctrl * tau
 
 
 def path_violation(forces: EntryForces, task: EntryTask, model: EntryModel, ns):
@@ -169,7 +159,7 @@ class Propagator:
                     x_new, tau = x_hit, tau_hit
 
             flying = status == FLYING
-            step_cost = running_cost(alpha0, ua, u_alpha, u_sigma, tau, task)
+            step_cost = p.cost_over_hold(alpha0, ua, u_alpha, u_sigma, tau)
             f_new = entry_forces(x_new, model, ns)
             new_status = _classify(x_new, f_new, hit, task, radius, ns, batched)
             if batched and (np.all(flying) and not np.any(new_status)):
@@ -276,7 +266,6 @@ def _where_forces(keep, old: EntryForces, new: EntryForces) -> EntryForces:
 __all__ = [
     "Propagator",
     "StepOutcome",
-    "running_cost",
     "path_violation",
     "take_model",
     "FLYING",

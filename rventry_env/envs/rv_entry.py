@@ -11,8 +11,9 @@ import numpy as np
 from rventry_env.core.backend import MATH
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import common
-from rventry_env.envs.observation import features, observe, terminal_metrics, terminal_penalty
-from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT
+from rventry_env.envs.observation import features, observe
+from rventry_env.envs.outcome import episode_outcome
+from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.physics.model import EntryModel
@@ -125,7 +126,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     * ``task``: an :class:`~rventry_env.envs.task.EntryTask` (problem constants,
       reward weights, success thresholds, dt, substeps, ceiling).
     * ``dt``: control step, default 1 s; ``substeps``: RK4 substeps per control
-      step, default 2.
+      step, default 1.
     * ``dispersion``: see Starting State.
     * ``render_mode``: ``"rgb_array"`` draws altitude and speed against time and
       the ground track toward the target.
@@ -270,40 +271,21 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         }
 
     def _finish(self, info: dict, status: int, terminated: bool) -> float:
-        """Add the terminal metrics to ``info``; return the terminal penalty."""
-        m = terminal_metrics(self._x, self._c_ae, self.task, self._target, self._radius, MATH)
-        tol = self.task.success.constraint_tolerance
-        p = self.task.problem
-        violation = self._max_load > p.a_max_g * (1 + tol) or self._min_q < p.q_min * (1 - tol)
-        failure = FAILURE_NAMES.get(status, "") if terminated else "time limit"
-        s = self.task.success
-        success = (
-            status == IMPACT
-            and m.miss_km <= s.miss_km
-            and m.vertical_error_deg <= s.vertical_error_deg
-            and abs(m.speed_error_mps) <= s.speed_error_mps
-            and not violation
-        )
-        penalty = 0.0
-        if terminated:
-            penalty = terminal_penalty(m, self.task, MATH)
-            if status != IMPACT:
-                penalty = self.task.weights.failure + (penalty if math.isfinite(penalty) else 0.0)
-            elif success:
-                penalty -= self.task.weights.success_bonus
+        """Add the end-of-episode keys to ``info``; return the terminal penalty (:mod:`.outcome`)."""
+        o = episode_outcome(
+            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self._target,
+            self._radius, MATH,
+        )  # fmt: skip
         info.update(
-            miss_km=m.miss_km,
-            vertical_error_deg=m.vertical_error_deg,
-            speed_error_mps=m.speed_error_mps,
-            alpha_final_deg=m.alpha_final_deg,
+            **o.metrics._asdict(),
             max_load_factor_g=self._max_load,
             min_dynamic_pressure_pa=self._min_q,
-            constraint_violation=bool(violation),
-            terminal_penalty=penalty,
-            failure=failure,
-            is_success=bool(success),
+            constraint_violation=bool(o.constraint_violation),
+            terminal_penalty=o.terminal_penalty,
+            failure=o.failure,
+            is_success=bool(o.is_success),
         )
-        return penalty
+        return o.terminal_penalty
 
     def _record(self):
         if self._track is not None:

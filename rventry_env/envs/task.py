@@ -43,7 +43,7 @@ class RewardWeights:
 
 @dataclass(frozen=True)
 class SuccessThresholds:
-    """When an impact counts as a success (issue 5's dispersed-case criteria)."""
+    """When an impact counts as a success (the benchmark's criteria)."""
 
     miss_km: float = 5.0
     vertical_error_deg: float = 5.0
@@ -53,6 +53,9 @@ class SuccessThresholds:
     # reaches 12.05 g (+0.45 %) and 11.90 kPa (-0.82 %) between them, so a tighter
     # margin would call the optimum itself infeasible.
     constraint_tolerance: float = 0.01
+
+
+NAMED_SETS = ("standard", "wide")
 
 
 @dataclass(frozen=True)
@@ -76,18 +79,25 @@ class Dispersion:
 
     @classmethod
     def standard(cls) -> "Dispersion":
-        """Issue 5's dispersed set: density 5 %, aero 3 %, altitude 0.5 km, speed 20 m/s, gamma 0.2 deg."""
+        """The benchmark's standard set: density 5 %, C_L and C_D 3 %, altitude 0.5 km, speed 20 m/s, gamma 0.2 deg."""
         return cls(density=0.05, lift=0.03, drag=0.03, altitude_m=500.0, speed_mps=20.0, flight_path_deg=0.2)
 
     @classmethod
+    def wide(cls) -> "Dispersion":
+        """The benchmark's wide set, where laws break: density 10 %, C_L and C_D 5 %, altitude 1 km,
+        speed 40 m/s, flight-path angle 0.4 deg, heading 0.2 deg."""
+        return cls(density=0.10, lift=0.05, drag=0.05, altitude_m=1000.0, speed_mps=40.0, flight_path_deg=0.4,
+                   heading_deg=0.2)  # fmt: skip
+
+    @classmethod
     def parse(cls, value) -> "Dispersion":
-        """A Dispersion from None, a Dispersion, ``"standard"``/``"none"`` or a dict of fields."""
+        """A Dispersion from None, a Dispersion, a set's name (``"none"``, ``"standard"``, ``"wide"``) or a dict of fields."""
         if value is None or value == "none":
             return cls()
         if isinstance(value, Dispersion):
             return value
-        if value == "standard":
-            return cls.standard()
+        if isinstance(value, str) and value in NAMED_SETS:
+            return getattr(cls, value)()
         if isinstance(value, dict):
             unknown = set(value) - set(cls.__dataclass_fields__)
             if unknown:
@@ -101,6 +111,13 @@ class Dispersion:
         if out.density >= 1 or out.lift >= 1 or out.drag >= 1:
             raise ValueError("relative dispersions must be below 1 (100 %)")
         return out
+
+    @property
+    def name(self) -> str:
+        """The named set this equals (``"none"``, ``"standard"``, ``"wide"``), else ``"custom"``."""
+        if self.is_zero:
+            return "none"
+        return next((n for n in NAMED_SETS if getattr(Dispersion, n)() == self), "custom")
 
     @property
     def is_zero(self) -> bool:

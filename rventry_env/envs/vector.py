@@ -13,8 +13,9 @@ from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.allocator import keep_freed_memory
-from rventry_env.envs.observation import observe, terminal_metrics, terminal_penalty
-from rventry_env.envs.propagation import FAILURE_NAMES, FLYING, IMPACT
+from rventry_env.envs.observation import observe
+from rventry_env.envs.outcome import episode_outcome
+from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.physics.model import EntryModel
@@ -113,8 +114,9 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         unknown = set(options) - {"state", "dispersion"}
         if unknown:
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: ['dispersion', 'state']")
-        if "dispersion" in options:
-            self.dispersion = Dispersion.parse(options["dispersion"])
+        # one-off, as in the single env: the episodes started by this reset draw from it,
+        # later autoresets from the constructor's dispersion again
+        dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
         if "state" in options:
             states = np.asarray(options["state"], dtype=float)
             states = np.broadcast_to(states, (n, states.shape[-1])) if states.ndim == 1 else states
@@ -135,7 +137,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._prev_done = np.zeros(n, dtype=bool)
         self.dispersion_draw = np.zeros((n, 9))
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
-        self._reset_copies(np.arange(n))
+        self._reset_copies(np.arange(n), dispersion)
         obs, clipped = self._observe()
         return obs, self._info(np.zeros(n, bool), np.zeros(n, bool), clipped)
 
@@ -198,19 +200,22 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         return (render_tracks(self._tracks, p.target_latitude, p.target_longitude, "RvEntry-v0 (vector)"),)
 
     # ------------------------------------------------------------------ helpers
-    def _reset_copies(self, idx: np.ndarray) -> None:
-        """Draw and apply the start of a new episode for copies ``idx`` (each from its own generator)."""
-        d = np.stack([common.draw_dispersion(self._rngs[i], self.dispersion) for i in idx])
+    def _reset_copies(self, idx: np.ndarray, dispersion: Dispersion | None = None) -> None:
+        """Draw and apply the start of a new episode for copies ``idx`` (each from its own generator).
+
+        :param dispersion: this reset's dispersion (default: the constructor's).
+        """
+        dispersion = self.dispersion if dispersion is None else dispersion
+        d = np.stack([common.draw_dispersion(self._rngs[i], dispersion) for i in idx])
         x0 = self._initial[idx]
-        if not self.dispersion.is_zero:
+        if not dispersion.is_zero:
             x0 = common.apply_state_dispersion(x0, d)
         self.dispersion_draw[idx] = d
         self._density[idx] = 1 + d[:, 0]
         self._lift[idx] = 1 + d[:, 1]
         self._drag[idx] = 1 + d[:, 2]
         self._model = (
-            self.model if self.dispersion.is_zero and np.all(self._density == 1) and np.all(self._lift == 1)
-            and np.all(self._drag == 1)
+            self.model if np.all(self._density == 1) and np.all(self._lift == 1) and np.all(self._drag == 1)
             else common.dispersed_model(self.model, self._density, self._lift, self._drag)
         )  # fmt: skip
         for c in range(12):
@@ -260,34 +265,20 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         return infos
 
     def _finish(self, infos: dict, status, terminated, ended) -> np.ndarray:
-        """Fill the terminal keys for copies whose episode ended; return the terminal penalties."""
-        m = terminal_metrics(self._x, self._c_ae, self.task, self._target, self._radius, NUMPY)
-        tol = self.task.success.constraint_tolerance
-        p = self.task.problem
-        s = self.task.success
-        violation = (self._max_load > p.a_max_g * (1 + tol)) | (self._min_q < p.q_min * (1 - tol))
-        impact = status == IMPACT
-        success = (
-            impact & (m.miss_km <= s.miss_km) & (m.vertical_error_deg <= s.vertical_error_deg)
-            & (np.abs(m.speed_error_mps) <= s.speed_error_mps) & ~violation
+        """Fill the end-of-episode keys for copies whose episode ended; return their terminal penalties."""
+        o = episode_outcome(
+            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self._target,
+            self._radius, NUMPY,
         )  # fmt: skip
-        with np.errstate(invalid="ignore"):
-            terms = terminal_penalty(m, self.task, NUMPY)
-        terms = np.where(np.isfinite(terms), terms, 0.0)
-        w = self.task.weights
-        penalty = np.where(terminated, np.where(impact, terms - w.success_bonus * success, terms + w.failure), 0.0)
-        failure = np.array([FAILURE_NAMES.get(int(c), "") for c in status], dtype=object)
-        failure = np.where(terminated, failure, "time limit")
         values = {
-            "miss_km": m.miss_km, "vertical_error_deg": m.vertical_error_deg, "speed_error_mps": m.speed_error_mps,
-            "alpha_final_deg": m.alpha_final_deg, "max_load_factor_g": self._max_load,
-            "min_dynamic_pressure_pa": self._min_q, "constraint_violation": violation, "terminal_penalty": penalty,
-            "failure": failure, "is_success": success,
+            **o.metrics._asdict(), "max_load_factor_g": self._max_load, "min_dynamic_pressure_pa": self._min_q,
+            "constraint_violation": o.constraint_violation, "terminal_penalty": o.terminal_penalty,
+            "failure": o.failure, "is_success": o.is_success,
         }  # fmt: skip
         for k, v in values.items():
             infos[k] = np.where(ended, v, infos[k])
             infos["_" + k] = ended.copy()
-        return np.where(ended, penalty, 0.0)
+        return np.where(ended, o.terminal_penalty, 0.0)
 
     def _record(self, only=None):
         if self._tracks is None:

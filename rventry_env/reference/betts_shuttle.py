@@ -176,9 +176,9 @@ def shuttle_guess(
     :param beta_deg: bank angle held throughout (deg; negative turns north).
     :param c: constants.
     :param dt: RK4 step (s).
-    :return: :class:`~rventry_env.reference.collocation.solver.SampledGuess`.
+    :return: :class:`~rventry_env.reference.collocation.SampledGuess`.
     """
-    from rventry_env.reference.collocation.solver import SampledGuess
+    from rventry_env.reference.collocation import SampledGuess
 
     u = np.array([alpha_deg * DEG, beta_deg * DEG])
     x = np.array([260000.0 * FT, 0.0, 0.0, 25600.0 * FT, -1.0 * DEG, 90.0 * DEG])
@@ -233,7 +233,7 @@ def solve_shuttle(
     import time
 
     from rventry_env.reference.collocation.mesh import Mesh
-    from rventry_env.reference.collocation.solver import SolverOptions, solve
+    from rventry_env.reference.collocation import SolverOptions, solve
 
     start = time.perf_counter()
     res = solve(shuttle_problem(heating_limit_btu), shuttle_guess(), Mesh.uniform(10, 4),

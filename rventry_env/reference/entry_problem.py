@@ -142,10 +142,8 @@ class EntryProblemConfig:
         return self.target_e(), east, north
 
     def initial_state(self, alpha: float, sigma: float) -> np.ndarray:
-        """The 12-state initial condition of Table ``tab:Ex2-BCs`` with the given alpha, sigma (rad)."""
-        p = self.problem
-        r0 = self.model.planet.radius + p.initial_altitude
-        return np.array([r0, *p.initial_e_a, p.initial_speed, *p.initial_e_b, alpha, sigma], dtype=float)
+        """Table ``tab:Ex2-BCs``'s initial state with the given alpha, sigma (rad), on this model's planet."""
+        return self.problem.initial_state(self.model.planet.radius, alpha, sigma)
 
 
 def position_direction(e_a):
@@ -235,11 +233,10 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     re = model.planet.radius
     nan_free = math.inf
     # --- cost, Eq. Ex2-Cost
-    ab, am, uam, usm = config.alpha_bar, config.alpha_max, config.u_alpha_max, config.u_sigma_max
-    k1, k2, k3 = config.problem.k1, config.problem.k2, config.problem.k3
+    uam, usm = config.u_alpha_max, config.u_sigma_max
 
     def lagrange(x, u, t):
-        return k1 * ((x[10] - ab) / am) ** 2 + k2 * (u[0] / uam) ** 2 + k3 * (u[1] / usm) ** 2
+        return config.problem.cost_integrand(x[10], u[0], u[1])
 
     # --- path constraints, Eq. Ex2-path (alpha and the rates are bounds below)
     path = [

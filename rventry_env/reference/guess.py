@@ -248,10 +248,10 @@ def generate_guess(
         full tensor grid is flown in one batch.
     :param gains: the fixed gains.
     :param dt: RK4 step (s).
-    :return: ``(guess, flight)``: a :class:`~.collocation.solver.SampledGuess`
+    :return: ``(guess, flight)``: a :class:`~.collocation.SampledGuess`
         with the formulation's controls and the chosen :class:`GuessFlight`.
     """
-    from rventry_env.reference.collocation.solver import SampledGuess
+    from rventry_env.reference.collocation import SampledGuess
 
     config = config or EntryProblemConfig()
     grid = dict(DEFAULT_GRID if grid is None else grid)

@@ -145,7 +145,7 @@ def solve_reference(
     :param options: :class:`ReferenceOptions`.
     :param progress: called once per mesh pass.
     """
-    from rventry_env.reference.collocation.solver import CompiledProblem, SolverOptions, solve
+    from rventry_env.reference.collocation import CompiledProblem, SolverOptions, solve
     from rventry_env.reference.guess import generate_guess
 
     config = config or EntryProblemConfig()

@@ -106,11 +106,10 @@ def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg:
     ns = casadi_ns()
     model = config.model
     re = model.planet.radius
-    ab, am, uam, usm = config.alpha_bar, config.alpha_max, config.u_alpha_max, config.u_sigma_max
-    k1, k2, k3 = config.problem.k1, config.problem.k2, config.problem.k3
+    uam, usm = config.u_alpha_max, config.u_sigma_max
 
     def lagrange(x, u, t):
-        return k1 * ((x[6] - ab) / am) ** 2 + k2 * (u[0] / uam) ** 2 + k3 * (u[1] / usm) ** 2
+        return config.problem.cost_integrand(x[6], u[0], u[1])
 
     def aero_norm(x, u, t):
         lift, drag, _ = aero_accelerations(x, model, ns)
@@ -207,7 +206,7 @@ def spherical_guess_from_reference(reference, config: EntryProblemConfig | None 
     Controls: u_alpha as is; u_mu = d(mu)/dt by differentiating the converted bank
     angle (it differs from u_sigma by the turn rate of the lift-up direction).
     """
-    from rventry_env.reference.collocation.solver import SampledGuess
+    from rventry_env.reference.collocation import SampledGuess
 
     t = np.asarray(reference.t, dtype=float)
     s = spherical_from_entry_states(reference.x)
@@ -225,7 +224,7 @@ def solve_spherical(final_gamma_deg: float, guess, config: EntryProblemConfig | 
     import time
 
     from rventry_env.reference.collocation.mesh import Mesh
-    from rventry_env.reference.collocation.solver import SolverOptions, solve
+    from rventry_env.reference.collocation import SolverOptions, solve
 
     config = config or EntryProblemConfig()
     prob = spherical_problem(config, final_gamma_deg, relaxed=relaxed)

@@ -3,8 +3,8 @@
 Rooms (one-way dependencies, physics knows nothing of this package):
 
 * :mod:`~rventry_env.validation.record` reads and validates a flight record;
-* :mod:`~rventry_env.validation.setup`, :mod:`~rventry_env.validation.controls`,
-  :mod:`~rventry_env.validation.replay` fly it with the rv-Euler entry model;
+* :mod:`~rventry_env.validation.replay_setup`, :mod:`~rventry_env.validation.controls`,
+  :mod:`~rventry_env.validation.record_replay` fly it with the rv-Euler entry model;
 * :mod:`~rventry_env.validation.effects`, :mod:`~rventry_env.validation.fit`,
   :mod:`~rventry_env.validation.statistics`, :mod:`~rventry_env.validation.identify`
   trace the residual to an effect and build the identified model;

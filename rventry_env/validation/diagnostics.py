@@ -19,7 +19,7 @@ from rventry_env.physics.atmosphere import piecewise_linear
 from rventry_env.validation.effects import build_model
 from rventry_env.validation.fit import FitResult
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.replay import Replay
+from rventry_env.validation.record_replay import Replay
 from rventry_env.validation.selection import FitContext
 
 
@@ -104,7 +104,7 @@ def window_errors(t: np.ndarray, residual: np.ndarray, kind: str, n_windows: int
 
 
 def with_atmosphere(setup, atmosphere):
-    """A copy of a :class:`~rventry_env.validation.setup.ReplaySetup` whose model has ``atmosphere``."""
+    """A copy of a :class:`~rventry_env.validation.replay_setup.ReplaySetup` whose model has ``atmosphere``."""
     return dataclasses.replace(setup, model=setup.model.replace(atmosphere=atmosphere))
 
 

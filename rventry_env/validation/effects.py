@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rventry_env.physics import DensityCorrection, EntryModel, HorizontalWind, J2Gravity, ScaledAerodynamics
-from rventry_env.validation.setup import ReplaySetup
+from rventry_env.validation.replay_setup import ReplaySetup
 
 EFFECT_NAMES = ("j2_gravity", "density_profile", "lift_coefficient", "drag_coefficient", "wind")
 

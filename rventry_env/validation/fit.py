@@ -17,8 +17,8 @@ import numpy as np
 
 from rventry_env.physics import EntryModel
 from rventry_env.validation.effects import Effect, build_model
-from rventry_env.validation.replay import Replay
-from rventry_env.validation.setup import ReplaySetup
+from rventry_env.validation.record_replay import Replay
+from rventry_env.validation.replay_setup import ReplaySetup
 from rventry_env.validation.statistics import bic
 
 BAD_RESIDUAL = 1e4  # stands in for a diverged replay (normalized units), so the solver backs off

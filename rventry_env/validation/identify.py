@@ -31,9 +31,9 @@ from rventry_env.validation.fit import FitResult
 from rventry_env.validation.model_io import model_to_dict
 from rventry_env.validation.noise import GROUPS, PROVISIONAL_SIGMA, init_bounds, record_noise
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.replay import Replay
+from rventry_env.validation.record_replay import Replay
 from rventry_env.validation.selection import BIC_THRESHOLD, FitContext, compare_fits, effects_of
-from rventry_env.validation.setup import ReplaySetup, replay_setup
+from rventry_env.validation.replay_setup import ReplaySetup, replay_setup
 from rventry_env.validation.statistics import whiteness
 
 SCREEN_KEEP = 2  # additions fitted in full per forward-selection step, after linearized screening

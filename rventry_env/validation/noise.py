@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from rventry_env.validation.replay import Replay
+from rventry_env.validation.record_replay import Replay
 from rventry_env.validation.statistics import difference_noise
 
 # observation groups: name, unit suffix, columns; each group has its own noise level

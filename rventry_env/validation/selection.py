@@ -8,8 +8,8 @@ import numpy as np
 
 from rventry_env.validation.effects import candidate_effects
 from rventry_env.validation.fit import FitResult, OutputErrorProblem
-from rventry_env.validation.replay import Replay
-from rventry_env.validation.setup import ReplaySetup
+from rventry_env.validation.record_replay import Replay
+from rventry_env.validation.replay_setup import ReplaySetup
 from rventry_env.validation.statistics import bic_effective, effective_size, whiteness
 
 BIC_THRESHOLD = 10.0  # "very strong" evidence on the Kass-Raftery scale

@@ -1,6 +1,6 @@
 """The open-loop replay of the collocation reference, as a policy :func:`rollout` can fly.
 
-Learned policies (the PPO baseline, any saved SB3 model) live in :mod:`agents.policies`.
+Learned policies (the PPO baseline, any saved SB3 model) live in :mod:`rventry_agents.sb3_policy`.
 """
 
 from __future__ import annotations

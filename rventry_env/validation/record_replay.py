@@ -29,7 +29,7 @@ from rventry_env.core.integrate import rk4_step
 from rventry_env.physics import EntryModel, entry_rhs
 from rventry_env.validation.controls import ControlSchedule
 from rventry_env.validation.record import FlightRecord, RecordError
-from rventry_env.validation.setup import ReplaySetup
+from rventry_env.validation.replay_setup import ReplaySetup
 
 N_RV = 10  # rv-Euler parameters integrated (alpha and sigma come from the record)
 

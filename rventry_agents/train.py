@@ -83,8 +83,8 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
     """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from agents.residual import ResidualGuidance, ResidualVecEnv
-    from agents.sb3_vec import RangePotentialShaping, RvEntrySB3VecEnv
+    from rventry_agents.residual import ResidualGuidance, ResidualVecEnv
+    from rventry_agents.sb3_vec import RangePotentialShaping, RvEntrySB3VecEnv
 
     e = cfg["env"]
     venv = RvEntrySB3VecEnv(
@@ -107,7 +107,7 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
 
 def live_policy(model, vecnorm, cfg: dict, task: EntryTask):
     """The model being trained as a rollout policy (deterministic, normalized observations)."""
-    from agents.policies import make_policy
+    from rventry_agents.sb3_policy import make_policy
 
     def predict(obs):
         return model.predict(vecnorm.normalize_obs(obs), deterministic=True)[0]
@@ -246,7 +246,7 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
     except ImportError:
         tb = None
     if mode == "residual":
-        from agents.zero_policy import ZeroOnReferencePolicy
+        from rventry_agents.zero_policy import ZeroOnReferencePolicy
 
         from rventry_env.envs.observation import feature_index
 

@@ -23,7 +23,7 @@ The table's azimuth psi = -172.223 deg belongs to i = 97.777 deg, and so do its
 Euler parameters: at i = 97.777 deg the orbital rule reproduces (eA1, etaA) =
 (-0.753, 0.658) to the printed rounding, while at i = 97.8 deg it gives
 (-0.75356, 0.65738), one unit off in the last printed digit. We use the
-i = 97.8 deg of the issue and of the paper's Eq. ``Ex1-AnalyticTrajectory``
+i = 97.8 deg of the paper's text and of its Eq. ``Ex1-AnalyticTrajectory``
 (psi0 = -172.2 deg); what matters for the comparison is that both forms and the
 analytic solution share one orbit. The period is T = 5792.33 s (the paper
 prints T ~ 5793 s). E = N (inertial) in this example.
@@ -35,12 +35,9 @@ are read through C_AE of the unnormalized parameters). The drift is reported.
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -239,48 +236,6 @@ def sweep(n_values: Sequence[int], orbit: CircularOrbit | None = None, progress:
     return rows
 
 
-def plot_results(runs_1000: dict[str, OrbitRun], rows: list[dict], orbit: CircularOrbit, out_dir: Path) -> list[Path]:
-    """Write the two panels of Fig. ``fig:Ex1-res`` as PNG files; returns their paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    labels = {"rv_euler": "rv-Euler", "spherical": "spherical"}
-    paths = []
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for form, run in runs_1000.items():
-        ax.semilogy(run.t[1:], run.error[1:] / 1e3, label=labels[form])  # e_r(0) = 0
-    for frac, name in ((0.25, "near South Pole"), (0.75, "near North Pole")):
-        ax.axvline(frac * orbit.period, color="0.6", ls=":", lw=1)
-        ax.text(frac * orbit.period, ax.get_ylim()[1], name, ha="center", va="bottom", fontsize=8)
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("e_r (km)")
-    ax.set_title(f"Position error, N = {next(iter(runs_1000.values())).n}", pad=14)
-    ax.legend()
-    fig.tight_layout()
-    paths.append(out_dir / "ex1_error_vs_time.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    n = [row["n"] for row in rows]
-    for form in FORMS:
-        ax.loglog(n, [row[f"{form}_km"] for row in rows], "o-", ms=3, label=labels[form])
-    ax.set_xlabel("N (steps per period)")
-    ax.set_ylabel("e_r,max (km)")
-    ax.set_title("Maximum position error over one period")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    paths.append(out_dir / "ex1_max_error_vs_n.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
-    return paths
-
-
 PLATEAU_N = 20000  # from here on RK4 truncation is below round-off for both forms
 
 
@@ -326,68 +281,6 @@ def run_example(n_values: Sequence[int] | None = None, orbit: CircularOrbit | No
     return report, runs_1000
 
 
-def _print_report(report: dict) -> None:
-    print(f"period T = {report['period_s']:.3f} s, fixed-step RK4, no quaternion renormalization")
-    print(f"{'N':>7} {'rv-Euler e_r,max (km)':>22} {'spherical e_r,max (km)':>23} {'ratio':>9}")
-    for row in report["results"]:
-        ratio = row["spherical_km"] / row["rv_euler_km"] if row["rv_euler_km"] > 0 else float("inf")
-        print(f"{row['n']:>7d} {row['rv_euler_km']:>22.3e} {row['spherical_km']:>23.3e} {ratio:>9.1f}")
-    r = report["n1000"]
-    print(
-        f"N = 1000: e_r(sph)/e_r(rv) median after the South-Pole pass {r['median_ratio_after_south_pole']:.0f}, "
-        f"at t = T {r['ratio_at_T']:.0f}, ratio of maxima {r['ratio_of_max']:.0f}"
-    )
-    for form, fl in report["floor_km"].items():
-        plateau = "n/a" if fl["plateau_median"] is None else f"{fl['plateau_median']:.2e} km"
-        print(f"floor {form}: smallest e_r,max {fl['min']:.2e} km, median over N >= {PLATEAU_N}: {plateau}")
-    print(f"sweep wall time {report['sweep_wall_time_s']:.1f} s ({report['total_steps_per_form']} steps per form)")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"N must be a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"N must be a positive integer, got {text!r}")
-    return value
-
-
-def _command(args: argparse.Namespace) -> int:
-    orbit = CircularOrbit()
-    report, runs_1000 = run_example(args.n, orbit, progress=not args.quiet)
-    _print_report(report)
-    if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(report, indent=2) + "\n")
-        print(f"wrote {path}")
-    if args.plots:
-        for path in plot_results(runs_1000, report["results"], orbit, Path(args.plots)):
-            print(f"wrote {path}")
-    return 0
-
-
-def register(subparsers) -> None:
-    """Add the ``orbit`` subcommand (the paper's Example 1).
-
-    :param subparsers: the object returned by ``ArgumentParser.add_subparsers``.
-    """
-    p = subparsers.add_parser(
-        "orbit",
-        help="Example 1: one orbit period in rv-Euler vs spherical coordinates (RK4, error vs N)",
-        description=__doc__.split("\n\n")[0],
-    )
-    p.add_argument(
-        "--n", type=_positive_int, action="append", metavar="N",
-        help="number of RK4 steps per period (repeat for several; default: 30 log-spaced values in [10, 1e5])",
-    )  # fmt: skip
-    p.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    p.add_argument("--plots", metavar="DIR", help="write the two panels of Fig. fig:Ex1-res as PNG")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_command)
-
-
 __all__ = [
     "CircularOrbit",
     "FORMS",
@@ -398,6 +291,4 @@ __all__ = [
     "propagate",
     "run_example",
     "sweep",
-    "plot_results",
-    "register",
 ]

@@ -12,7 +12,7 @@ clipped to the rate limits, where
 * pi in [-1, 1]^2 is the learned policy. It sees its observation o and the scaled
   deviation from the observation o_ref(t) the guidance reference would give, and
   by construction its mean is exactly zero on that reference
-  (:class:`agents.zero_policy.ZeroOnReferencePolicy`);
+  (:class:`rventry_agents.zero_policy.ZeroOnReferencePolicy`);
 * authority * pi is an angle offset (alpha, sigma) reached in one step.
 
 With pi = 0 this is the TV-LQR law, which nominally flies the guidance reference.
@@ -44,7 +44,7 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
-from rventry_env.evaluation.tvlqr import NeighboringOptimalGuidance
+from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
 from rventry_env.envs.observation import TIME_SCALE, feature_index, observation_box, observe
 from rventry_env.envs.task import EntryTask
 from rventry_env.physics.entry import entry_forces
@@ -136,7 +136,7 @@ class ResidualGuidance:
 class ResidualVecEnv(VecEnvWrapper):
     """Presents the residual problem to the learner: augmented observations, residual actions.
 
-    :param venv: an :class:`agents.sb3_vec.RvEntrySB3VecEnv` (raw observations, and the states).
+    :param venv: an :class:`rventry_agents.sb3_vec.RvEntrySB3VecEnv` (raw observations, and the states).
     :param guidance: the classical law and the residual's authority.
     """
 

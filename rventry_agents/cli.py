@@ -1,31 +1,33 @@
-"""``rventry train ppo``, ``rventry evaluate`` and ``rventry compare``."""
+"""``rventry train``: train a learning agent, and ship a finished run's policy.
+
+Registered with the ``rventry`` command through the ``rventry.commands`` entry point.
+"""
 
 from __future__ import annotations
 
 import argparse
 
+from rventry_env.util.args import positive_int, seed
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from agents import evaluate_cli
-
-    evaluate_cli.register(sub)
     train = sub.add_parser("train", help="train a learning agent on RvEntry-v0")
     algos = train.add_subparsers(dest="algo", metavar="ALGO", required=True)
     ppo = algos.add_parser("ppo", help="stable-baselines3 PPO on the numpy-batched vector env")
-    ppo.add_argument("--timesteps", type=int, help="total environment steps (default: the config's)")
-    ppo.add_argument("--seed", type=int, help="random seed (default: the config's)")
+    ppo.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
+    ppo.add_argument("--seed", type=seed, help="random seed (default: the config's)")
     ppo.add_argument("--out", default="runs/ppo", help="output directory (default runs/ppo)")
-    ppo.add_argument("--config", help="TOML config (default agents/ppo.toml)")
+    ppo.add_argument("--config", help="TOML config (default rventry_agents/ppo.toml)")
     ppo.add_argument("--no-progress", action="store_true", help="no progress bar")
     ppo.set_defaults(func=_run_ppo)
     ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
     ship.add_argument("run_dir", help="the --out directory of a finished `rventry train ppo`")
-    ship.add_argument("--dest", help="destination (default: the packaged policy, rventry_env/data/ppo)")
+    ship.add_argument("--dest", help="destination (default: the packaged policy, rventry_agents/data/ppo)")
     ship.set_defaults(func=_ship)
 
 
 def _run_ppo(args) -> int:
-    from agents.train import train_ppo
+    from rventry_agents.train import train_ppo
 
     out = train_ppo(args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress)
     print(f"wrote {out}/model.zip (best on the task metric), learning_curve.png, metadata.json")
@@ -33,7 +35,7 @@ def _run_ppo(args) -> int:
 
 
 def _ship(args) -> int:
-    from agents.ship import ship
+    from rventry_agents.ship import ship
 
     print(f"shipped {args.run_dir} -> {ship(args.run_dir, args.dest)}")
     return 0

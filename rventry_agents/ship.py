@@ -23,7 +23,7 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     """
     from stable_baselines3 import PPO
 
-    from agents.policies import SHIPPED_PPO
+    from rventry_agents.sb3_policy import SHIPPED_PPO
 
     run_dir = Path(run_dir)
     dest = Path(dest) if dest is not None else SHIPPED_PPO

@@ -1,6 +1,6 @@
 """An SB3 actor-critic whose action mean is exactly zero on the reference.
 
-For the residual guidance of :mod:`agents.residual` the observation is
+For the residual guidance of :mod:`rventry_agents.residual` the observation is
 ``[o, d]``: the raw features and the (scaled) deviation from the reference.
 This policy's mean action is
 

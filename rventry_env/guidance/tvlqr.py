@@ -10,6 +10,12 @@ with K_k from the backward Riccati recursion of a discrete LQR problem. Here the
 substeps of :func:`rventry_env.physics.entry_rhs` with the rates held over ``dt``.
 Its Jacobians come from CasADi's automatic differentiation of that same code (one
 copy of the physics), evaluated along the reference sampled at the control steps.
+They are the Jacobians of the unconstrained RK4 map: the environment also
+renormalizes both quaternions after every substep and stops alpha at its bounds,
+and neither is in the linearization. Along the reference the renormalization
+changes nothing to first order (the RK4 map keeps unit norms to O(h^5)); the
+saturation matters only where alpha reaches 0 or 25 deg, which the reference
+touches at its end.
 
 Costs, with deviations measured in engineering units (km of position, 10 m/s of
 speed, degrees of the velocity direction and of alpha, sigma):
@@ -85,6 +91,7 @@ class NeighboringOptimalGuidance:
         import casadi as ca
 
         from rventry_env.core.backend import casadi_ns
+        from rventry_env.core.integrate import rk4_step
         from rventry_env.physics.entry import entry_rhs
 
         x = ca.SX.sym("x", 12)
@@ -92,16 +99,12 @@ class NeighboringOptimalGuidance:
         h = self.task.dt / self.task.substeps
         ns = casadi_ns()
 
-        def f(y):
+        def f(_t, y):
             return ca.vertcat(*entry_rhs([y[i] for i in range(12)], [u[0], u[1]], self.model, ns))
 
         y = x
         for _ in range(self.task.substeps):  # the env's step: RK4 substeps with the rates held
-            k1 = f(y)
-            k2 = f(y + 0.5 * h * k1)
-            k3 = f(y + 0.5 * h * k2)
-            k4 = f(y + h * k3)
-            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            y = rk4_step(f, 0.0, y, h)
         jac = ca.Function("step_jacobians", [x, u], [ca.jacobian(y, x), ca.jacobian(y, u)])
         many = jac.map(xs.shape[0])
         a, b = many(xs.T, us.T)

@@ -76,10 +76,10 @@ class RvEntrySB3VecEnv(VecEnv):
 
     def _time_limit_penalty(self, final: dict) -> np.ndarray:
         from rventry_env.core.backend import NUMPY
-        from rventry_env.envs.observation import TerminalMetrics, terminal_penalty
+        from rventry_env.envs.outcome import TerminalMetrics, time_limit_penalty
 
         m = TerminalMetrics(*(np.asarray(final[k], float) for k in TerminalMetrics._fields))
-        return self.venv.task.weights.failure + terminal_penalty(m, self.venv.task, NUMPY)
+        return time_limit_penalty(m, self.venv.task, NUMPY)
 
     def close(self) -> None:
         self.venv.close()

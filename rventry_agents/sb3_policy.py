@@ -1,0 +1,134 @@
+"""Saved stable-baselines3 policies as guidance laws :func:`rventry_env.evaluation.rollout` can fly.
+
+Two loaders are registered with ``rventry evaluate`` through entry points:
+
+* ``ppo`` (group ``rventry.agents``): the policy shipped in ``rventry_agents/data/ppo``;
+* ``sb3`` (group ``rventry.agent_files``): any saved model, given as a path.
+
+A training run of this package writes, beside ``model.zip``, ``policy.json`` (how
+to fly it: direct, or residual on the classical law) and ``vecnormalize.pkl`` (the
+observation statistics). A run's model without its normalization file is an error,
+never a silent skip: flying it on raw observations would be a different policy.
+A bare SB3 zip from elsewhere (no ``policy.json`` beside it) is flown directly,
+on raw observations, and says so.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import re
+from pathlib import Path
+
+import numpy as np
+
+from rventry_env.envs.task import EntryTask
+
+SHIPPED_PPO = Path(__file__).resolve().parent / "data" / "ppo"
+
+
+def make_policy(predict, mode: str, authority=None, task: EntryTask | None = None):
+    """A rollout policy from ``predict(observations) -> actions``: direct, or residual on the classical law.
+
+    :param authority: residual mode: (alpha, sigma) offsets in rad at a residual of 1.
+    """
+    if mode == "direct":
+        return lambda obs, time_s, state: predict(obs)
+    from rventry_agents.residual import ResidualGuidance, ResidualPolicy
+
+    return ResidualPolicy(predict, ResidualGuidance(authority, task))
+
+
+def _load_sb3(path: Path):
+    """Load a saved model of any stable-baselines3 algorithm with a continuous-action policy."""
+    from stable_baselines3 import A2C, DDPG, PPO, SAC, TD3
+
+    errors = []
+    for algo in (PPO, SAC, TD3, A2C, DDPG):
+        try:
+            return algo.load(path, device="cpu")
+        except Exception as exc:  # the zip names its policy class; a mismatch fails here
+            errors.append(f"{algo.__name__}: {type(exc).__name__}")
+    raise ValueError(f"{path} is not a saved stable-baselines3 model ({'; '.join(errors)})")
+
+
+def _normalization_for(model_zip: Path) -> Path:
+    """The VecNormalize file that belongs to a run's model: ``vecnormalize.pkl`` beside it, or for a
+    checkpoint ``ppo_<N>_steps.zip`` the ``ppo_vecnormalize_<N>_steps.pkl`` SB3 saved with it."""
+    m = re.fullmatch(r"(?P<prefix>.+)_(?P<steps>\d+)_steps", model_zip.stem)
+    if m:
+        return model_zip.with_name(f"{m['prefix']}_vecnormalize_{m['steps']}_steps.pkl")
+    if model_zip.name == "final_model.zip":
+        return model_zip.with_name("final_vecnormalize.pkl")
+    return model_zip.with_name("vecnormalize.pkl")
+
+
+class SB3Policy:
+    """A saved stable-baselines3 model (zip) with its VecNormalize statistics, acting deterministically.
+
+    :param model_path: the ``.zip`` written by ``model.save``, or a run directory holding ``model.zip``.
+    :param normalize_path: the ``VecNormalize`` pickle; default: the one that belongs to the model
+        (required for a model of an rventry training run).
+    """
+
+    def __init__(self, model_path: str | Path, normalize_path: str | Path | None = None):
+        from stable_baselines3.common.base_class import BaseAlgorithm
+
+        path = Path(model_path)
+        if path.is_dir():
+            path = path / "model.zip"
+        if not path.is_file():
+            raise FileNotFoundError(f"no saved policy at {path}")
+        # policy.json sits beside the model (or one level up, for checkpoints/): an rventry run
+        spec = next((d / "policy.json" for d in (path.parent, path.parent.parent) if (d / "policy.json").is_file()), None)
+        self.spec = json.loads(spec.read_text()) if spec is not None else {"mode": "direct"}
+        self.from_run = spec is not None
+        if normalize_path is None and self.from_run:
+            normalize_path = _normalization_for(path)
+            if not normalize_path.is_file():
+                raise FileNotFoundError(
+                    f"{path} belongs to an rventry training run ({spec}) but its observation statistics "
+                    f"{normalize_path.name} are missing beside it; pass the VecNormalize file explicitly"
+                )
+        self.model: BaseAlgorithm = _load_sb3(path)
+        self.obs_mean = self.obs_var = None
+        self.clip_obs, self.epsilon = 10.0, 1e-8
+        self.normalize_path = None if normalize_path is None else Path(normalize_path)
+        if self.normalize_path is not None:
+            if not self.normalize_path.is_file():
+                raise FileNotFoundError(f"no VecNormalize statistics at {self.normalize_path}")
+            with open(self.normalize_path, "rb") as f:
+                vn = pickle.load(f)  # SB3's own format for VecNormalize
+            if vn.norm_obs:  # statistics exist even when they were not used
+                self.obs_mean, self.obs_var = vn.obs_rms.mean.copy(), vn.obs_rms.var.copy()
+                self.clip_obs, self.epsilon = vn.clip_obs, vn.epsilon
+        meta = path.with_name("metadata.json")
+        self.metadata = json.loads(meta.read_text()) if meta.is_file() else {}
+        self._act = make_policy(self._predict, self.spec["mode"], self.spec.get("authority_rad"))
+
+    def _predict(self, obs):
+        return self.model.predict(self.normalize(obs), deterministic=True)[0]
+
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        if self.obs_mean is None:
+            return obs
+        z = (obs - self.obs_mean) / np.sqrt(self.obs_var + self.epsilon)
+        return np.clip(z, -self.clip_obs, self.clip_obs).astype(np.float32)
+
+    def __call__(self, obs, time_s, state):
+        return self._act(obs, time_s, state)
+
+
+def load_shipped(name: str = "ppo", task: EntryTask | None = None) -> SB3Policy:
+    """The policy shipped with this package (entry point ``rventry.agents``)."""
+    if not (SHIPPED_PPO / "model.zip").is_file():
+        raise FileNotFoundError(f"the shipped policy is missing from {SHIPPED_PPO}")
+    return SB3Policy(SHIPPED_PPO)
+
+
+def load_saved(path: str, task: EntryTask | None = None) -> SB3Policy:
+    """A saved SB3 model or run directory (entry point ``rventry.agent_files``)."""
+    return SB3Policy(path)
+
+
+__all__ = ["SHIPPED_PPO", "SB3Policy", "make_policy", "load_shipped", "load_saved"]

@@ -1,0 +1,82 @@
+"""Which guidance laws ``rventry evaluate`` and ``rventry compare`` can fly, by name.
+
+The classical laws are built in. Other packages add theirs through entry points,
+so this library never imports them by name:
+
+* group ``rventry.agents``: ``name = "package.module:loader"``, called as
+  ``loader(name, task)``; the learning agents register ``ppo`` there;
+* group ``rventry.agent_files``: loaders tried in turn for an agent given as a
+  path (a saved model), called as ``loader(path, task)``.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import Callable
+
+from rventry_env.envs.task import EntryTask
+
+AGENT_GROUP = "rventry.agents"
+FILE_GROUP = "rventry.agent_files"
+
+
+def _reference(task):
+    from rventry_env.guidance.reference_replay import ReferencePolicy
+
+    return ReferencePolicy(task)
+
+
+def _lqr(task):
+    from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
+
+    return NeighboringOptimalGuidance(task=task)
+
+
+# name -> (description, factory(task))
+BUILTIN: dict[str, tuple[str, Callable]] = {
+    "reference": ("open-loop replay of the optimal collocation reference", _reference),
+    "lqr": ("time-varying LQR around the margined guidance reference", _lqr),
+}
+
+
+def plugin_agents() -> dict:
+    """Agent names registered by installed packages (entry-point group ``rventry.agents``)."""
+    return {ep.name: ep for ep in entry_points(group=AGENT_GROUP)}
+
+
+def agent_names() -> list[str]:
+    """Every agent name ``load_agent`` accepts (besides paths)."""
+    return [*BUILTIN, *sorted(set(plugin_agents()) - set(BUILTIN))]
+
+
+def load_agent(spec: str, task: EntryTask | None = None):
+    """The guidance law called ``spec``, or the saved policy at the path ``spec``.
+
+    :raises ValueError: an unknown name, or a path no installed loader can read.
+    :raises FileNotFoundError: a path that does not exist.
+    """
+    task = EntryTask() if task is None else task
+    if spec in BUILTIN:
+        return BUILTIN[spec][1](task)
+    plugins = plugin_agents()
+    if spec in plugins:
+        return plugins[spec].load()(spec, task)
+    path = Path(spec)
+    if not (path.suffix or path.exists() or "/" in spec):
+        raise ValueError(f"unknown agent {spec!r}: choose one of {', '.join(agent_names())}, or give a saved model's path")
+    if not path.exists():
+        raise FileNotFoundError(f"no saved policy at {path}")
+    loaders = sorted(entry_points(group=FILE_GROUP), key=lambda e: e.name)
+    if not loaders:
+        raise ValueError(f"no installed package reads saved policies such as {path} (entry-point group {FILE_GROUP})")
+    errors = []
+    for ep in loaders:
+        try:
+            return ep.load()(str(path), task)
+        except (ValueError, FileNotFoundError) as exc:
+            errors.append(f"{ep.name}: {exc}")
+    raise ValueError(f"cannot load a policy from {path}: " + "; ".join(errors))
+
+
+__all__ = ["AGENT_GROUP", "FILE_GROUP", "BUILTIN", "agent_names", "load_agent", "plugin_agents"]

@@ -1,0 +1,151 @@
+"""Outputs written whole or not at all, and checked before the work that produces them.
+
+Every file a command writes (reports, models, records, references, plots) goes
+through :func:`atomic_write`: the content is written to a temporary file in the
+destination's folder, flushed to disk, then renamed over the destination. A
+failure part-way (a full disk, a killed process) leaves the old file as it was
+and no partial file behind. :func:`check_writable` is called before a long run,
+so an unwritable destination is reported at once rather than after the run.
+:func:`dumps_json` refuses NaN and infinity: a report holds numbers or ``null``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+
+class OutputError(ValueError):
+    """A destination cannot be written (named in the message)."""
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
+    """A temporary path beside ``path``; on normal exit it replaces ``path`` atomically.
+
+    :param path: the destination.
+    :param suffix: the temporary file's suffix (default: the destination's, so that
+        writers that look at the extension, such as ``numpy.savez`` or matplotlib, behave).
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{path} is a directory, not a file")
+    folder = path.parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the folder {folder} for {path.name}: {exc.strerror or exc}") from None
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix if suffix is None else suffix, dir=folder)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        with open(tmp_path, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp_path, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp_path.unlink()
+        raise
+
+
+def atomic_write(path: str | Path, data: str | bytes | Callable[[Path], Any]) -> Path:
+    """Write ``data`` to ``path`` whole or not at all.
+
+    :param data: text, bytes, or a callable that writes the content to the path it is given.
+    :return: ``path``.
+    """
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            if callable(data):
+                data(tmp)
+            elif isinstance(data, str):
+                tmp.write_text(data)
+            else:
+                tmp.write_bytes(data)
+    except OSError as exc:
+        raise OutputError(f"could not write {path}: {exc.strerror or exc}; the old file, if any, is untouched") from None
+    return path
+
+
+def json_safe(obj: Any) -> Any:
+    """``obj`` with NumPy scalars and arrays turned into Python values and non-finite floats into ``None``."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
+        return json_safe(obj.tolist())
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def dumps_json(obj: Any, indent: int | None = 1) -> str:
+    """Strict JSON text: NumPy values converted, NaN and infinity written as ``null``."""
+    return json.dumps(json_safe(obj), indent=indent, allow_nan=False) + "\n"
+
+
+def write_json(path: str | Path, obj: Any, indent: int | None = 1) -> Path:
+    """:func:`dumps_json` written with :func:`atomic_write`."""
+    return atomic_write(path, dumps_json(obj, indent))
+
+
+def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True) -> Path:
+    """Save a matplotlib figure as PNG, whole or not at all, and close it.
+
+    :param tight: apply ``tight_layout`` first.
+    """
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    try:
+        if tight:
+            fig.tight_layout()
+        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png"))
+    finally:
+        plt.close(fig)
+    return path
+
+
+def check_writable(*paths: str | Path | None, folders: tuple = ()) -> None:
+    """Raise :class:`OutputError` now if a file or folder destination cannot be written later.
+
+    :param paths: output files (``None`` entries are skipped).
+    :param folders: output folders (created if missing).
+    """
+    for p in paths:
+        if p is None:
+            continue
+        p = Path(p)
+        if p.is_dir():
+            raise OutputError(f"{p} is a directory; give a file name")
+        _probe(p.parent, p)
+    for d in folders:
+        if d is None:
+            continue
+        d = Path(d)
+        if d.exists() and not d.is_dir():
+            raise OutputError(f"{d} exists and is not a folder")
+        _probe(d, d)
+
+
+def _probe(folder: Path, target: Path) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".rventry-write-check.", dir=folder)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from None
+
+
+__all__ = ["OutputError", "atomic_path", "atomic_write", "json_safe", "dumps_json", "write_json", "save_figure", "check_writable"]
