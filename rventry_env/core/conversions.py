@@ -149,7 +149,7 @@ def position_velocity_directions(x):
 def cartesian_from_rv_euler(x):
     """Position and E-relative velocity ``(r_e, v_e)`` in E components, each ``(..., 3)``.
 
-    ``r_e = r C_AE(1, :)`` and ``v_e = v (C_BA C_AE)(1, :)`` (PROBLEM.md).
+    ``r_e = r C_AE(1, :)`` and ``v_e = v (C_BA C_AE)(1, :)`` (docs/conventions.md).
     """
     x = _check_state(x)
     a1, b1 = position_velocity_directions(x)

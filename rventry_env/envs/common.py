@@ -81,10 +81,10 @@ def dispersed_model(model: EntryModel, density, lift, drag) -> EntryModel:
 
 
 def check_state(state, radius: float) -> np.ndarray:
-    """Validate a user-supplied initial state (12 components, PROBLEM.md order)."""
+    """Validate a user-supplied initial state (12 components, state order of docs/conventions.md)."""
     x = np.asarray(state, dtype=float)
     if x.shape != (N_STATE,):
-        raise ValueError(f"an initial state must have shape ({N_STATE},) in PROBLEM.md order, got {x.shape}")
+        raise ValueError(f"an initial state must have shape ({N_STATE},): r, eA1..etaA, v, eB1..etaB, alpha, sigma; got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError(f"the initial state contains NaN or inf: {x}")
     if x[0] <= radius:
@@ -126,7 +126,7 @@ def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 
 def position_velocity_e(c_ae, c_ba, r, v):
-    """(r_E, v_E) components from cached DCMs: r a1 and v b1 in E (PROBLEM.md)."""
+    """(r_E, v_E) components from cached DCMs: r a1 and v b1 in E (docs/conventions.md)."""
     a1 = c_ae[0]
     b1 = tuple(c_ba[0][0] * c_ae[0][j] + c_ba[0][1] * c_ae[1][j] + c_ba[0][2] * c_ae[2][j] for j in range(3))
     return tuple(r * a for a in a1), tuple(v * b for b in b1), a1

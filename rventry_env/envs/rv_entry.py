@@ -122,7 +122,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     dispersion=None, render_mode=None)``
 
     * ``model``: an :class:`~rventry_env.physics.EntryModel` (gravity, atmosphere,
-      vehicle/aerodynamics, wind parts); default PROBLEM.md's.
+      vehicle/aerodynamics, wind parts); default: the documented defaults (docs/conventions.md).
     * ``task``: an :class:`~rventry_env.envs.task.EntryTask` (problem constants,
       reward weights, success thresholds, dt, substeps, ceiling).
     * ``dt``: control step, default 1 s; ``substeps``: RK4 substeps per control
@@ -131,7 +131,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     * ``render_mode``: ``"rgb_array"`` draws altitude and speed against time and
       the ground track toward the target.
 
-    ``env.unwrapped.state`` is the float64 (12,) state in PROBLEM.md order;
+    ``env.unwrapped.state`` is the float64 (12,) state in the documented order (docs/conventions.md);
     ``env.unwrapped.dt`` the control step.
 
     ## Vectorized environment
@@ -164,7 +164,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     # ------------------------------------------------------------------ state
     @property
     def state(self) -> np.ndarray:
-        """The 12-component state, float64, PROBLEM.md order (a copy)."""
+        """The 12-component state, float64, state order of docs/conventions.md (a copy)."""
         if self._x is None:
             raise RuntimeError("the environment has no state before reset()")
         return np.array(self._x, dtype=np.float64)

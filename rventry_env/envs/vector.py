@@ -93,7 +93,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     # ------------------------------------------------------------------ state
     @property
     def state(self) -> np.ndarray:
-        """States of all copies, float64, shape (N, 12), PROBLEM.md order (a copy)."""
+        """States of all copies, float64, shape (N, 12), state order of docs/conventions.md (a copy)."""
         if self._x is None:
             raise RuntimeError("the environment has no state before reset()")
         return np.stack(self._x, axis=-1)

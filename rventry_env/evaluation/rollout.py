@@ -4,7 +4,7 @@ A policy is any callable ``policy(obs, time_s, state) -> actions``:
 
 * ``obs``: float32 observations, shape (N, 26);
 * ``time_s``: time since each episode's start (N,);
-* ``state``: the float64 states (N, 12), PROBLEM.md order;
+* ``state``: the float64 states (N, 12), state order of docs/conventions.md;
 * returns actions (N, 2) in [-1, 1].
 
 Closed-loop policies (PPO) use ``obs``; the open-loop reference replay uses

@@ -15,7 +15,7 @@ class Aerodynamics(Protocol):
 
 @dataclass(frozen=True)
 class CAVHAerodynamics:
-    """The CAV-H analytic fit (PROBLEM.md; Phillips 2003), with ``a`` in degrees.
+    """The CAV-H analytic fit (docs/conventions.md; Phillips 2003), with ``a`` in degrees.
 
     C_L = cl0 + cl_alpha a + cl_mach exp(-cl_decay M)
     C_D = cd0 + cd_alpha2 a^2 + cd_mach exp(-cd_decay M)

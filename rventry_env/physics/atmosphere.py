@@ -25,7 +25,7 @@ class Atmosphere(Protocol):
 
 @dataclass(frozen=True)
 class ExponentialAtmosphere:
-    """rho = rho0 exp(-h / H_s) and a constant speed of sound (PROBLEM.md)."""
+    """rho = rho0 exp(-h / H_s) and a constant speed of sound (docs/conventions.md)."""
 
     rho0: float = 1.225
     scale_height: float = 7200.0

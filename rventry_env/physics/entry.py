@@ -4,7 +4,7 @@ This is the paper's Example 2 system (Eqs. ``Ex2-EOM`` to ``Ex2-EOM-Ftot``) in
 general form: E is the planet-fixed frame rotating at ``planet.omega`` about e3,
 N is inertial, and the force-model parts come from an
 :class:`~rventry_env.physics.model.EntryModel`. The state has 12 components in
-PROBLEM.md order (:data:`ENTRY_STATE_NAMES`); the controls are the angle-of-attack
+the order of docs/conventions.md (:data:`ENTRY_STATE_NAMES`); the controls are the angle-of-attack
 and bank-angle rates.
 
 The bank angle sigma is the paper's: a rotation about b1 from b2 to the lift

@@ -16,7 +16,7 @@ from rventry_env.physics.wind import Wind
 class EntryModel:
     """Planet, gravity, atmosphere, vehicle (with its aerodynamics) and wind.
 
-    Each part is swappable; the defaults are PROBLEM.md's. Parts are frozen
+    Each part is swappable; the defaults are those of docs/conventions.md. Parts are frozen
     dataclasses, so a model is a value: derive variants with :meth:`replace`.
 
     :param planet: radius, mu and rotation of the observation frame E.

@@ -1,4 +1,4 @@
-"""The central body: size, gravitational parameter and rotation (PROBLEM.md defaults)."""
+"""The central body: size, gravitational parameter and rotation (defaults of docs/conventions.md)."""
 
 from __future__ import annotations
 

@@ -24,5 +24,5 @@ class Vehicle:
 
 
 def cav_h() -> Vehicle:
-    """The CAV-H defaults of PROBLEM.md (907.2 kg, 0.4839 m^2, analytic aero fit)."""
+    """The CAV-H defaults of docs/conventions.md (907.2 kg, 0.4839 m^2, analytic aero fit)."""
     return Vehicle()

@@ -37,7 +37,7 @@ class Reference:
     """The optimal entry trajectory of the paper's Example 2 as shipped.
 
     :param t: node times ``(n,)``.
-    :param x: states at the nodes ``(n, 12)`` (PROBLEM.md order).
+    :param x: states at the nodes ``(n, 12)`` (state order of docs/conventions.md).
     :param u: (u_alpha, u_sigma) at the nodes ``(n, 2)``.
     :param mesh: the final collocation mesh.
     :param cost: J*.

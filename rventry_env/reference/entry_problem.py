@@ -1,6 +1,6 @@
 """The paper's Example 2 as an optimal-control problem (Section ``sect:Ex2``).
 
-States: the 12 entry states of PROBLEM.md (``r, eA1..etaA, v, eB1..etaB, alpha,
+States: the 12 entry states of docs/conventions.md (``r, eA1..etaA, v, eB1..etaB, alpha,
 sigma``); controls: ``u_alpha, u_sigma`` and, in the default norm-keeping
 formulation, two more (``lambda_A, lambda_B``, below). The dynamics are
 :func:`rventry_env.physics.entry.entry_rhs` on CasADi symbols: one copy of the

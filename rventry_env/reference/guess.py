@@ -136,7 +136,7 @@ def _law(x, p, state, config: EntryProblemConfig, gains: GuidanceGains, rho_fit)
     alpha_dive = np.where(steep, config.problem.final_alpha, gains.alpha_pull_deg * DEG)
     alpha_cmd = np.where(glide, config.alpha_bar, alpha_dive)
     theta_u, _ = lift_up_angle(x[6:10])
-    sigma_cmd = mu + theta_u  # paper's sigma from the conventional bank (PROBLEM.md)
+    sigma_cmd = mu + theta_u  # paper's sigma from the conventional bank (docs/conventions.md)
     sigma_cmd = x[11] + (sigma_cmd - x[11] + math.pi) % (2 * math.pi) - math.pi  # nearest turn
     u_a = np.clip(gains.rate_gain * (alpha_cmd - x[10]), -config.u_alpha_max, config.u_alpha_max)
     u_s = np.clip(gains.rate_gain * (sigma_cmd - x[11]), -config.u_sigma_max, config.u_sigma_max)

@@ -141,7 +141,7 @@ def solve_reference(
 ) -> ReferenceSolve:
     """Solve Example 2 from a generated guess (see the module docstring).
 
-    :param config: the problem constants (default: PROBLEM.md's).
+    :param config: the problem constants (default: docs/conventions.md's).
     :param options: :class:`ReferenceOptions`.
     :param progress: called once per mesh pass.
     """

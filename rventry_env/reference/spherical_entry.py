@@ -18,7 +18,7 @@ Busemann & Culp, *Hypersonic and Planetary Entry Flight Mechanics*, 1980, Ch. 2)
 The azimuth equation divides by cos(gamma): it is undefined in vertical flight,
 which is exactly the terminal condition gamma(tf) = -90 deg of Example 2.
 
-The bank angle differs from the paper's sigma (PROBLEM.md): sigma = mu + theta_u,
+The bank angle differs from the paper's sigma (docs/conventions.md): sigma = mu + theta_u,
 theta_u the angle of "lift up" in the no-twist B frame. theta_u turns at a rate
 of about -tan(gamma) times the lateral acceleration over v, so the two bank rates
 (and the u_sigma and u_mu cost terms) differ where the flight is steep and the
