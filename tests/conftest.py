@@ -1,11 +1,17 @@
-"""Shared test set-up: a deterministic hypothesis profile and a headless matplotlib."""
+"""Shared test set-up: one BLAS thread, a deterministic hypothesis profile and a headless matplotlib."""
 
 import os
+import sys
 
-import matplotlib
+# NumPy's BLAS reads its thread count once, when NumPy loads: set it before anything imports NumPy.
+# Two pytest-xdist workers on a 2-core machine each get one thread instead of fighting over four.
+NUMPY_LOADED_BEFORE_CONFTEST = "numpy" in sys.modules
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", os.environ["OMP_NUM_THREADS"])
+
+import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 

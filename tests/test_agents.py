@@ -29,6 +29,7 @@ def _smoke_config() -> dict:
     return cfg
 
 
+@pytest.mark.slow
 def test_training_pipeline_trains_saves_and_reloads(tmp_path):
     from rventry_agents.train import train_ppo
 
@@ -97,6 +98,7 @@ def test_loading_something_that_is_not_a_policy_fails_clearly(tmp_path):
         load_policy(str(bogus))
 
 
+@pytest.mark.slow
 def test_any_saved_sb3_algorithm_loads(tmp_path):
     """`rventry evaluate --agent PATH` takes any SB3 policy, not only PPO: here an untrained SAC."""
     from stable_baselines3 import SAC
@@ -110,6 +112,7 @@ def test_any_saved_sb3_algorithm_loads(tmp_path):
     assert batch.miss_km.shape == (2,)
 
 
+@pytest.mark.slow
 def test_shipped_policy_is_present_and_deterministic_for_a_seed():
     assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
     a = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
@@ -119,6 +122,7 @@ def test_shipped_policy_is_present_and_deterministic_for_a_seed():
     assert (a.failure == "").all()  # the shipped policy reaches the ground in every one of these
 
 
+@pytest.mark.slow
 def test_evaluate_cli_writes_the_documented_schema(tmp_path):
     out = tmp_path / "eval.json"
     cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", "reference", "--episodes", "3",

@@ -11,11 +11,11 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from gymnasium.vector import AutoresetMode
 from scipy.integrate import solve_ivp
 
-import rventry_env  # noqa: F401  (registers RvEntry-v0)
+import rventry_env  # noqa: F401  (registers RvEntry-v0 once Gymnasium is loaded)
 from rventry_env.envs.rv_entry import RvEntryEnv
 from rventry_env.envs.task import Dispersion, EntryProblem, EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
-from rventry_env.physics import EntryModel, J2Gravity, entry_rhs
+from rventry_env.physics import EntryModel, J2Gravity, PointMassGravity, entry_rhs
 
 # alpha(0), sigma(0) pinned so these tests do not depend on the shipped reference
 TASK = EntryTask(problem=EntryProblem(initial_alpha=math.radians(11.86), initial_sigma=math.radians(100.0)))
@@ -43,6 +43,7 @@ def test_gymnasium_env_checker_passes():
     gym_check_env(env, skip_render_check=False)
 
 
+@pytest.mark.slow
 def test_stable_baselines3_env_checker_passes():
     from stable_baselines3.common.env_checker import check_env
 
@@ -51,7 +52,7 @@ def test_stable_baselines3_env_checker_passes():
 
 def test_make_returns_registered_env_with_time_limit_and_attributes():
     env = gym.make("RvEntry-v0", task=TASK)
-    assert env.spec.max_episode_steps == 2000
+    assert env.unwrapped.max_episode_steps == 2000  # the env's own limit, not Gymnasium's TimeLimit
     env.reset(seed=0)
     s = env.unwrapped.state
     assert s.dtype == np.float64 and s.shape == (12,)
@@ -70,8 +71,52 @@ def test_same_seed_same_episode_with_dispersions():
 def test_step_after_termination_raises():
     env = RvEntryEnv(task=TASK)
     run_episode(env)
-    with pytest.raises(RuntimeError, match="after the episode terminated; call reset"):
+    with pytest.raises(RuntimeError, match="after the episode ended .* call reset"):
         env.step(np.zeros(2, np.float32))
+
+
+END_KEYS = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "max_load_factor_g",
+            "min_dynamic_pressure_pa", "constraint_violation", "terminal_penalty", "failure", "is_success")  # fmt: skip
+
+
+def _fly_level(env, steps):
+    env.reset(seed=0)
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
+        if terminated or truncated:
+            return terminated, truncated, info
+    return False, False, info
+
+
+@pytest.mark.parametrize("limit", [7, 2000])
+def test_a_truncated_episode_through_gym_make_carries_the_end_keys(limit):
+    """The time limit is the env's own: truncation ends the episode like any other ending, through gym.make."""
+    if limit == 2000:
+        # the default limit: no gravity and no ceiling, so nothing but the limit ends the flight
+        task = EntryTask(problem=TASK.problem, ceiling_altitude=1e9, min_speed=1.0)
+        env = gym.make("RvEntry-v0", task=task, model=EntryModel(gravity=PointMassGravity(mu=0.0)))
+    else:
+        env = RvEntryEnv(task=TASK, max_episode_steps=limit)
+    terminated, truncated, info = _fly_level(env, limit)
+    assert truncated and not terminated
+    assert info["time_s"] == pytest.approx(limit * 1.0)
+    assert set(END_KEYS) <= set(info) and info["failure"] == "time limit" and info["is_success"] is False
+    assert info["terminal_penalty"] == 0.0  # truncation charges nothing (Gymnasium semantics)
+    with pytest.raises(RuntimeError, match="after the episode ended"):
+        env.step(np.zeros(2, np.float32))
+
+
+def test_an_outer_time_limit_is_closed_by_the_wrapper():
+    from rventry_env.envs.wrappers import EndAtTimeLimit
+
+    bare = gym.make("RvEntry-v0", task=TASK, max_episode_steps=5)  # Gymnasium's TimeLimit: the env cannot see it
+    _, truncated, info = _fly_level(bare, 5)
+    assert truncated and "failure" not in info
+    wrapped = EndAtTimeLimit(gym.make("RvEntry-v0", task=TASK, max_episode_steps=5))
+    _, truncated, info = _fly_level(wrapped, 5)
+    assert truncated and info["failure"] == "time limit" and set(END_KEYS) <= set(info)
+    with pytest.raises(RuntimeError, match="after the episode ended"):
+        wrapped.step(np.zeros(2, np.float32))
 
 
 @pytest.mark.parametrize(
@@ -334,6 +379,36 @@ def test_dispersion_draws_change_the_model_per_copy():
     np.testing.assert_allclose(venv._density, 1 + d[:, 0])
 
 
+@pytest.mark.parametrize("vector", [False, True])
+def test_a_reset_dispersion_option_applies_to_that_reset_only(vector):
+    """``reset(options={"dispersion": ...})`` is one-off in both envs; later resets use the constructor's."""
+    if vector:
+        env = RvEntryVectorEnv(num_envs=2, task=TASK)
+
+        def draw():
+            return env.dispersion_draw.copy()
+    else:
+        env = RvEntryEnv(task=TASK)
+
+        def draw():
+            return env.dispersion_draw.copy()
+
+    env.reset(seed=1, options={"dispersion": "standard"})
+    assert np.any(draw() != 0)
+    env.reset(seed=1)
+    assert np.all(draw() == 0)
+    assert env.dispersion == Dispersion()
+
+
+def test_vector_autoreset_after_a_one_off_dispersion_draws_from_the_constructor_set():
+    venv = RvEntryVectorEnv(num_envs=2, task=TASK, max_episode_steps=2)
+    venv.reset(seed=3, options={"dispersion": "wide"})
+    assert np.any(venv.dispersion_draw != 0)
+    for _ in range(3):  # two steps end the episodes, the third autoresets them (NEXT_STEP)
+        venv.step(np.zeros((2, 2)))
+    assert np.all(venv.dispersion_draw == 0)
+
+
 def test_success_bonus_is_paid_only_at_a_successful_impact():
     from dataclasses import replace
 
@@ -377,3 +452,58 @@ def test_vector_env_pays_the_same_success_bonus():
         if term:
             assert tv[0] and info["is_success"] and info_v["is_success"][0]
             break
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: RvEntryEnv(substeps=2.5), "substeps must be a positive integer"),
+    (lambda: RvEntryEnv(substeps="2"), "substeps must be a positive integer"),
+    (lambda: RvEntryEnv(dt=float("nan")), "dt must be a positive number"),
+    (lambda: RvEntryEnv(dispersion={"speed_mps": 9000}), "dispersion speed_mps = 9000 m/s could start the vehicle below the stall"),
+    (lambda: RvEntryEnv(dispersion={"altitude_m": 60000}), "dispersion altitude_m = 60000 m could start the vehicle underground"),
+    (lambda: RvEntryEnv(dispersion={"density": 1.5}), "dispersion density = 1.5 is relative"),
+    (lambda: RvEntryEnv(dispersion={"lift": "3%"}), "dispersion lift must be a number"),
+    (lambda: RvEntryEnv(dispersion="wider"), "cannot make a Dispersion from 'wider'"),
+    (lambda: RvEntryEnv(max_episode_steps=0), "max_episode_steps must be a positive integer"),
+    (lambda: RvEntryVectorEnv(num_envs=2, dispersion={"altitude_m": 1e5}), "dispersion altitude_m"),
+    (lambda: RvEntryVectorEnv(num_envs=2).reset(options={"state": None}), "options\\['state'\\] must be one state"),
+    (lambda: RvEntryVectorEnv(num_envs=2).reset(options={"state": 3.0}), "options\\['state'\\] must be one state"),
+    (lambda: RvEntryEnv().reset(options={"state": "x"}), "an initial state must be 12 numbers"),
+    (lambda: RvEntryEnv().reset(options={"dispersion": {"speed_mps": 7100}}), "dispersion speed_mps"),
+])  # fmt: skip
+def test_bad_arguments_explain_themselves(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_integral_float_substeps_are_accepted_and_render_before_reset_is_explained():
+    assert RvEntryEnv(substeps=2.0).task.substeps == 2
+    venv = RvEntryVectorEnv(num_envs=2, render_mode="rgb_array")
+    with pytest.raises(RuntimeError, match="call reset\\(\\) before render\\(\\)"):
+        venv.render()
+
+
+@pytest.mark.parametrize("dt", [10.0, 50.0])
+def test_coarse_steps_end_in_a_named_failure_in_both_envs_never_an_exception(dt):
+    """Python floats overflow with an exception where NumPy gives inf: both envs report "non-finite state"."""
+    n = 12
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1, 1, (3000, n, 2)).astype(np.float32)
+    venv = RvEntryVectorEnv(num_envs=n, task=TASK, dt=dt)
+    venv.reset(seed=40)
+    vector_end = [None] * n
+    for k in range(3000):
+        _, _, term, trunc, info = venv.step(actions[k])
+        for i in np.nonzero((term | trunc) & np.array([e is None for e in vector_end]))[0]:
+            vector_end[i] = (k, info["failure"][i])
+        if all(e is not None for e in vector_end):
+            break
+    if dt == 50.0:
+        assert sum(e[1] == "non-finite state" for e in vector_end) >= 3  # the overflow path is exercised
+    for i in range(n):
+        env = RvEntryEnv(task=TASK, dt=dt)
+        env.reset(seed=40 + i)
+        for k in range(3000):
+            _, _, term, trunc, info = env.step(actions[k, i])
+            if term or trunc:
+                assert (k, info["failure"]) == vector_end[i]
+                break

@@ -62,6 +62,7 @@ def test_lqr_flies_the_nominal_case_to_success_within_the_cost_budget(lqr):
     assert b.cost[0] <= 1.5 * load_reference().cost  # issue 5's nominal J/J* target
 
 
+@pytest.mark.slow
 def test_lqr_beats_the_open_loop_reference_under_dispersions(lqr):
     closed = rollout(lqr, 24, seed=7, dispersion=Dispersion.standard())
     open_ = rollout(ReferencePolicy(), 24, seed=7, dispersion=Dispersion.standard())

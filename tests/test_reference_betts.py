@@ -5,6 +5,7 @@ import pytest
 from rventry_env.reference.betts_shuttle import PUBLISHED, heating_rate, shuttle_guess, solve_shuttle
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("limit", [None, 70.0])
 def test_matches_published_optimum_within_0_1_percent(limit):
     res = solve_shuttle(limit, mesh_tolerance=1e-6)

@@ -66,3 +66,56 @@ def test_plot_writes_the_six_panels(tmp_path):
 def test_missing_reference_file_is_a_clear_error(tmp_path, capsys):
     assert main(["reference", "show", "--file", str(tmp_path / "missing.npz")]) == 2
     assert "rventry reference solve" in capsys.readouterr().err
+
+
+COARSE = ["--first-mesh", "12", "4", "--end-fraction", "0.05", "--mesh-tolerance", "1e-2", "--max-mesh-iterations",
+          "2", "--quiet"]  # fmt: skip
+
+
+@pytest.mark.slow
+def test_solve_writes_where_out_says_and_never_the_packaged_file(tmp_path, capsys):
+    from rventry_env.reference.data_file import DEFAULT_PATH, GUIDANCE_PATH
+
+    shipped = {p: p.stat().st_mtime_ns for p in (DEFAULT_PATH, GUIDANCE_PATH)}
+    out = tmp_path / "coarse.npz"
+    assert main(["reference", "solve", "--out", str(out), *COARSE]) == 0
+    ref = load_reference(out)
+    assert ref.x[-1, 6] == 0.0 and ref.x[-1, 9] == 0.0  # the exact vertical impact holds on any mesh
+    assert ref.summary()["converged"] is True and ref.summary()["mesh_error"] <= 1e-2
+    assert {p: p.stat().st_mtime_ns for p in shipped} == shipped
+
+
+@pytest.mark.slow
+def test_an_unconverged_solve_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "never.npz"
+    args = ["reference", "solve", "--out", str(out), "--first-mesh", "8", "4", "--end-fraction", "0",
+            "--mesh-tolerance", "1e-9", "--max-mesh-iterations", "1", "--quiet"]  # fmt: skip
+    assert main(args) == 1
+    assert "did not converge" in capsys.readouterr().err
+    assert not out.exists() and not out.with_suffix(".json").exists()
+    assert list(tmp_path.iterdir()) == []  # no temporary file left behind either
+
+
+def test_ship_refuses_margins_that_are_not_the_shipped_files(tmp_path, capsys):
+    assert main(["reference", "solve", "--ship", "optimum", "--q-margin", "0.1", "--quiet"]) == 2
+    assert "--ship optimum is the reference solved with --q-margin 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["reference", "solve", "--ship", "guidance", "--out", str(tmp_path / "x.npz")])
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_export_bounds_the_number_of_rows(tmp_path, capsys):
+    assert main(["reference", "export", "--csv", str(tmp_path / "x.csv"), "--dt", "1e-7"]) == 2
+    err = capsys.readouterr().err
+    assert "--dt 1e-07 s would export" in err and "rows" in err
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_file_that_is_not_a_reference_is_named_never_unpickled(tmp_path, capsys):
+    bogus = tmp_path / "bogus.npz"
+    bogus.write_bytes(b"\x80\x04K\x01.")  # a pickle: must never be loaded
+    assert main(["reference", "show", "--file", str(bogus)]) == 2
+    err = capsys.readouterr().err
+    assert "is not an rventry reference file" in err and "allow_pickle" not in err
+    assert main(["reference", "show", "--file", str(tmp_path)]) == 2
+    assert "is a directory" in capsys.readouterr().err

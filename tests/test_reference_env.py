@@ -31,11 +31,13 @@ def test_default_env_starts_from_the_reference_initial_state():
     np.testing.assert_array_equal(env.unwrapped.state, load_reference().x[0])
 
 
+@pytest.mark.slow
 def test_tight_replay_of_the_reference_controls_lands_within_100_m(replay):
     assert replay.position_error_at_impact_m < 100.0
     assert abs(replay.altitude_at_tf_m) < 100.0
 
 
+@pytest.mark.slow
 def test_env_reward_along_the_tight_replay_is_minus_j_star_with_no_terminal_penalty(replay):
     """Issue 4, check 3: the environment's reward terms, evaluated on the replay, sum to -J*."""
     ref, task, model = load_reference(), EntryTask(), EntryModel()

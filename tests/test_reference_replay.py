@@ -15,6 +15,7 @@ def replay():
     return replay_controls(entry_rhs_numpy(), load_reference(), rtol=1e-11)
 
 
+@pytest.mark.slow
 def test_replay_reproduces_the_reference_impact_point(replay):
     assert replay.position_error_at_impact_m <= 100.0
     assert replay.max_position_error_m <= 100.0
@@ -23,6 +24,7 @@ def test_replay_reproduces_the_reference_impact_point(replay):
     np.testing.assert_allclose(replay.x[0], load_reference().x[0])
 
 
+@pytest.mark.slow
 def test_replay_detects_a_different_vehicle():
     """The check can fail: a 5 % heavier vehicle flies the same controls somewhere else."""
     model = EntryModel()

@@ -69,6 +69,15 @@ def test_initial_state_is_table_tab_ex2_bcs(ref):
     assert 0 <= x0[10] <= 25 * DEG  # alpha(0), sigma(0) free
 
 
+def test_the_problem_defaults_are_the_shipped_optimum_initial_angles(ref):
+    """EntryProblem carries alpha(0) and sigma(0) as numbers; they must stay those of the shipped optimum."""
+    from rventry_env.problem import EntryProblem
+
+    p = EntryProblem()
+    assert p.initial_alpha == ref.x[0, 10] and p.initial_sigma == ref.x[0, 11]
+    np.testing.assert_array_equal(p.initial_state(RE), ref.x[0])
+
+
 def test_final_conditions_and_exact_vertical_impact(ref):
     xf = ref.x[-1]
     assert xf[0] == pytest.approx(RE, abs=1e-6)

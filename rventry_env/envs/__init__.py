@@ -17,11 +17,13 @@ def register_envs() -> None:
 
     if ENV_ID in registry:
         return
+    # The time limit is the environment's own (max_episode_steps, default MAX_EPISODE_STEPS), not
+    # Gymnasium's TimeLimit wrapper, which truncates without telling the environment: this way a
+    # truncated episode ends with the same info keys as any other.
     register(
         id=ENV_ID,
         entry_point="rventry_env.envs.rv_entry:RvEntryEnv",
         vector_entry_point="rventry_env.envs.vector:RvEntryVectorEnv",
-        max_episode_steps=MAX_EPISODE_STEPS,
     )
 
 

@@ -27,6 +27,7 @@ class EntryEnvSetup:
         self.model = make_model(model)
         self.task = make_task(task, dt, substeps)
         self.dispersion = Dispersion.parse(dispersion)
+        self.task.check_dispersion(self.dispersion)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
@@ -50,6 +51,15 @@ def clip_observation(obs: np.ndarray, low: np.ndarray, high: np.ndarray):
     if np.any(clipped):
         obs = np.clip(obs, low, high)
     return obs, clipped
+
+
+def check_max_steps(max_episode_steps) -> int | None:
+    """A time limit in control steps: a positive integer, or None for none."""
+    if max_episode_steps is None:
+        return None
+    if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
+        raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
+    return int(max_episode_steps)
 
 
 def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) -> EntryTask:
@@ -82,7 +92,10 @@ def dispersed_model(model: EntryModel, density, lift, drag) -> EntryModel:
 
 def check_state(state, radius: float) -> np.ndarray:
     """Validate a user-supplied initial state (12 components, state order of docs/conventions.md)."""
-    x = np.asarray(state, dtype=float)
+    try:
+        x = np.asarray(state, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"an initial state must be {N_STATE} numbers, got {state!r}") from None
     if x.shape != (N_STATE,):
         raise ValueError(f"an initial state must have shape ({N_STATE},): r, eA1..etaA, v, eB1..etaB, alpha, sigma; got {x.shape}")
     if not np.all(np.isfinite(x)):

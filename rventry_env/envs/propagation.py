@@ -136,32 +136,18 @@ class Propagator:
             saturated = saturated | (ns.fabs(ua - u_alpha) > 1e-12)
             u = (ua, u_sigma)
 
-            def rhs(_t, y, u=u):
-                return entry_rhs(y, u, model, ns)
-
-            k1 = entry_rhs(x, u, model, ns, forces=forces)
-            x_new = _renormalize(rk4_step(rhs, 0.0, x, h, k1=k1), ns)
-            tau = h + 0.0 * x[0]
-
-            hit = x_new[0] < radius
             if batched:
-                hit &= status == FLYING
-            if hit.any() if batched else hit:
-                idx = np.nonzero(hit)[0] if batched else None
-                x_hit, tau_hit = self._locate_impact(
-                    _take(x, idx), _take(k1, idx), (ua[idx], u_sigma[idx]) if batched else u, h,
-                    take_model(model, idx), radius,
-                )  # fmt: skip
-                if batched:
-                    x_new = tuple(np.where(hit, _scatter(c, idx, ch), c) for c, ch in zip(x_new, x_hit))
-                    tau = np.where(hit, _scatter(tau, idx, tau_hit), tau)
-                else:
-                    x_new, tau = x_hit, tau_hit
-
+                # overflow and NaN are the env's to report (status NON_FINITE), not NumPy's warnings
+                with np.errstate(all="ignore"):
+                    x_new, tau, hit, f_new, new_status = self._advance(x, forces, u, h, model, status, radius)
+            else:
+                try:
+                    x_new, tau, hit, f_new, new_status = self._advance(x, forces, u, h, model, status, radius)
+                except (OverflowError, ZeroDivisionError, ValueError):
+                    # Python floats raise where NumPy returns inf/NaN: the same ending, "non-finite state"
+                    x_new, tau, hit, f_new, new_status = x, 0.0, False, forces, NON_FINITE
             flying = status == FLYING
             step_cost = p.cost_over_hold(alpha0, ua, u_alpha, u_sigma, tau)
-            f_new = entry_forces(x_new, model, ns)
-            new_status = _classify(x_new, f_new, hit, task, radius, ns, batched)
             if batched and (np.all(flying) and not np.any(new_status)):
                 x, forces = x_new, f_new  # the common case: every vehicle flies on
             elif batched:
@@ -187,6 +173,32 @@ class Propagator:
             if not ((status == FLYING).any() if batched else status == FLYING):
                 break
         return StepOutcome(x, forces, elapsed, status, cost, path, max_load, min_q, saturated)
+
+    def _advance(self, x: tuple, forces: EntryForces, u: tuple, h: float, model: EntryModel, status, radius: float):
+        """One RK4 substep with the rates ``u`` held, the impact located inside it; the new status."""
+        ns, task = self.ns, self.task
+        batched = ns.name == "numpy"
+
+        def rhs(_t, y):
+            return entry_rhs(y, u, model, ns)
+
+        k1 = entry_rhs(x, u, model, ns, forces=forces)
+        x_new = _renormalize(rk4_step(rhs, 0.0, x, h, k1=k1), ns)
+        tau = h + 0.0 * x[0]
+        hit = x_new[0] < radius
+        if batched:
+            hit &= status == FLYING
+        if hit.any() if batched else hit:
+            idx = np.nonzero(hit)[0] if batched else None
+            u_hit = (u[0][idx], u[1][idx]) if batched else u
+            x_hit, tau_hit = self._locate_impact(_take(x, idx), _take(k1, idx), u_hit, h, take_model(model, idx), radius)
+            if batched:
+                x_new = tuple(np.where(hit, _scatter(c, idx, ch), c) for c, ch in zip(x_new, x_hit))
+                tau = np.where(hit, _scatter(tau, idx, tau_hit), tau)
+            else:
+                x_new, tau = x_hit, tau_hit
+        f_new = entry_forces(x_new, model, ns)
+        return x_new, tau, hit, f_new, _classify(x_new, f_new, hit, task, radius, ns, batched)
 
     def _locate_impact(self, x0: tuple, k1: tuple, u: tuple, h: float, model: EntryModel, radius: float):
         """tau in (0, h] with r(RK4(x0, tau)) = radius, and the state there (Illinois regula falsi)."""

@@ -10,7 +10,7 @@ import numpy as np
 
 from rventry_env.core.backend import MATH
 from rventry_env.core.euler_parameters import dcm
-from rventry_env.envs import common
+from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.observation import features, observe
 from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
@@ -155,10 +155,12 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         substeps: int | None = None,
         dispersion: Dispersion | dict | str | None = None,
         render_mode: str | None = None,
+        max_episode_steps: int | None = MAX_EPISODE_STEPS,
     ):
         self.observation_space, self.action_space = self._configure(
             model, task, dt, substeps, dispersion, render_mode, MATH
         )
+        self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self._ended = False
 
     # ------------------------------------------------------------------ state
@@ -177,6 +179,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         if unknown:
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {sorted(_RESET_OPTIONS)}")
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
+        self.task.check_dispersion(dispersion)
         x0 = common.check_state(options["state"], self._radius) if "state" in options else self._nominal
         d = common.draw_dispersion(self.np_random, dispersion)
         if not dispersion.is_zero:
@@ -204,7 +207,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         if self._x is None:
             raise RuntimeError("call reset() before step()")
         if self._ended:
-            raise RuntimeError("step() called after the episode terminated; call reset() to start a new episode")
+            raise RuntimeError("step() called after the episode ended (terminated or truncated); call reset() first")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2,):
             raise ValueError(f"action must have shape (2,) [alpha rate, bank rate], got shape {a.shape}")
@@ -224,16 +227,28 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self._min_q = min(self._min_q, out.min_q)
         reward = -(out.cost + out.path_penalty)
         terminated = out.status != FLYING
-        limit = self.spec.max_episode_steps if self.spec is not None else None
-        last = terminated or (limit is not None and self._steps >= limit)
+        truncated = not terminated and self.max_episode_steps is not None and self._steps >= self.max_episode_steps
         info_obs, obs_clipped = self._observe()
         info = self._info(clipped, out.alpha_saturated, obs_clipped)
-        if last:
-            penalty = self._finish(info, out.status, terminated)
-            reward -= penalty
-        self._ended = terminated
+        if terminated or truncated:
+            reward -= self._finish(info, out.status, terminated)
+        self._ended = terminated or truncated
         self._record()
-        return info_obs, float(reward), bool(terminated), False, info
+        return info_obs, float(reward), bool(terminated), bool(truncated), info
+
+    def end_at_time_limit(self, info: dict) -> None:
+        """End the episode because a time limit outside the env cut it: add the end keys to ``info``.
+
+        Gymnasium's ``TimeLimit`` wrapper (added by ``gym.make(..., max_episode_steps=N)``)
+        truncates without telling the environment. Wrapping it in
+        :class:`~rventry_env.envs.wrappers.EndAtTimeLimit` calls this, so that such an
+        episode too carries ``failure = "time limit"``, ``is_success`` and the terminal
+        metrics like any other ending, and a further ``step`` is refused. Idempotent.
+        """
+        if self._x is None or self._ended:
+            return
+        self._finish(info, FLYING, False)
+        self._ended = True
 
     def render(self):
         if self.render_mode is None:

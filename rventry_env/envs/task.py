@@ -102,15 +102,22 @@ class Dispersion:
             unknown = set(value) - set(cls.__dataclass_fields__)
             if unknown:
                 raise ValueError(f"unknown dispersion field(s) {sorted(unknown)}; known: {sorted(cls.__dataclass_fields__)}")
-            out = cls(**{k: float(v) for k, v in value.items()})
-        else:
-            raise ValueError(f"cannot make a Dispersion from {value!r}")
-        for k, v in out.__dict__.items():
-            if not math.isfinite(v) or v < 0:
-                raise ValueError(f"dispersion {k} must be a finite half-width >= 0, got {v}")
-        if out.density >= 1 or out.lift >= 1 or out.drag >= 1:
-            raise ValueError("relative dispersions must be below 1 (100 %)")
-        return out
+            values = {}
+            for k, v in value.items():
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise ValueError(f"dispersion {k} must be a number, got {v!r}")
+                values[k] = float(v)
+            return cls(**values)
+        names = ", ".join(repr(n) for n in ("none", *NAMED_SETS))
+        raise ValueError(f"cannot make a Dispersion from {value!r}: give {names}, a Dispersion or a dict of its fields")
+
+    def __post_init__(self):
+        for k, v in self.__dict__.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"dispersion {k} must be a finite half-width >= 0, got {v!r}")
+        for k in ("density", "lift", "drag"):
+            if getattr(self, k) >= 1:
+                raise ValueError(f"dispersion {k} = {getattr(self, k):g} is relative and must be below 1 (100 %)")
 
     @property
     def name(self) -> str:
@@ -144,7 +151,50 @@ class EntryTask:
     min_speed: float = 50.0
 
     def __post_init__(self):
-        if not (math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be a positive number of seconds, got {self.dt}")
-        if int(self.substeps) != self.substeps or self.substeps < 1:
-            raise ValueError(f"substeps must be a positive integer, got {self.substeps}")
+        if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
+        if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, float)) or not (
+            math.isfinite(self.substeps) and int(self.substeps) == self.substeps and self.substeps >= 1
+        ):
+            raise ValueError(f"substeps must be a positive integer, got {self.substeps!r}")
+        object.__setattr__(self, "substeps", int(self.substeps))
+        object.__setattr__(self, "dt", float(self.dt))
+        for name in ("ceiling_altitude", "min_speed"):
+            val = getattr(self, name)
+            if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {val!r}")
+        if self.ceiling_altitude <= self.problem.initial_altitude:
+            raise ValueError(
+                f"ceiling_altitude ({self.ceiling_altitude:g} m) must lie above the initial altitude "
+                f"({self.problem.initial_altitude:g} m)"
+            )
+
+    def check_dispersion(self, dispersion: "Dispersion") -> None:
+        """Refuse a dispersion that can start a vehicle underground, above the ceiling or without speed.
+
+        :raises ValueError: naming the dispersion field and its largest admissible half-width.
+        """
+        p = self.problem
+        room_down = p.initial_altitude - p.final_altitude
+        room_up = self.ceiling_altitude - p.initial_altitude
+        if dispersion.altitude_m >= min(room_down, room_up):
+            raise ValueError(
+                f"dispersion altitude_m = {dispersion.altitude_m:g} m could start the vehicle "
+                f"{'underground' if room_down <= room_up else 'above the skip-out ceiling'}: the initial altitude "
+                f"is {p.initial_altitude:g} m, so the half-width must stay below {min(room_down, room_up):g} m"
+            )
+        if dispersion.speed_mps >= p.initial_speed - self.min_speed:
+            raise ValueError(
+                f"dispersion speed_mps = {dispersion.speed_mps:g} m/s could start the vehicle below the stall "
+                f"speed ({self.min_speed:g} m/s): the initial speed is {p.initial_speed:g} m/s, so the half-width "
+                f"must stay below {p.initial_speed - self.min_speed:g} m/s"
+            )
+        for name in ("flight_path_deg", "heading_deg"):
+            if getattr(dispersion, name) >= 90.0:
+                raise ValueError(f"dispersion {name} = {getattr(dispersion, name):g} deg must stay below 90 deg")
+        alpha_room = math.degrees(min(p.initial_alpha, p.alpha_max - p.initial_alpha))
+        if dispersion.alpha_deg > alpha_room:
+            raise ValueError(
+                f"dispersion alpha_deg = {dispersion.alpha_deg:g} deg would start alpha outside [0, alpha_max]: "
+                f"alpha(0) is {math.degrees(p.initial_alpha):g} deg, so the half-width must stay within {alpha_room:g} deg"
+            )

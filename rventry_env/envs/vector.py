@@ -73,14 +73,12 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     ):
         if int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs}")
-        if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps}")
         autoreset_mode = AutoresetMode(autoreset_mode)
         if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
             raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode}")
         self.metadata = {**self.metadata, "autoreset_mode": autoreset_mode}
         self.num_envs = int(num_envs)
-        self.max_episode_steps = max_episode_steps
+        self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self.single_observation_space, self.single_action_space = self._configure(
             model, task, dt, substeps, dispersion, render_mode, NUMPY
         )
@@ -117,11 +115,18 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         # one-off, as in the single env: the episodes started by this reset draw from it,
         # later autoresets from the constructor's dispersion again
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
+        self.task.check_dispersion(dispersion)
         if "state" in options:
-            states = np.asarray(options["state"], dtype=float)
+            try:
+                states = np.asarray(options["state"], dtype=float)
+            except (TypeError, ValueError):
+                states = np.empty(0)
+            if not (states.ndim == 1 or (states.ndim == 2 and states.shape[0] == n)):
+                raise ValueError(
+                    f"options['state'] must be one state (12,) or one per copy ({n}, 12), "
+                    f"got {options['state'] if states.size == 0 else states.shape!r}"
+                )
             states = np.broadcast_to(states, (n, states.shape[-1])) if states.ndim == 1 else states
-            if states.shape[0] != n:
-                raise ValueError(f"options['state'] must be one state (12,) or one per copy ({n}, 12), got {states.shape}")
             self._initial = np.stack([common.check_state(s, self._radius) for s in states])
         else:
             self._initial = np.broadcast_to(self._nominal, (n, self._nominal.size))
@@ -196,6 +201,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     def render(self):
         if self.render_mode is None:
             return None
+        if self._x is None:
+            raise RuntimeError("call reset() before render()")
         p = self.task.problem
         return (render_tracks(self._tracks, p.target_latitude, p.target_longitude, "RvEntry-v0 (vector)"),)
 

@@ -18,7 +18,7 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     """The ``summary`` block: a mean over episodes for every metric, plus percentiles and rates.
 
     Keys ``miss_km``, ``vertical_error_deg``, ``speed_error_mps``, ``cost_ratio`` and
-    ``success_rate`` are means over episodes (issue 5's schema); ``percentiles``
+    ``success_rate`` are means over episodes (the evaluation report's schema); ``percentiles``
     holds the 5th/50th/95th percentile of each metric.
     """
     values = {

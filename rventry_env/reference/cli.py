@@ -1,26 +1,23 @@
 """``rventry reference {solve,show,export,plot}``.
 
-Heavy imports (CasADi, matplotlib) happen inside the command functions so that
-``rventry --help`` stays fast.
+The shipped data files (the optimum and the guidance reference) are written only by
+``solve --ship``, only after a converged solve, and atomically; every other output
+goes where ``--out`` says. Heavy imports (CasADi, matplotlib) happen inside the
+command functions so that ``rventry --help`` stays fast.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import sys
 from pathlib import Path
 
+from rventry_env.util.args import fraction, positive_float, positive_int
+from rventry_env.util.files import atomic_write, check_writable, write_json
 
-def _positive_float(text: str) -> float:
-    try:
-        val = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (val > 0 and math.isfinite(val)):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number of seconds, got {text}")
-    return val
+# the shipped files, and the margins each must be solved with
+SHIPPED = {"optimum": (0.0, 0.0), "guidance": (0.30, 0.06)}
+MAX_EXPORT_ROWS = 2_000_000
 
 
 def register(subparsers) -> None:
@@ -30,17 +27,23 @@ def register(subparsers) -> None:
     ref.set_defaults(func=lambda args: (ref.print_help(), 2)[1])
 
     p = sub.add_parser("solve", help="solve Example 2 from a cold start and write the data file")
-    p.add_argument("--out", type=Path, default=None, help="output .npz (default: the packaged reference)")
-    p.add_argument("--mesh-tolerance", type=_positive_float, default=1e-6, help="target max relative error")
-    p.add_argument("--first-mesh", type=int, nargs=2, metavar=("INTERVALS", "POINTS"), default=(39, 6),
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--out", type=Path, default=None,
+                       help="output .npz, written after a converged solve (default: reference.npz here)")
+    where.add_argument("--ship", choices=tuple(SHIPPED),
+                       help="replace a packaged file instead: 'optimum' (no margins) or 'guidance' "
+                            "(--q-margin 0.30 --load-margin 0.06); only after convergence")  # fmt: skip
+    p.add_argument("--mesh-tolerance", type=positive_float, default=1e-6, help="target max relative error")
+    p.add_argument("--first-mesh", type=positive_int, nargs=2, metavar=("INTERVALS", "POINTS"), default=(39, 6),
                    help="uniform part of the first mesh (default 39 intervals of 6 LGR points)")
-    p.add_argument("--end-fraction", type=float, default=0.025,
+    p.add_argument("--end-fraction", type=fraction(0.0, 1.0), default=0.025,
                    help="last fraction of the time meshed finer in the first mesh (0.025; 0 for none)")
+    p.add_argument("--max-mesh-iterations", type=positive_int, default=15, help="mesh passes per stage (15)")
     p.add_argument("--norm-mode", choices=("projection", "paper", "none"), default="projection",
                    help="how the quaternion norms are kept (see docs/reference.md)")  # fmt: skip
-    p.add_argument("--q-margin", type=float, default=0.0, metavar="FRACTION",
+    p.add_argument("--q-margin", type=fraction(0.0, 0.5), default=0.0, metavar="FRACTION",
                    help="solve with q >= q_min (1 + FRACTION): a guidance reference with room for dispersions (0)")
-    p.add_argument("--load-margin", type=float, default=0.0, metavar="FRACTION",
+    p.add_argument("--load-margin", type=fraction(0.0, 0.5), default=0.0, metavar="FRACTION",
                    help="solve with the load factor <= a_max (1 - FRACTION) (0)")
     p.add_argument("--quiet", action="store_true", help="no per-pass table")
     p.set_defaults(func=_solve)
@@ -52,7 +55,7 @@ def register(subparsers) -> None:
 
     p = sub.add_parser("export", help="write the reference on a uniform time grid as CSV")
     p.add_argument("--csv", type=Path, required=True, metavar="PATH", help="output CSV")
-    p.add_argument("--dt", type=_positive_float, default=0.1, metavar="SECONDS", help="grid step (0.1 s)")
+    p.add_argument("--dt", type=positive_float, default=0.1, metavar="SECONDS", help="grid step (0.1 s)")
     p.add_argument("--file", type=Path, default=None, help="a reference .npz (default: the packaged one)")
     p.set_defaults(func=_export)
 
@@ -69,20 +72,29 @@ def _load(path):
 
 
 def _solve(args) -> int:
+    from rventry_env.problem import EntryProblem
     from rventry_env.reference.collocation.progress import RichMeshTable
+    from rventry_env.reference.data_file import DEFAULT_PATH, GUIDANCE_PATH
     from rventry_env.reference.entry_problem import EntryProblemConfig
     from rventry_env.reference.pipeline import ReferenceOptions, save_reference, solve_reference
 
-    from rventry_env.problem import EntryProblem
-
-    if not 0.0 <= args.end_fraction < 1.0:
-        raise ValueError(f"--end-fraction must lie in [0, 1), got {args.end_fraction}")
-    for name in ("q_margin", "load_margin"):
-        if not 0.0 <= getattr(args, name) < 0.5:
-            raise ValueError(f"--{name.replace('_', '-')} must lie in [0, 0.5), got {getattr(args, name)}")
+    if args.ship is not None:
+        want = SHIPPED[args.ship]
+        if (args.q_margin, args.load_margin) != want:
+            raise ValueError(
+                f"--ship {args.ship} is the reference solved with --q-margin {want[0]:g} --load-margin {want[1]:g}, "
+                f"not {args.q_margin:g} / {args.load_margin:g}; use --out for any other solve"
+            )
+        out = DEFAULT_PATH if args.ship == "optimum" else GUIDANCE_PATH
+    else:
+        out = args.out if args.out is not None else Path("reference.npz")
+    if out.suffix != ".npz":
+        raise ValueError(f"--out must name a .npz file, got {out}")
+    check_writable(out, out.with_suffix(".json"))
     opts = ReferenceOptions(
-        first_mesh=tuple(args.first_mesh), end_fraction=args.end_fraction, mesh_tolerance=args.mesh_tolerance
-    )
+        first_mesh=tuple(args.first_mesh), end_fraction=args.end_fraction, mesh_tolerance=args.mesh_tolerance,
+        max_mesh_iterations=args.max_mesh_iterations,
+    )  # fmt: skip
     base = EntryProblem()
     problem = EntryProblem(q_min=base.q_min * (1 + args.q_margin), a_max_g=base.a_max_g * (1 - args.load_margin))
     title = "LGR collocation, paper Example 2 (rv-Euler, exact vertical impact)"
@@ -90,16 +102,17 @@ def _solve(args) -> int:
         title += f", path margins q +{args.q_margin:.0%} load -{args.load_margin:.0%}"
     progress = None if args.quiet else RichMeshTable(title)
     rs = solve_reference(EntryProblemConfig(problem=problem, norm_mode=args.norm_mode), opts, progress)
-    npz, js = save_reference(rs, args.out)
     sol = rs.solution
     print(
         f"J* = {sol.cost:.6f}   tf = {sol.tf:.3f} s   mesh error = {sol.max_error:.2e}   "
         f"max violation = {sol.max_violation:.1e}   solve time = {rs.timings['solve_time_s']:.1f} s"
     )
-    print(f"wrote {npz} and {js}")
     if not rs.converged:
-        print("warning: the NLP failed or missed the mesh tolerance; see the summary", file=sys.stderr)
+        why = f"IPOPT: {sol.status}" if not sol.success else f"mesh error {sol.max_error:.2e} > {args.mesh_tolerance:g}"
+        print(f"rventry reference solve: the solve did not converge ({why}); nothing written", file=sys.stderr)
         return 1
+    npz, js = save_reference(rs, out)
+    print(f"wrote {npz} and {js}")
     return 0
 
 
@@ -116,9 +129,7 @@ def _show(args) -> int:
     for k, v in s.get("diagnostics", {}).items():
         print(f"{'diagnostics.' + k:28s} {v}")
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(s, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        print(f"wrote {write_json(args.json, s, indent=2)}")
     return 0
 
 
@@ -128,7 +139,13 @@ def export_grid(ref, dt: float):
 
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"--dt must be a positive number of seconds, got {dt}")
-    n = int(math.floor((ref.tf - ref.t0) / dt + 1e-9))
+    span = ref.tf - ref.t0
+    if span / dt > MAX_EXPORT_ROWS:
+        raise ValueError(
+            f"--dt {dt:g} s would export {span / dt:.3g} rows; the limit is {MAX_EXPORT_ROWS:,} "
+            f"(--dt >= {span / MAX_EXPORT_ROWS:.2g} s)"
+        )
+    n = int(math.floor(span / dt + 1e-9))
     t = ref.t0 + dt * np.arange(n + 1)
     if ref.tf - t[-1] > 1e-9 * max(1.0, ref.tf):
         t = np.append(t, ref.tf)
@@ -143,9 +160,9 @@ def _export(args) -> int:
     ref = _load(args.file)
     t, x, u = export_grid(ref, args.dt)
     header = ",".join(("t_s", *ref.state_names, *ref.control_names))
-    args.csv.parent.mkdir(parents=True, exist_ok=True)
     # %.17g round-trips every double: the last row is tf exactly
-    np.savetxt(args.csv, np.column_stack([t, x, u]), delimiter=",", header=header, comments="", fmt="%.17g")
+    rows = np.column_stack([t, x, u])
+    atomic_write(args.csv, lambda tmp: np.savetxt(tmp, rows, delimiter=",", header=header, comments="", fmt="%.17g"))
     print(f"wrote {t.size} rows to {args.csv}")
     return 0
 

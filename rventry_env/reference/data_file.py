@@ -107,29 +107,44 @@ class Reference:
 def write_reference(
     path: str | Path, t, x, u, u_extra, mesh: Mesh, cost: float, summary: dict
 ) -> tuple[Path, Path]:
-    """Write the ``.npz`` and its ``.json`` summary; returns both paths."""
+    """Write the ``.npz`` and its ``.json`` summary, each whole or not at all; returns both paths."""
+    from rventry_env.util.files import atomic_write, dumps_json
+
     path = Path(path)
     if path.suffix != ".npz":
         raise ValueError(f"the reference file must end in .npz, got {path.name}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(
-        path,
+    arrays = dict(
         format_version=FORMAT_VERSION,
         t=np.asarray(t, float), x=np.asarray(x, float), u=np.asarray(u, float),
         u_extra=np.asarray(u_extra, float), mesh_breaks=mesh.breaks, mesh_degrees=mesh.degrees,
         t0=float(t[0]), tf=float(t[-1]), cost=float(cost),
     )  # fmt: skip
     json_path = path.with_suffix(".json")
-    json_path.write_text(json.dumps(summary, indent=2, sort_keys=False) + "\n")
+    # the summary first: a reader takes the .npz as the file, the .json as its description
+    atomic_write(json_path, dumps_json(summary, indent=2))
+    atomic_write(path, lambda tmp: np.savez_compressed(tmp, **arrays))
     return path, json_path
 
 
 def read_reference(path: str | Path) -> Reference:
-    """Read a reference written by :func:`write_reference`."""
+    """Read a reference written by :func:`write_reference` (never with pickle)."""
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path} is a directory; give a reference .npz file")
     if not path.exists():
         raise FileNotFoundError(f"no reference file at {path}; run `rventry reference solve` to create it")
-    with np.load(path) as d:
+    keys = ("format_version", "t", "x", "u", "u_extra", "mesh_breaks", "mesh_degrees", "cost")
+    not_reference = f"{path} is not an rventry reference file (a NumPy .npz written by `rventry reference solve`)"
+    try:
+        d = np.load(path, allow_pickle=False)
+    except (OSError, EOFError, ValueError) as exc:
+        raise ValueError(f"{not_reference}: {exc.__class__.__name__}") from None
+    if not isinstance(d, np.lib.npyio.NpzFile):
+        raise ValueError(f"{not_reference}: it holds a single array")
+    with d:
+        missing = [k for k in keys if k not in d.files]
+        if missing:
+            raise ValueError(f"{not_reference}: it lacks {', '.join(missing)}")
         version = int(d["format_version"])
         if version != FORMAT_VERSION:
             raise ValueError(f"{path.name} has format version {version}; this code reads {FORMAT_VERSION}")
@@ -137,7 +152,12 @@ def read_reference(path: str | Path) -> Reference:
         arrays = {k: d[k].copy() for k in ("t", "x", "u", "u_extra")}
         cost = float(d["cost"])
     json_path = path.with_suffix(".json")
-    summary = json.loads(json_path.read_text()) if json_path.exists() else {}
+    summary = {}
+    if json_path.exists():
+        try:
+            summary = json.loads(json_path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise ValueError(f"the reference summary {json_path} is not valid JSON ({exc})") from None
     return Reference(arrays["t"], arrays["x"], arrays["u"], mesh, cost, summary, arrays["u_extra"])
 
 
@@ -149,8 +169,8 @@ def _cached(path: str) -> Reference:
 def load_guidance_reference() -> Reference:
     """The shipped *guidance* reference: Example 2 re-solved with path-constraint margins.
 
-    ``rventry reference solve --q-margin 0.30 --load-margin 0.06 --out
-    rventry_env/reference/data/guidance_reference_v1.npz``: q >= 15.6 kPa and a load
+    ``rventry reference solve --q-margin 0.30 --load-margin 0.06 --ship guidance``:
+    q >= 15.6 kPa and a load
     factor <= 11.28 g, so that a guidance law tracking it under dispersions has room
     before the true bounds (a -5 % density error alone takes 5 % off q). Its cost is
     higher than J*; :func:`load_reference` stays the optimum the paper's problem

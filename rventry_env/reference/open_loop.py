@@ -8,8 +8,8 @@ instead of letting the step control stumble over them.
 
 The result compares the replayed and reference *positions* (Cartesian, E
 frame): at the reference impact time tf, and at the largest difference along the
-flight. Any rhs fits: :func:`rventry_env.physics.entry.entry_rhs` here, the
-environment's dynamics in the lead's checks.
+flight. Any rhs fits: :func:`rventry_env.physics.entry.entry_rhs` here, or the
+environment's dynamics.
 """
 
 from __future__ import annotations

@@ -240,15 +240,15 @@ def summary_of(rs: ReferenceSolve) -> dict:
     }
 
 
-def save_reference(rs: ReferenceSolve, path=None):
-    """Write the solve as the versioned data file (default: the packaged one)."""
-    from rventry_env.reference.data_file import DEFAULT_PATH, write_reference
+def save_reference(rs: ReferenceSolve, path):
+    """Write the solve as the versioned data file at ``path`` (and its ``.json`` summary beside it)."""
+    from rventry_env.reference.data_file import write_reference
 
     sol = rs.solution
     u_nodes = sol.interpolant.node_controls()
     summary = summary_of(rs)
     u_main, u_extra = u_nodes[:, :2], u_nodes[:, 2:]
-    return write_reference(path or DEFAULT_PATH, sol.t, sol.x, u_main, u_extra, sol.mesh, sol.cost, summary)
+    return write_reference(path, sol.t, sol.x, u_main, u_extra, sol.mesh, sol.cost, summary)
 
 
 __all__ = [

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_env.util.files import save_figure
+
 PANELS = ("altitude", "speed", "c_ae_euler_parameters", "c_ba_euler_parameters", "alpha", "sigma")
 
 
@@ -25,7 +27,6 @@ def plot_reference(ref, out_dir: str | Path, n: int = 4000) -> list[Path]:
     import matplotlib.pyplot as plt
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     t = np.linspace(ref.t0, ref.tf, n)
     x = ref.state(t)
     re = float(ref.summary().get("constants", {}).get("model", {}).get("planet", {}).get("radius", 6378137.0))
@@ -51,11 +52,7 @@ def plot_reference(ref, out_dir: str | Path, n: int = 4000) -> list[Path]:
         ax.grid(alpha=0.3)
         if len(curves) > 1:
             ax.legend(loc="best", fontsize=8)
-        fig.tight_layout()
-        path = out / f"{name}.png"
-        fig.savefig(path)
-        plt.close(fig)
-        paths.append(path)
+        paths.append(save_figure(fig, out / f"{name}.png", dpi=120))
     return paths
 
 

@@ -1,0 +1,95 @@
+"""The wheel carries every file the package loads, and an installed wheel finds them.
+
+The wheel is built from the tracked files alone (a copy of what ``git ls-files`` lists),
+installed into an empty folder, and imported from there in a fresh interpreter that
+loads each shipped file through the public API.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("rventry_env", "rventry_agents")
+
+LOAD_EVERYTHING = r"""
+import sys
+from pathlib import Path
+target = Path(sys.argv[1]).resolve()
+import rventry_env, rventry_agents
+for mod in (rventry_env, rventry_agents):
+    assert Path(mod.__file__).resolve().is_relative_to(target), mod.__file__
+from rventry_env.reference import load_reference, load_guidance_reference
+from rventry_env.reference.data_file import DEFAULT_PATH, GUIDANCE_PATH
+assert DEFAULT_PATH.resolve().is_relative_to(target)
+ref, gref = load_reference(), load_guidance_reference()
+assert ref.summary()["converged"] and gref.summary()["converged"]
+from rventry_env.validation.apollo4 import record_path
+from rventry_env.validation.record import load_record
+assert Path(record_path()).resolve().is_relative_to(target)
+load_record(record_path())
+from rventry_agents.train import load_config
+load_config()
+from rventry_agents.sb3_policy import SHIPPED_PPO, SB3Policy
+assert SHIPPED_PPO.resolve().is_relative_to(target)
+policy = SB3Policy(SHIPPED_PPO)
+assert policy.obs_mean is not None or policy.normalize_path is not None
+for name in ("learning_curve.png", "metadata.json", "evaluations.json"):
+    assert (SHIPPED_PPO / name).is_file(), name
+print("loaded everything")
+"""
+
+
+def _tracked_files() -> list[str]:
+    res = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True)
+    if res.returncode != 0:
+        pytest.skip("not a git checkout")
+    return [f for f in res.stdout.splitlines() if (ROOT / f).is_file()]
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    src = tmp_path_factory.mktemp("src")
+    for rel in _tracked_files():
+        dest = src / rel
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / rel, dest)
+    dist = tmp_path_factory.mktemp("dist")
+    cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-q", "-w", str(dist),
+           str(src)]  # fmt: skip
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    (whl,) = dist.glob("rventry-*.whl")
+    return whl
+
+
+@pytest.mark.slow
+def test_the_wheel_holds_every_shipped_data_file(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    data = [f for f in _tracked_files() if f.startswith(PACKAGES) and not f.endswith(".py")]
+    assert data, "no data files found"
+    missing = [f for f in data if f not in names]
+    assert missing == []
+    for needed in ("rventry_agents/data/ppo/vecnormalize.pkl", "rventry_agents/data/ppo/learning_curve.png",
+                   "rventry_env/reference/data/entry_reference_v1.npz"):  # fmt: skip
+        assert needed in names
+
+
+@pytest.mark.slow
+def test_an_installed_wheel_finds_every_file_it_loads(wheel, tmp_path):
+    target = tmp_path / "site"
+    cmd = [sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q", "--target", str(target), str(wheel)]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    run = subprocess.run(
+        [sys.executable, "-c", LOAD_EVERYTHING, str(target)], capture_output=True, text=True, cwd=tmp_path,
+        env={"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "OMP_NUM_THREADS": "1"},
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip().endswith("loaded everything")

@@ -1,0 +1,142 @@
+"""The rooms import one way, the physics loads without Gymnasium, and the env registers in any import order.
+
+Rooms, lowest first: util < core < physics (with problem.py) < envs, reference, validation,
+examples (siblings: none imports another) < guidance < evaluation < the command line; the
+learning agents (``rventry_agents``) sit on top and the library never imports them. The check
+reads every ``import`` statement, including those inside functions.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+RANK = {
+    "util": 0, "core": 1, "physics": 2, "problem": 2,
+    "envs": 3, "reference": 3, "validation": 3, "examples": 3,
+    "guidance": 4, "evaluation": 5, "cli": 6,
+}  # fmt: skip
+SIBLINGS = {"envs", "reference", "validation", "examples"}
+
+
+def _room(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[0] == "rventry_agents":
+        return "agents"
+    if parts[0] != "rventry_env" or len(parts) < 2:
+        return None
+    return parts[1]
+
+
+def _imports(path: Path, package: str) -> list[tuple[int, str]]:
+    tree = ast.parse(path.read_text())
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative: resolve against the importing package
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            out.append((node.lineno, mod))
+            out += [(node.lineno, f"{mod}.{a.name}") for a in node.names]  # `from rventry_env import envs`
+    return out
+
+
+def _violations() -> list[str]:
+    bad = []
+    for path in sorted((ROOT / "rventry_env").rglob("*.py")):
+        rel = path.relative_to(ROOT).with_suffix("")
+        module = ".".join(rel.parts)
+        if module == "rventry_env.__init__":
+            continue  # registers the env when Gymnasium loads: the package itself, not a room
+        room = _room(module)
+        package = module.rsplit(".", 1)[0] if path.name != "__init__.py" else module.rsplit(".", 1)[0]
+        for line, target in _imports(path, package):
+            troom = _room(target)
+            if troom is None or troom == room:
+                continue
+            where = f"{rel}.py:{line} imports {target}"
+            if troom == "agents":
+                bad.append(f"{where}: the library must not import the learning agents")
+            elif troom not in RANK:
+                continue  # rventry_env.__version__ and the like
+            elif RANK[troom] > RANK[room]:
+                bad.append(f"{where}: {room} may not import the higher room {troom}")
+            elif troom in SIBLINGS and room in SIBLINGS:
+                bad.append(f"{where}: sibling rooms {room} and {troom} must not import each other")
+    return bad
+
+
+def test_rooms_import_one_way():
+    assert _violations() == []
+
+
+def test_the_room_check_catches_an_upward_import(tmp_path, monkeypatch):
+    """The check itself can fail: a physics module importing the envs is reported."""
+    fake = tmp_path / "rventry_env" / "physics"
+    fake.mkdir(parents=True)
+    (fake / "bad.py").write_text("def f():\n    from rventry_env.envs.task import EntryTask\n")
+    (tmp_path / "rventry_env" / "guidance").mkdir()
+    (tmp_path / "rventry_env" / "guidance" / "worse.py").write_text("import rventry_agents.train\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    found = _violations()
+    assert any("physics may not import the higher room envs" in v for v in found)
+    assert any("must not import the learning agents" in v for v in found)
+
+
+def _run(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+
+
+BLOCK_GYMNASIUM = """
+import sys
+class Block:
+    def find_spec(self, name, path=None, target=None):
+        if name == "gymnasium" or name.startswith("gymnasium."):
+            raise ImportError("gymnasium is blocked in this test")
+sys.meta_path.insert(0, Block())
+"""
+
+
+@pytest.mark.parametrize("module", ["rventry_env", "rventry_env.core", "rventry_env.physics", "rventry_env.problem",
+                                    "rventry_env.reference", "rventry_env.validation.record_replay"])
+def test_the_physics_imports_without_gymnasium(module):
+    res = _run(BLOCK_GYMNASIUM + f"import {module}\nassert 'gymnasium' not in sys.modules\nprint('ok')")
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "ok"
+
+
+def test_blocking_really_blocks():
+    res = _run(BLOCK_GYMNASIUM + "import rventry_env.envs")
+    assert res.returncode != 0 and "gymnasium is blocked" in res.stderr
+
+
+@pytest.mark.parametrize("order", [
+    "import rventry_env\nimport gymnasium as gym",
+    "import gymnasium as gym\nimport rventry_env",
+    "import gymnasium as gym\nimport rventry_env.core",
+])
+def test_the_env_registers_in_either_import_order(order):
+    res = _run(order + "\nenv = gym.make('RvEntry-v0')\nobs, _ = env.reset(seed=0)\nprint(obs.shape)")
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "(26,)"
+
+
+def test_the_env_is_not_registered_without_this_package():
+    res = _run("import gymnasium as gym\nprint('RvEntry-v0' in gym.registry)")
+    assert res.stdout.strip() == "False"
+
+
+def test_the_thread_limit_is_set_before_numpy_loads():
+    """conftest.py sets OMP_NUM_THREADS; it only works if nothing imported NumPy first."""
+    import conftest
+
+    assert not conftest.NUMPY_LOADED_BEFORE_CONFTEST
