@@ -139,13 +139,13 @@ class Propagator:
             if batched:
                 # overflow and NaN are the env's to report (status NON_FINITE), not NumPy's warnings
                 with np.errstate(all="ignore"):
-                    x_new, tau, hit, f_new, new_status = self._advance(x, forces, u, h, model, status, radius)
+                    x_new, tau, f_new, new_status = self._advance(x, forces, u, h, model, status, radius)
             else:
                 try:
-                    x_new, tau, hit, f_new, new_status = self._advance(x, forces, u, h, model, status, radius)
+                    x_new, tau, f_new, new_status = self._advance(x, forces, u, h, model, status, radius)
                 except (OverflowError, ZeroDivisionError, ValueError):
                     # Python floats raise where NumPy returns inf/NaN: the same ending, "non-finite state"
-                    x_new, tau, hit, f_new, new_status = x, 0.0, False, forces, NON_FINITE
+                    x_new, tau, f_new, new_status = x, 0.0, forces, NON_FINITE
             flying = status == FLYING
             step_cost = p.cost_over_hold(alpha0, ua, u_alpha, u_sigma, tau)
             if batched and (np.all(flying) and not np.any(new_status)):
@@ -198,7 +198,7 @@ class Propagator:
             else:
                 x_new, tau = x_hit, tau_hit
         f_new = entry_forces(x_new, model, ns)
-        return x_new, tau, hit, f_new, _classify(x_new, f_new, hit, task, radius, ns, batched)
+        return x_new, tau, f_new, _classify(x_new, f_new, hit, task, radius, ns, batched)
 
     def _locate_impact(self, x0: tuple, k1: tuple, u: tuple, h: float, model: EntryModel, radius: float):
         """tau in (0, h] with r(RK4(x0, tau)) = radius, and the state there (Illinois regula falsi)."""
