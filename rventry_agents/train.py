@@ -1,6 +1,6 @@
 """Train the PPO baseline on the numpy-batched RvEntry-v0 with stable-baselines3.
 
-Everything that shapes the result is in one config file (``agents/ppo.toml``).
+Everything that shapes the result is in one config file (``rventry_agents/ppo.toml``).
 A run writes into its output directory:
 
 * ``policy.json``: how to fly the saved models (direct, or residual on the reference);
@@ -33,13 +33,20 @@ DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
 
 
 def load_config(path: str | Path | dict | None = None) -> dict:
-    """The training configuration: a TOML file (default ``agents/ppo.toml``) or an already-loaded dict."""
+    """The training configuration: a TOML file (default ``rventry_agents/ppo.toml``) or an already-loaded dict."""
     if isinstance(path, dict):
         cfg, where = path, "config"
     else:
         where = Path(path) if path is not None else DEFAULT_CONFIG
-        with open(where, "rb") as f:
-            cfg = tomllib.load(f)
+        if where.is_dir():
+            raise IsADirectoryError(f"the training config {where} is a directory; give a TOML file")
+        if not where.is_file():
+            raise FileNotFoundError(f"no training config at {where}")
+        try:
+            with open(where, "rb") as f:
+                cfg = tomllib.load(f)
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise ValueError(f"{where} is not valid TOML: {exc}") from None
     for section in ("env", "normalize", "ppo", "policy", "train"):
         if section not in cfg:
             raise ValueError(f"{where}: missing section [{section}]")
@@ -201,7 +208,7 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
               out: str | Path = "runs/ppo", task: EntryTask | None = None, progress_bar: bool = True) -> Path:  # fmt: skip
     """Train PPO as the config says; returns the output directory.
 
-    :param config: TOML config path (default ``agents/ppo.toml``) or a loaded config dict.
+    :param config: TOML config path (default ``rventry_agents/ppo.toml``) or a loaded config dict.
     :param timesteps: override ``[train] total_timesteps``.
     :param seed: override ``[train] seed``.
     :param out: output directory.

@@ -1,0 +1,102 @@
+"""Bad invocations of ``orbit``, ``reference``, ``evaluate``, ``compare`` and ``train``: a seeded corpus.
+
+Every case must exit with code 2, print no traceback, name the offending option or file in
+its message, and leave an existing report untouched.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rventry_env.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _corpus(tmp: Path) -> list[tuple[list[str], str]]:
+    """(arguments, text the error message must contain)."""
+    a_file = tmp / "a_file"
+    a_file.write_text("not a folder")
+    garbage = tmp / "garbage.npz"
+    garbage.write_bytes(os.urandom(64))
+    bad_toml = tmp / "bad.toml"
+    bad_toml.write_text("[env\nnum_envs = ")
+    report = str(tmp / "r.json")
+    return [
+        (["orbit", "--n", "0"], "--n"),
+        (["orbit", "--n", "ten"], "--n"),
+        (["orbit", "--n", "10", "--json", str(a_file / "x.json")], "a_file"),
+        (["reference", "solve", "--first-mesh", "0", "4", "--quiet"], "--first-mesh"),
+        (["reference", "solve", "--q-margin", "0.7", "--quiet"], "--q-margin"),
+        (["reference", "solve", "--mesh-tolerance", "nan", "--quiet"], "--mesh-tolerance"),
+        (["reference", "solve", "--out", str(tmp / "x.txt"), "--quiet"], "--out"),
+        (["reference", "solve", "--out", str(a_file / "x.npz"), "--quiet"], "a_file"),
+        (["reference", "export", "--csv", str(tmp / "x.csv"), "--dt", "1e-7"], "--dt"),
+        (["reference", "export", "--csv", str(tmp / "x.csv"), "--dt", "-1"], "--dt"),
+        (["reference", "show", "--file", str(tmp)], "is a directory"),
+        (["reference", "show", "--file", str(garbage)], "garbage.npz"),
+        (["reference", "show", "--file", str(tmp / "missing.npz")], "missing.npz"),
+        (["evaluate", "--agent", "reference", "--episodes", "0", "--json", report], "--episodes"),
+        (["evaluate", "--agent", "reference", "--episodes", "-3", "--json", report], "--episodes"),
+        (["evaluate", "--agent", "reference", "--seed", "-1", "--json", report], "--seed"),
+        (["evaluate", "--agent", "reference", "--seed", "1.5", "--json", report], "--seed"),
+        (["evaluate", "--agent", "lqr-typo", "--json", report], "unknown agent 'lqr-typo'"),
+        (["evaluate", "--agent", str(tmp / "none.zip"), "--json", report], "none.zip"),
+        (["evaluate", "--agent", str(garbage), "--json", report], "garbage.npz"),
+        (["evaluate", "--agent", "reference", "--dispersion", "huge", "--json", report], "--dispersion"),
+        (["evaluate", "--agent", "reference", "--dispersed", "--dispersion", "wide", "--json", report], "--dispersed"),
+        (["evaluate", "--agent", "reference", "--json", str(tmp)], "is a directory"),
+        (["evaluate", "--agent", "reference", "--json", str(a_file / "r.json")], "a_file"),
+        (["evaluate", "--agent", "reference", "--json", report, "--plots", str(a_file)], "a_file"),
+        (["compare", "--episodes", "0", "--json", report], "--episodes"),
+        (["compare", "--episodes", "2", "--json", report, "--plots", str(a_file)], "a_file"),
+        (["train", "ppo", "--timesteps", "0", "--out", str(tmp / "run")], "--timesteps"),
+        (["train", "ppo", "--seed", "-2", "--out", str(tmp / "run")], "--seed"),
+        (["train", "ppo", "--config", str(tmp / "missing.toml"), "--out", str(tmp / "run")], "missing.toml"),
+        (["train", "ppo", "--config", str(bad_toml), "--out", str(tmp / "run")], "bad.toml"),
+        (["train", "ship", str(tmp / "no_run")], "no_run"),
+    ]
+
+
+def test_every_bad_invocation_exits_2_naming_the_problem(tmp_path, capsys):
+    existing = tmp_path / "r.json"
+    existing.write_text('{"kept": true}')
+    failures = []
+    for args, needle in _corpus(tmp_path):
+        try:
+            code = main(args)
+        except SystemExit as exc:  # argparse's own errors
+            code = exc.code
+        err = capsys.readouterr().err
+        if code != 2 or needle not in err or "Traceback" in err:
+            failures.append(f"{' '.join(args)}: exit {code}, stderr {err.strip()[-300:]!r}")
+    assert failures == []
+    assert json.loads(existing.read_text()) == {"kept": True}
+
+
+def _limit_file_size():
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
+    resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+
+def test_a_failed_report_write_leaves_the_old_report_whole(tmp_path):
+    """A full disk (simulated with a file-size limit): exit 2, a message, the old report intact, no stray file."""
+    report = tmp_path / "eval.json"
+    old = json.dumps({"old": "report", "pad": "x" * 100})
+    report.write_text(old)
+    cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", "reference", "--episodes", "3",
+           "--dispersion", "standard", "--json", str(report)]  # fmt: skip
+    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, preexec_fn=_limit_file_size,
+                         env={**os.environ, "MPLCONFIGDIR": str(tmp_path / "mpl")})  # fmt: skip
+    assert res.returncode == 2, res.stderr
+    assert "could not write" in res.stderr and "eval.json" in res.stderr and "Traceback" not in res.stderr
+    assert report.read_text() == old
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("mpl")) == ["eval.json"]
