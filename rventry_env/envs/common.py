@@ -10,8 +10,6 @@ from gymnasium import spaces
 
 from rventry_env.core import conversions as cv
 from rventry_env.envs.task import Dispersion, EntryTask
-from rventry_env.physics.aerodynamics import ScaledAerodynamics
-from rventry_env.physics.atmosphere import ScaledAtmosphere
 from rventry_env.physics.entry import N_STATE
 from rventry_env.physics.model import EntryModel
 
@@ -79,15 +77,6 @@ def make_model(model: EntryModel | None) -> EntryModel:
     if not isinstance(model, EntryModel):
         raise TypeError(f"model must be an EntryModel built from rventry_env.physics parts, got {type(model).__name__}")
     return model
-
-
-def dispersed_model(model: EntryModel, density, lift, drag) -> EntryModel:
-    """The model with density and C_L / C_D scale factors (scalars or one per vehicle)."""
-    veh = model.vehicle
-    return model.replace(
-        atmosphere=ScaledAtmosphere(model.atmosphere, density),
-        vehicle=replace(veh, aerodynamics=ScaledAerodynamics(veh.aerodynamics, lift, drag)),
-    )
 
 
 def check_state(state, radius: float) -> np.ndarray:

@@ -16,7 +16,7 @@ from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
-from rventry_env.physics.model import EntryModel
+from rventry_env.physics.model import EntryModel, scaled_model
 
 _RESET_OPTIONS = {"state", "dispersion"}
 
@@ -184,7 +184,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         d = common.draw_dispersion(self.np_random, dispersion)
         if not dispersion.is_zero:
             x0 = common.apply_state_dispersion(x0, d)
-            self._episode_model = common.dispersed_model(self.model, 1 + d[0], 1 + d[1], 1 + d[2])
+            self._episode_model = scaled_model(self.model, 1 + d[0], 1 + d[1], 1 + d[2])
         else:
             self._episode_model = self.model
         self.dispersion_draw = d

@@ -18,7 +18,7 @@ from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
-from rventry_env.physics.model import EntryModel
+from rventry_env.physics.model import EntryModel, scaled_model
 
 TERMINAL_KEYS = (
     "miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "max_load_factor_g",
@@ -223,7 +223,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._drag[idx] = 1 + d[:, 2]
         self._model = (
             self.model if np.all(self._density == 1) and np.all(self._lift == 1) and np.all(self._drag == 1)
-            else common.dispersed_model(self.model, self._density, self._lift, self._drag)
+            else scaled_model(self.model, self._density, self._lift, self._drag)
         )  # fmt: skip
         for c in range(12):
             self._x[c][idx] = x0[:, c]

@@ -41,6 +41,37 @@ class EntryModel:
         return _describe(self)
 
 
+def scaled_model(model: EntryModel, density=1.0, lift=1.0, drag=1.0) -> EntryModel:
+    """The model with its density and its lift and drag coefficients multiplied by factors.
+
+    The factors may be numbers, per-vehicle NumPy arrays (the environments' dispersions) or
+    CasADi expressions (a guidance law's estimates as NLP parameters). An accelerometer sees
+    only the products: the drag acceleration scales with ``density * drag`` and the lift-to-drag
+    ratio with ``lift / drag``; :func:`with_aero_scales` is the model those two numbers define.
+    """
+    from rventry_env.physics.aerodynamics import ScaledAerodynamics
+    from rventry_env.physics.atmosphere import ScaledAtmosphere
+
+    veh = model.vehicle
+    return model.replace(
+        atmosphere=ScaledAtmosphere(model.atmosphere, density),
+        vehicle=dataclasses.replace(veh, aerodynamics=ScaledAerodynamics(veh.aerodynamics, lift, drag)),
+    )
+
+
+def with_aero_scales(model: EntryModel, drag_accel_scale=1.0, lift_to_drag_scale=1.0) -> EntryModel:
+    """The model whose drag acceleration and lift-to-drag ratio are those of ``model`` times the factors.
+
+    What an accelerometer can tell: it measures the aerodynamic specific force, so it
+    fixes the drag acceleration (density x C_D x S / m) and the lift-to-drag ratio, but
+    not how a drag error splits between density, C_D and mass. This model puts the drag
+    factor on the density and the L/D factor on C_L; every force and acceleration then
+    matches, while the dynamic pressure carries the whole drag factor (a guidance law
+    keeps a margin on q for that).
+    """
+    return scaled_model(model, density=drag_accel_scale, lift=lift_to_drag_scale)
+
+
 def _describe(obj):
     if dataclasses.is_dataclass(obj):
         out = {"type": type(obj).__name__}

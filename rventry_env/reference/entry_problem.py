@@ -56,7 +56,7 @@ import numpy as np
 
 from rventry_env.core.backend import casadi_ns
 from rventry_env.physics.entry import ENTRY_STATE_NAMES, entry_forces, entry_rhs
-from rventry_env.physics.model import EntryModel
+from rventry_env.physics.model import EntryModel, with_aero_scales
 from rventry_env.problem import EntryProblem
 from rventry_env.reference.collocation.problem import (
     EndpointConstraint,
@@ -83,6 +83,10 @@ class EntryProblemConfig:
     :param final_gamma_equality: with ``final_gamma_max_deg``, impose gamma(tf) = that
         angle instead (the singularity study compares equal terminal angles).
     :param tf_bounds: (smallest, largest) final time (s).
+    :param aero_scale_parameters: give the problem two parameters, the logarithms of the
+        drag-acceleration and lift-to-drag scale factors
+        (:func:`~rventry_env.physics.model.with_aero_scales`), so that one transcription
+        serves any estimate of them (re-planning guidance).
     """
 
     problem: EntryProblem = field(default_factory=EntryProblem)
@@ -92,6 +96,7 @@ class EntryProblemConfig:
     final_gamma_max_deg: float | None = None
     final_gamma_equality: bool = False
     tf_bounds: tuple = (50.0, 3000.0)
+    aero_scale_parameters: bool = False
 
     def __post_init__(self):
         if self.norm_mode not in NORM_MODES:
@@ -185,15 +190,29 @@ def control_names(config: EntryProblemConfig) -> tuple[str, ...]:
     return ("u_alpha", "u_sigma", "u1", "u2", "u3", "u4")
 
 
+AERO_SCALE_PARAMETERS = ("ln_drag_accel_scale", "ln_lift_to_drag_scale")
+
+
+def model_of(config: EntryProblemConfig, ns, par=()):
+    """The force model, with the estimated aerodynamic scales when the problem has them as parameters.
+
+    :param par: empty, or one list ``[ln k_D, ln k_LD]`` (the logarithms of the drag-acceleration and
+        lift-to-drag scale factors, :func:`~rventry_env.physics.model.with_aero_scales`).
+    """
+    if not par:
+        return config.model
+    (p,) = par
+    return with_aero_scales(config.model, ns.exp(p[0]), ns.exp(p[1]))
+
+
 def entry_dynamics(config: EntryProblemConfig, ns=None):
-    """The dynamics callable ``(x, u, t) -> dx/dt`` of the chosen formulation."""
+    """The dynamics callable ``(x, u, t[, p]) -> dx/dt`` of the chosen formulation."""
     ns = ns or casadi_ns()
-    model = config.model
 
     if config.norm_mode == "projection":
 
-        def f(x, u, t):
-            d = list(entry_rhs(x, u[:2], model, ns))
+        def f(x, u, t, *par):
+            d = list(entry_rhs(x, u[:2], model_of(config, ns, par), ns))
             lam_a, lam_b = u[2], u[3]
             for i in range(1, 5):  # radial rate: keeps |q_A| = 1, adds no angular velocity
                 d[i] = d[i] + lam_a * x[i]
@@ -204,10 +223,10 @@ def entry_dynamics(config: EntryProblemConfig, ns=None):
         return f
 
     if config.norm_mode == "none":
-        return lambda x, u, t: entry_rhs(x, u[:2], model, ns)
+        return lambda x, u, t, *par: entry_rhs(x, u[:2], model_of(config, ns, par), ns)
 
-    def f_paper(x, u, t):
-        d = list(entry_rhs(x, u[:2], model, ns))
+    def f_paper(x, u, t, *par):
+        d = list(entry_rhs(x, u[:2], model_of(config, ns, par), ns))
         # Section sect:Ex2-Implementation: u1..u4 replace d(eA2), d(eA3), d(eB2), d(eB3)
         d[2], d[3], d[7], d[8] = u[2], u[3], u[4], u[5]
         return d
@@ -216,10 +235,8 @@ def entry_dynamics(config: EntryProblemConfig, ns=None):
 
 
 def _rate_band(config: EntryProblemConfig, ns, state_index: int, control_index: int) -> PathConstraint:
-    model = config.model
-
-    def fn(x, u, t):
-        return u[control_index] - entry_rhs(x, u[:2], model, ns)[state_index]
+    def fn(x, u, t, *par):
+        return u[control_index] - entry_rhs(x, u[:2], model_of(config, ns, par), ns)[state_index]
 
     name = f"band_{ENTRY_STATE_NAMES[state_index]}"
     return PathConstraint(name, fn, lower=-config.delta, upper=config.delta, scale=config.delta)
@@ -235,14 +252,15 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     # --- cost, Eq. Ex2-Cost
     uam, usm = config.u_alpha_max, config.u_sigma_max
 
-    def lagrange(x, u, t):
+    def lagrange(x, u, t, *par):
         return config.problem.cost_integrand(x[10], u[0], u[1])
 
     # --- path constraints, Eq. Ex2-path (alpha and the rates are bounds below)
     path = [
-        PathConstraint("aero_accel", lambda x, u, t: entry_forces(x, model, ns).aero_accel,
+        PathConstraint("aero_accel", lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).aero_accel,
                        upper=config.a_max, scale=config.a_max),
-        PathConstraint("dynamic_pressure", lambda x, u, t: entry_forces(x, model, ns).dynamic_pressure,
+        PathConstraint("dynamic_pressure",
+                       lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).dynamic_pressure,
                        lower=config.problem.q_min, scale=1e5),
     ]  # fmt: skip
     invariants = []
@@ -332,6 +350,7 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
         control_shift=[0.0] * len(names),
         time_scale=500.0,
         cost_scale=10.0,
+        parameter_names=AERO_SCALE_PARAMETERS if config.aero_scale_parameters else (),
     )
 
 
@@ -342,5 +361,7 @@ __all__ = [
     "sin_flight_path",
     "control_names",
     "entry_dynamics",
+    "model_of",
+    "AERO_SCALE_PARAMETERS",
     "entry_problem",
 ]

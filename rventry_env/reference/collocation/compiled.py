@@ -15,8 +15,9 @@ from rventry_env.reference.collocation.problem import OptimalControlProblem
 class CompiledProblem:
     """CasADi functions of one problem, built once and shared by every mesh.
 
-    ``f(x, u, t)``, ``lagrange(x, u, t)``, ``path(x, u, t)``, ``invariants(x)``,
-    ``endpoint(x0, xf, t0, tf)``, ``mayer(x0, xf, t0, tf)``; x, u are column vectors.
+    ``f(x, u, t, p)``, ``lagrange(x, u, t, p)``, ``path(x, u, t, p)``, ``invariants(x)``,
+    ``endpoint(x0, xf, t0, tf)``, ``mayer(x0, xf, t0, tf)``; x, u, p are column vectors
+    (p has no entries for a problem without parameters).
     """
 
     def __init__(self, problem: OptimalControlProblem):
@@ -34,15 +35,17 @@ class CompiledProblem:
         ul = [u[i] for i in range(p.n_u)]
         x0l = [x0[i] for i in range(p.n_x)]
         xfl = [xf[i] for i in range(p.n_x)]
+        par = ca.SX.sym("p", p.n_p)
+        extra = ([[par[i] for i in range(p.n_p)]] if p.n_p else [])  # the fourth argument, if any
 
-        rhs = list(p.dynamics(xl, ul, t))
+        rhs = list(p.dynamics(xl, ul, t, *extra))
         if len(rhs) != p.n_x:
             raise ValueError(f"dynamics returned {len(rhs)} derivatives for {p.n_x} states")
-        self.f = ca.Function("f", [x, u, t], [ca.vertcat(*rhs)])
-        lag = p.lagrange(xl, ul, t) if p.lagrange is not None else 0
-        self.lagrange = ca.Function("L", [x, u, t], [ca.SX(lag)])
-        path = [c.fn(xl, ul, t) for c in p.path_constraints]
-        self.path = ca.Function("c", [x, u, t], [ca.vertcat(*path) if path else ca.SX(0, 1)])
+        self.f = ca.Function("f", [x, u, t, par], [ca.vertcat(*rhs)])
+        lag = p.lagrange(xl, ul, t, *extra) if p.lagrange is not None else 0
+        self.lagrange = ca.Function("L", [x, u, t, par], [ca.SX(lag)])
+        path = [c.fn(xl, ul, t, *extra) for c in p.path_constraints]
+        self.path = ca.Function("c", [x, u, t, par], [ca.vertcat(*path) if path else ca.SX(0, 1)])
         inv = [g.fn(xl) for g in p.invariants]
         self.invariants = ca.Function("g", [x], [ca.vertcat(*inv) if inv else ca.SX(0, 1)])
         end = [b.fn(x0l, xfl, t0, tf) for b in p.endpoint_constraints]
@@ -66,7 +69,7 @@ class CompiledProblem:
         return xs, x
 
     def node_function(self):
-        """``(xs, us, s, h, tf) -> (f_scaled, path_scaled, lagrange)`` at one collocation point.
+        """``(xs, us, s, h, tf, p) -> (f_scaled, path_scaled, lagrange)`` at one collocation point.
 
         xs, us are scaled; s is the normalised time, h the interval length (in s);
         f_scaled = (tf - t0) h / 2 f / state_scale is what the defect subtracts.
@@ -79,10 +82,11 @@ class CompiledProblem:
             us = ca.SX.sym("us", p.n_u)
             u = us * ca.DM(p.control_scale) + ca.DM(p.control_shift)
             s, h, tf = ca.SX.sym("s"), ca.SX.sym("h"), ca.SX.sym("tf")
+            par = ca.SX.sym("p", p.n_p)
             t = p.t0 + (tf - p.t0) * s
-            f = self.f(x, u, t) * ((tf - p.t0) * h / 2) / ca.DM(p.state_scale)
-            c = self.path(x, u, t) / ca.DM(self.path_scale) if self.path_scale.size else ca.SX(0, 1)
-            self._node = ca.Function("node", [xs, us, s, h, tf], [f, c, self.lagrange(x, u, t)])
+            f = self.f(x, u, t, par) * ((tf - p.t0) * h / 2) / ca.DM(p.state_scale)
+            c = self.path(x, u, t, par) / ca.DM(self.path_scale) if self.path_scale.size else ca.SX(0, 1)
+            self._node = ca.Function("node", [xs, us, s, h, tf, par], [f, c, self.lagrange(x, u, t, par)])
         return self._node
 
     def invariant_function(self):
@@ -121,10 +125,11 @@ class CompiledProblem:
             self._may = ca.Function("mayer", [xs0, xsf, tf], [self.mayer(x0, xf, p.t0, tf)])
         return self._may
 
-    def rhs(self, x: np.ndarray, u: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def rhs(self, x: np.ndarray, u: np.ndarray, t: np.ndarray, parameters=None) -> np.ndarray:
         """Batched numeric dynamics: ``x (n, n_x)``, ``u (n, n_u)``, ``t (n,)`` -> ``(n, n_x)``."""
         n = x.shape[0]
-        out = self.f.map(n)(x.T, u.T, np.reshape(t, (1, n)))
+        par = self.problem.check_parameters(parameters)
+        out = self.f.map(n)(x.T, u.T, np.reshape(t, (1, n)), np.repeat(par[:, None], n, axis=1))
         return np.asarray(out).T
 
 

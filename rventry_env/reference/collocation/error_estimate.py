@@ -33,7 +33,7 @@ def estimate_errors(cp: CompiledProblem, sol: CollocationSolution) -> np.ndarray
         xs.append(interp.evaluate_in_interval(k, s, control=False))
         us.append(interp.evaluate_in_interval(k, s[:-1], control=True))
     t_col = np.concatenate([t0 + (tf - t0) * s[:-1] for s in all_s])
-    fx = cp.rhs(np.vstack([x[:-1] for x in xs]), np.vstack(us), t_col)
+    fx = cp.rhs(np.vstack([x[:-1] for x in xs]), np.vstack(us), t_col, sol.parameters)
     errors = np.empty(mesh.n_intervals)
     pos = 0
     for k, (n, x) in enumerate(zip(mesh.degrees, xs)):

@@ -33,6 +33,7 @@ def solve(
     progress: Progress | None = None,
     label: str = "",
     warm_start: bool = False,
+    parameters=None,
 ) -> CollocationResult:
     """Solve ``problem`` by LGR collocation with hp mesh refinement.
 
@@ -45,6 +46,7 @@ def solve(
     :param label: appended to the pass number in the records (e.g. a continuation stage).
     :param warm_start: the guess is already a converged solution of a nearby
         problem: use the warm-start IPOPT options from the first pass.
+    :param parameters: values of the problem's parameters (default: its defaults).
     :return: :class:`CollocationResult`; ``converged`` is true when the NLP
         succeeded and the mesh error met the tolerance.
     """
@@ -59,7 +61,7 @@ def solve(
     for it in range(opts.max_mesh_iterations):
         t_pass = time.perf_counter()
         tr = transcribe(cp, mesh, opts, warm=warm)
-        sol = solve_on_mesh(tr, guess)
+        sol = solve_on_mesh(tr, guess, parameters)
         sol.errors = estimate_errors(cp, sol)
         rec = MeshIterationRecord(
             iteration=it, n_intervals=mesh.n_intervals, n_nodes=mesh.n_nodes, max_error=sol.max_error,

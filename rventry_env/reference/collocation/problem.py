@@ -13,6 +13,11 @@ subject to
     endpoint constraints lower <= b(x(t0), x(tf), t0, tf) <= upper,
     invariants g(x) = 0 at every state node after the first.
 
+A problem may declare *parameters*: constants of the model (a density scale, say) that
+stay fixed during one solve and change between solves without rebuilding the NLP
+(CasADi NLP parameters). With parameters, ``dynamics``, ``lagrange`` and every path
+constraint take them as a fourth argument: ``dynamics(x, u, t, p)``.
+
 Invariants are quantities the *exact* dynamics conserve (the unit norm of a set of
 Euler parameters, say). Imposing them next to the discretised dynamics
 over-determines the NLP unless the dynamics get a matching degree of freedom; see
@@ -163,6 +168,8 @@ class OptimalControlProblem:
     :param control_shift: like ``state_shift`` for the controls.
     :param time_scale: typical final time; default ``tf_upper`` if finite else 1.
     :param cost_scale: typical magnitude of the cost; the NLP minimises cost / cost_scale.
+    :param parameter_names: names of the problem's parameters (none by default).
+    :param parameter_values: their default values (zeros if not given).
     """
 
     name: str
@@ -191,6 +198,8 @@ class OptimalControlProblem:
     control_shift: Any = None
     time_scale: float | None = None
     cost_scale: float = 1.0
+    parameter_names: Sequence[str] = ()
+    parameter_values: Any = None
 
     def __post_init__(self):
         self.state_names = tuple(self.state_names)
@@ -263,6 +272,21 @@ class OptimalControlProblem:
             raise ValueError(f"time_scale must be positive and finite, got {self.time_scale}")
         if not (self.cost_scale > 0 and math.isfinite(self.cost_scale)):
             raise ValueError(f"cost_scale must be positive and finite, got {self.cost_scale}")
+        self.parameter_names = tuple(self.parameter_names)
+        if len(set(self.parameter_names)) != len(self.parameter_names):
+            raise ValueError(f"parameter names must be unique, got {self.parameter_names}")
+        self.parameter_values = _vec(self.parameter_values, self.n_p, "parameter_values", 0.0)
+        if not np.all(np.isfinite(self.parameter_values)):
+            raise ValueError("parameter_values must be finite")
+
+    def check_parameters(self, values) -> np.ndarray:
+        """The parameter values to solve with (the defaults when ``values`` is None), validated."""
+        if values is None:
+            return self.parameter_values.copy()
+        arr = _vec(values, self.n_p, "parameters", 0.0)
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"parameters must be finite, got {arr}")
+        return arr
 
     @property
     def n_x(self) -> int:
@@ -273,6 +297,11 @@ class OptimalControlProblem:
     def n_u(self) -> int:
         """Number of controls."""
         return len(self.control_names)
+
+    @property
+    def n_p(self) -> int:
+        """Number of parameters."""
+        return len(self.parameter_names)
 
     @property
     def free_final_time(self) -> bool:

@@ -52,6 +52,10 @@ class CollocationSolution:
     max_violation: float
     violations: dict
     errors: np.ndarray | None = None
+    parameters: np.ndarray | None = None  # the problem's parameter values solved with
+    z: np.ndarray | None = None  # the scaled NLP solution and its multipliers (for warm starts)
+    lam_x: np.ndarray | None = None
+    lam_g: np.ndarray | None = None
 
     @property
     def interpolant(self) -> _Interp:

@@ -62,6 +62,14 @@ class Transcription:
             parts.append(np.full(self.mesh.n_nodes, tf / p.time_scale))
         return np.concatenate(parts)
 
+    def bounds_with_initial_state(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Variable bounds (scaled) with the first node fixed at ``x0`` (a re-solve from a new state)."""
+        p = self.problem
+        x0s = (np.asarray(x0, dtype=float) - p.state_shift) / p.state_scale
+        lbx, ubx = self.lbx.copy(), self.ubx.copy()
+        lbx[: p.n_x] = ubx[: p.n_x] = x0s
+        return lbx, ubx
+
     def unpack(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Inverse of :meth:`pack`."""
         p, m = self.problem, self.mesh
@@ -205,8 +213,9 @@ def transcribe(
     node = cp.node_function()
     # one mapped call evaluates dynamics, path constraints and running cost at every
     # collocation point; its derivatives are those of one node, reused nc times
+    par = sym.sym("P", p.n_p)  # the problem's parameters: NLP parameters, set per solve
     f_sc, c_sc, lag = node.map(nc)(
-        xs[:, :nc], us, ca.DM(s_nodes[:nc]).T, ca.DM(h_col).T, tf_col
+        xs[:, :nc], us, ca.DM(s_nodes[:nc]).T, ca.DM(h_col).T, tf_col, ca.repmat(par, 1, nc)
     )  # fmt: skip
     # defects, D X = (tf - t0) h / 2 f, divided by the state scale
     defect = ca.mtimes(xs, _dm_sparse(big_d).T) - f_sc
@@ -243,7 +252,7 @@ def transcribe(
 
     cost = ca.mtimes((tf_col - t0) * 0.5 * lag, ca.DM(h_col * w_col))  # Radau quadrature
     cost = cost + cp.mayer_function()(xs[:, 0], xs[:, nn - 1], tf)
-    nlp = {"x": ca.vertcat(*zs), "f": cost / p.cost_scale, "g": ca.vertcat(*g)}
+    nlp = {"x": ca.vertcat(*zs), "f": cost / p.cost_scale, "g": ca.vertcat(*g), "p": par}
 
     # variable bounds (scaled)
     xl = np.tile(p.state_lower, (nn, 1))
@@ -280,7 +289,7 @@ def transcribe(
     )  # fmt: skip
 
 
-def _violations(tr: Transcription, z: np.ndarray, gval: np.ndarray) -> tuple[float, dict]:
+def _violations(tr: Transcription, z: np.ndarray, gval: np.ndarray, lbx, ubx) -> tuple[float, dict]:
     """Largest violation of the (scaled) NLP constraints and bounds, overall and per group."""
     def excess(v, lo, hi):
         if v.size == 0:
@@ -288,12 +297,12 @@ def _violations(tr: Transcription, z: np.ndarray, gval: np.ndarray) -> tuple[flo
         return float(np.max(np.maximum(np.maximum(lo - v, v - hi), 0.0)))
 
     out = {name: excess(gval[sl], tr.lbg[sl], tr.ubg[sl]) for name, sl in tr.g_groups.items()}
-    out["bounds"] = excess(z, tr.lbx, tr.ubx)
+    out["bounds"] = excess(z, lbx, ubx)
     return max(out.values()), out
 
 
-def solve_on_mesh(tr: Transcription, guess: TrajectoryLike) -> CollocationSolution:
-    """Solve the transcribed NLP from a guess interpolated onto the mesh nodes."""
+def initial_point(tr: Transcription, guess: TrajectoryLike, lbx=None, ubx=None) -> np.ndarray:
+    """The scaled NLP starting point: the guess interpolated onto the mesh nodes, within the bounds."""
     p, mesh = tr.problem, tr.mesh
     tf_guess = float(np.clip(guess.tf, p.tf_lower, p.tf_upper))
     s = mesh.nodes()
@@ -301,21 +310,44 @@ def solve_on_mesh(tr: Transcription, guess: TrajectoryLike) -> CollocationSoluti
     tg = guess.t0 + (guess.tf - guess.t0) * s
     x0 = np.asarray(guess.state(tg), dtype=float).reshape(mesh.n_nodes, p.n_x)
     u0 = np.asarray(guess.control(tg[:-1]), dtype=float).reshape(mesh.n_collocation, p.n_u)
-    z0 = tr.pack(x0, u0, tf_guess)
-    z0 = np.clip(z0, tr.lbx, tr.ubx)
+    return np.clip(tr.pack(x0, u0, tf_guess), tr.lbx if lbx is None else lbx, tr.ubx if ubx is None else ubx)
+
+
+def solve_from(tr: Transcription, z0: np.ndarray, parameters=None, lbx=None, ubx=None, lam_x0=None,
+               lam_g0=None) -> CollocationSolution:  # fmt: skip
+    """Solve the transcribed NLP from the scaled point ``z0``.
+
+    :param parameters: the problem's parameter values (default: its defaults).
+    :param lbx: variable bounds replacing the transcription's (to fix a new initial state, say).
+    :param lam_x0: bound multipliers to warm-start from (with ``lam_g0``, the constraint multipliers).
+    """
+    p, mesh = tr.problem, tr.mesh
+    par = p.check_parameters(parameters)
+    lbx = tr.lbx if lbx is None else lbx
+    ubx = tr.ubx if ubx is None else ubx
+    args = dict(x0=z0, lbx=lbx, ubx=ubx, lbg=tr.lbg, ubg=tr.ubg, p=par)
+    if lam_x0 is not None and lam_g0 is not None:
+        args.update(lam_x0=lam_x0, lam_g0=lam_g0)
     start = time.perf_counter()
-    res = tr.solver(x0=z0, lbx=tr.lbx, ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
+    res = tr.solver(**args)
     elapsed = time.perf_counter() - start
     stats = tr.solver.stats()
     z = np.asarray(res["x"]).ravel()
     x, u, tf = tr.unpack(z)
-    worst, groups = _violations(tr, z, np.asarray(res["g"]).ravel())
+    worst, groups = _violations(tr, z, np.asarray(res["g"]).ravel(), lbx, ubx)
+    s = mesh.nodes()
     return CollocationSolution(
         problem=p, mesh=mesh, t0=p.t0, tf=tf, t=p.t0 + (tf - p.t0) * s, x=x, u=u,
         cost=float(res["f"]) * p.cost_scale, status=str(stats.get("return_status", "?")),
         success=bool(stats.get("success", False)), nlp_iterations=int(stats.get("iter_count", -1)),
         solve_time_s=elapsed, build_time_s=tr.build_time_s, max_violation=worst, violations=groups,
+        parameters=par, z=z, lam_x=np.asarray(res["lam_x"]).ravel(), lam_g=np.asarray(res["lam_g"]).ravel(),
     )  # fmt: skip
 
 
-__all__ = ["Transcription", "SolverOptions", "WARM_START_IPOPT", "transcribe", "solve_on_mesh"]
+def solve_on_mesh(tr: Transcription, guess: TrajectoryLike, parameters=None) -> CollocationSolution:
+    """Solve the transcribed NLP from a guess interpolated onto the mesh nodes."""
+    return solve_from(tr, initial_point(tr, guess), parameters)
+
+
+__all__ = ["Transcription", "SolverOptions", "WARM_START_IPOPT", "transcribe", "initial_point", "solve_from", "solve_on_mesh"]
