@@ -49,14 +49,15 @@ def directions(effects, structure: Structure, start_lift_scale: float) -> np.nda
     Coordinates: ln k_D, ln k_L, wind east, wind north, then one per density-shape and
     Mach-shape degree of freedom. A density profile of K knots moves the level of both
     accelerations (its mean) and K - 1 shape directions; a Mach-dependent drag correction
-    moves k_D (its mean) and M - 1 Mach-shape directions.
+    (anchored at the highest Mach) moves M - 1 Mach-shape directions only.
     """
     lift = lift_capable(start_lift_scale, effects)
     level = np.array([1.0, 1.0 if lift else 0.0])  # both accelerations by the same factor
     drag = np.array([1.0, 0.0])
-    nk = len(structure.density_knots) if "density_profile" in effects else 0
-    nm = len(structure.mach_knots) if "mach_drag" in effects else 0
-    dim = _N_FIXED + max(nk - 1, 0) + max(nm - 1, 0)
+    # every set under one structure gets the same coordinates, so their spans compare
+    nk = max(len(structure.density_knots), 1)
+    nm = max(len(structure.mach_knots), 1)
+    dim = _N_FIXED + (nk - 1) + (nm - 1)
     cols = []
 
     def col(head=None, index=None):
@@ -67,7 +68,6 @@ def directions(effects, structure: Structure, start_lift_scale: float) -> np.nda
             v[index] = 1.0
         cols.append(v)
 
-    shape_at = _N_FIXED
     for e in effects:
         if e == "mass":
             col(-level)
@@ -80,14 +80,11 @@ def directions(effects, structure: Structure, start_lift_scale: float) -> np.nda
             col(index=3)
         elif e == "density_profile":
             col(level)
-            for _ in range(nk - 1):
-                col(index=shape_at)
-                shape_at += 1
+            for i in range(nk - 1):
+                col(index=_N_FIXED + i)
         elif e == "mach_drag":
-            col(drag)
-            for _ in range(nm - 1):
-                col(index=shape_at)
-                shape_at += 1
+            for i in range(nm - 1):
+                col(index=_N_FIXED + nk - 1 + i)
     return np.array(cols).T if cols else np.zeros((dim, 0))
 
 
@@ -139,9 +136,9 @@ def sparsest_equivalent(effects, new: str, structure: Structure, start_lift_scal
 def identifiable(values: dict, effects, start_lift_scale: float, density_knots=(), mach_knots=()) -> dict:
     """The identifiable quantities of a fitted explanation, relative to the start model.
 
-    ``drag_acceleration_scale`` is k_D (the uniform part: the density profile's and the Mach
-    correction's log mean over their knots), ``lift_to_drag_scale`` C_L/C_D relative to the
-    declared ratio (None without lift), and the shapes with their means removed.
+    ``drag_acceleration_scale`` is k_D (the uniform part, with the density profile's log mean
+    over its knots), ``lift_to_drag_scale`` C_L/C_D relative to the declared ratio (None
+    without lift), the density shape with its mean removed, and the Mach-drag correction.
     """
     ln_mu = math.log(values.get("mass_scale", 1.0))
     s = values.get("cd_scale", 1.0)
@@ -149,7 +146,7 @@ def identifiable(values: dict, effects, start_lift_scale: float, density_knots=(
     rho = [values[k] for k in values if k.startswith("dlnrho_")] if "density_profile" in effects else []
     mach = [values[k] for k in values if k.startswith("dlncd_M")] if "mach_drag" in effects else []
     level = float(np.mean(rho)) if rho else 0.0
-    mlevel = float(np.mean(mach)) if mach else 0.0
+    mlevel = 0.0  # the Mach correction is anchored at the highest Mach: no level
     out = {
         "drag_acceleration_scale": s * math.exp(level + mlevel - ln_mu),
         "lift_acceleration_scale": c * math.exp(level - ln_mu),
@@ -158,7 +155,7 @@ def identifiable(values: dict, effects, start_lift_scale: float, density_knots=(
     if rho:
         out["density_shape"] = {k: float(values[k] - level) for k in values if k.startswith("dlnrho_")}
     if mach:
-        out["mach_drag_shape"] = {k: float(values[k] - mlevel) for k in values if k.startswith("dlncd_M")}
+        out["mach_drag_log_factors"] = {k: float(values[k]) for k in values if k.startswith("dlncd_M")}
     return out
 
 

@@ -12,7 +12,8 @@ effect                parameters                           physical bounds      
 ``drag_coefficient``  ``cd_scale``                         0.5 .. 2                    :class:`~rventry_env.physics.ScaledAerodynamics`
 ``wind``              ``wind_east_mps, wind_north_mps``    +-200 m/s each              :class:`~rventry_env.physics.HorizontalWind`
 ``mass``              ``mass_scale`` (of the declared)     0.5 .. 2                    :class:`~rventry_env.physics.Vehicle`
-``mach_drag``         ``dlncd_M<m>`` per Mach knot         C_D x 1/2 .. 2              :class:`~rventry_env.physics.mach_drag.MachDragCorrection`
+``mach_drag``         ``dlncd_M<m>`` per Mach knot but     C_D x 1/2 .. 2              :class:`~rventry_env.physics.mach_drag.MachDragCorrection`
+                      the highest (where it is 0)
 ``measured_density``  none: the record's density column    (records with one)          :class:`~rventry_env.physics.DensityCorrection`
 ====================  ===================================  ==========================  ========================================
 
@@ -20,6 +21,11 @@ The bounds are physical, not numerical: a fit that ends on one is not explaining
 is being stretched to absorb something else, and is never accepted. J2 is a known constant, so
 ``j2_gravity`` has no free parameter: it is tested at its known value (and the value the record
 would prefer is checked against it, :mod:`~rventry_env.validation.selection`).
+
+``mach_drag`` is the *variation* of C_D with Mach: its factor is 1 at the highest Mach number
+the record flies (a declared C_D is the value at the top of the flight, like Apollo's trim C_D for
+M > 29.5), so a uniform change of C_D stays the ``drag_coefficient`` effect and the two are not
+nested.
 
 ``cl_scale`` multiplies the *declared* lift (the sidecar's aerodynamics): a model started
 drag-only has cl_scale = 0, so "lift missing altogether" is the same effect as "lift 20 % low",
@@ -179,7 +185,8 @@ def effect_parameters(name: str, setup: ReplaySetup, structure: Structure) -> li
         return [Param(_density_name(k), name, 0.0, 0.05, -lim, lim) for k in structure.density_knots]
     if name == "mach_drag":
         lim = math.log(MACH_DRAG_FACTOR_MAX)
-        return [Param(_mach_name(k), name, 0.0, 0.05, -lim, lim) for k in structure.mach_knots]
+        # every knot but the highest: the correction is anchored to 1 at the top Mach number
+        return [Param(_mach_name(k), name, 0.0, 0.05, -lim, lim) for k in structure.mach_knots[:-1]]
     if name == "lift_coefficient":
         return [Param("cl_scale", name, setup.start_lift_scale, 0.05, *CL_SCALE_BOUNDS)]
     if name == "drag_coefficient":
@@ -231,7 +238,7 @@ def build_model(setup: ReplaySetup, structure: Structure, values: dict | None = 
         ref = setup.lift_reference
         if "mach_drag" in eff:
             kn = structure.mach_knots
-            ref = MachDragCorrection(ref, tuple(kn), tuple(values[_mach_name(k)] for k in kn))
+            ref = MachDragCorrection(ref, tuple(kn), tuple(values[_mach_name(k)] for k in kn[:-1]) + (0.0,))
         aero = ScaledAerodynamics(
             ref,
             cl_scale=values.get("cl_scale", setup.start_lift_scale),

@@ -360,6 +360,36 @@ def identify(
         else:
             break
 
+    # backward elimination: an effect that no longer earns its place next to the others goes
+    # (forward selection is greedy, and a provisional first step may have picked a near-tie)
+    while len(chosen) > 1:
+        trials = {}
+        for e in chosen:
+            rest = tuple(x for x in chosen if x != e)
+            st = ctx.structure(rest, current.structure)
+            if not admissible(rest, st, c0):
+                continue
+            say(f"backward: {' + '.join(rest)} (without {e})")
+            trials[e] = ctx.fit(st, current)
+        step_fits.append(trials)
+        if not trials:
+            break
+        cmp = compare_fits(current, list(trials.values()), sigma, 0.0, [f"without {e}" for e in trials])
+        n_eff = cmp["n_eff"]
+        b_cur = cmp["bic_current"]
+        removable = [(row["bic"], row) for row in cmp["table"]
+                     if row["credible"] and row["bic"] < b_cur + threshold]  # fmt: skip
+        steps.append({"step": "backward", "from": list(chosen), "effective_samples": n_eff, "bic_current": b_cur,
+                      "tried": cmp["table"], "removed": None})  # fmt: skip
+        if not removable:
+            break
+        _, row = min(removable, key=lambda r: r[0])
+        e = row["effect"][len("without "):]
+        steps[-1]["removed"] = e
+        current = trials[e]
+        chosen = tuple(current.effects)
+        say(f"removed {e}: the others explain the record as well")
+
     # what remains
     source = "declared" if declared is not None else (
         "estimated" if all(w == "record differences" for w in weights_from.values()) else "baseline residual")

@@ -110,8 +110,7 @@ class FitContext:
         theta0 = self.start_from(prob, previous)
         old = [i for i, name in enumerate(previous.names) if name.startswith(prefix)]
         new = [i for i, name in enumerate(prob.names) if name.startswith(prefix)]
-        kn_new = st.density_knots if profile == "density_profile" else st.mach_knots
-        theta0[new] = np.interp(kn_new, kn_old, previous.values[old])
+        theta0[new] = _profile_start(profile, st0, st, previous.values[old])
         return self.fit(st, None, max_nfev=30, theta0=theta0)
 
     def fit_profile(self, effects: tuple, profile: str, like: Structure | None, previous: FitResult | None,
@@ -138,9 +137,7 @@ class FitContext:
             if best is not None:
                 old = [i for i, name in enumerate(best.names) if name.startswith(prefix)]
                 new = [i for i, name in enumerate(prob.names) if name.startswith(prefix)]
-                kn_old = best.structure.density_knots if profile == "density_profile" else best.structure.mach_knots
-                kn_new = st.density_knots if profile == "density_profile" else st.mach_knots
-                theta0[new] = np.interp(kn_new, kn_old, best.values[old])
+                theta0[new] = _profile_start(profile, best.structure, st, best.values[old])
             f = self.fit(st, None, max_nfev=60 if best is None else 30, theta0=theta0)
             trials.append({"knots": n, "bic": f.bic, "credible": f.credible})
             if best is not None:
@@ -149,6 +146,14 @@ class FitContext:
                     break
             best = f
         return best, trials
+
+
+def _profile_start(profile: str, old: Structure, new: Structure, values: np.ndarray) -> np.ndarray:
+    """A finer profile's start values, interpolated from a coarser fit's."""
+    if profile == "density_profile":
+        return np.interp(new.density_knots, old.density_knots, values)
+    # the Mach correction is 0 at its highest knot, which has no parameter
+    return np.interp(new.mach_knots[:-1], old.mach_knots, np.append(values, 0.0))
 
 
 def compare_fits(current: FitResult, fits: list[FitResult], sigma: np.ndarray, threshold: float,

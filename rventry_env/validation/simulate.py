@@ -19,7 +19,8 @@ Effect values (defaults in brackets):
 * ``wind=E[,N]`` a horizontal wind, east and north (m/s) [50];
 * ``mass=S`` the vehicle's true mass is S times the declared 907.2 kg [1.06];
 * ``us76_density`` the U.S. Standard Atmosphere 1976 in place of the exponential one;
-* ``mach_drag=A`` C_D multiplied by exp(A tanh((20 - M) / 3)) [0.1];
+* ``mach_drag=A`` C_D multiplied by exp(A (1 - exp((M - 22) / 5))): 1 at Mach 22, the
+  start of the scripted glide, and growing toward lower Mach [0.15];
 * ``time_offset=DT`` the observations' time tags are DT seconds early: the row of time t
   holds the state at t + DT (the controls keep their own time) [0.5].
 
@@ -48,7 +49,7 @@ DEFAULT_VALUES = {
     "wind": "50",
     "mass": "1.06",
     "us76_density": "",
-    "mach_drag": "0.1",
+    "mach_drag": "0.15",
     "time_offset": "0.5",
 }
 SIMULATED_EFFECTS = tuple(DEFAULT_VALUES)

@@ -62,9 +62,10 @@ class TruthWorld:
     :param atmosphere: ``"exponential"`` (rho0, scale_height) or ``"us76"`` (the U.S. Standard
         Atmosphere 1976, :func:`us76_density`).
     :param mach_drag_amplitude: a Mach-dependent drag: C_D multiplied by
-        exp(A tanh((mach_drag_centre - M) / mach_drag_width)).
+        exp(A (1 - exp((M - mach_drag_centre) / mach_drag_width))), 1 at the centre and
+        growing (for A > 0) toward lower Mach.
     :param mach_drag_centre: the Mach number where that factor is 1.
-    :param mach_drag_width: its width in Mach.
+    :param mach_drag_width: its e-folding width in Mach.
     """
 
     radius: float = 6378137.0
@@ -85,8 +86,8 @@ class TruthWorld:
     area: float = 0.4839
     atmosphere: str = "exponential"
     mach_drag_amplitude: float = 0.0
-    mach_drag_centre: float = 20.0
-    mach_drag_width: float = 3.0
+    mach_drag_centre: float = 22.0
+    mach_drag_width: float = 5.0
 
 
 # U.S. Standard Atmosphere 1976 below 86 km: layers in geopotential altitude (m') with their
@@ -217,7 +218,8 @@ def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world:
     mach = speed_air / world.sound_speed
     cl, cd = cav_h_coefficients(alpha, mach)
     if world.mach_drag_amplitude:
-        cd *= math.exp(world.mach_drag_amplitude * math.tanh((world.mach_drag_centre - mach) / world.mach_drag_width))
+        shape = 1.0 - math.exp((mach - world.mach_drag_centre) / world.mach_drag_width)
+        cd *= math.exp(world.mach_drag_amplitude * shape)
     k = q * world.area / world.mass
     drag = -k * world.cd_scale * cd * v_air / speed_air
     lift = k * world.cl_scale * cl * lift_direction(r, v, v_air, bank)
