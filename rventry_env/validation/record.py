@@ -231,12 +231,12 @@ def _check_time_span(t: np.ndarray, observed: np.ndarray, lines: np.ndarray) -> 
     """Bound the replay's work: no span of hours (milliseconds for seconds) and no blind gap."""
     rows = np.flatnonzero(observed)
     span = float(t[rows[-1]] - t[rows[0]]) if rows.size else 0.0
-    if span > MAX_DURATION:
-        step = float(np.median(np.diff(t[rows]))) if rows.size > 1 else math.nan
-        guess = " (is t_s in milliseconds?)" if step >= 10.0 else ""
+    step = float(np.median(np.diff(t[rows]))) if rows.size > 1 else math.nan
+    if span > MAX_DURATION and step >= 10.0:
         raise RecordError(
-            f"column t_s: the observations span {span:g} s (rows {lines[rows[0]]} to {lines[rows[-1]]}), "
-            f"median step {step:g} s; an entry lasts minutes, at most {MAX_DURATION:g} s here{guess}"
+            f"column t_s: the observations span {span:g} s (rows {lines[rows[0]]} to {lines[rows[-1]]}) with a "
+            f"median step of {step:g} s; an entry lasts minutes (at most {MAX_DURATION:g} s here): "
+            "is t_s in milliseconds?"
         )
     if rows.size > 1:
         gaps = np.diff(t[rows])
@@ -247,6 +247,11 @@ def _check_time_span(t: np.ndarray, observed: np.ndarray, lines: np.ndarray) -> 
                 f"(after t_s = {t[rows[k]]:g}, row {lines[rows[k]]}); the replay would integrate that long "
                 f"blind (at most {MAX_TIME_GAP:g} s): split the record or check the time column"
             )
+    if span > MAX_DURATION:
+        raise RecordError(
+            f"column t_s: the observations span {span:g} s (rows {lines[rows[0]]} to {lines[rows[-1]]}); "
+            f"an entry lasts minutes, at most {MAX_DURATION:g} s here: split the record"
+        )
 
 
 def _first_bad(mask: np.ndarray, lines: np.ndarray) -> int:
@@ -283,6 +288,13 @@ def _check_units(cols: dict, lines: np.ndarray) -> None:
             )
     if all(c in cols for c in ECEF_COLUMNS[:3]):
         pos = np.stack([cols[c] for c in ECEF_COLUMNS[:3]], axis=1)
+        ratio = row_norm(pos) / EARTH_RADIUS
+        ratio = ratio[np.isfinite(ratio)]
+        if ratio.size and np.all((ratio > 3.1) & (ratio < 3.5)):
+            raise RecordError(
+                f"columns x_m, y_m, z_m: |r| is {np.median(ratio):.4g} Earth radii throughout; "
+                "this looks like feet where metres are expected"
+            )
         _check_components(cols, ECEF_COLUMNS[:3], EARTH_RADIUS + MAX_ALTITUDE, "m", lines)
         rn = row_norm(pos)
         ok = np.isfinite(rn)
