@@ -49,7 +49,7 @@ def directions(effects, structure: Structure, start_lift_scale: float) -> np.nda
     Coordinates: ln k_D, ln k_L, wind east, wind north, then one per density-shape and
     Mach-shape degree of freedom. A density profile of K knots moves the level of both
     accelerations (its mean) and K - 1 shape directions; a Mach-dependent drag correction
-    (anchored at the highest Mach) moves M - 1 Mach-shape directions only.
+    (fixed to 1 at the highest Mach) moves M - 1 Mach-shape directions only.
     """
     lift = lift_capable(start_lift_scale, effects)
     level = np.array([1.0, 1.0 if lift else 0.0])  # both accelerations by the same factor
@@ -146,7 +146,7 @@ def identifiable(values: dict, effects, start_lift_scale: float, density_knots=(
     rho = [values[k] for k in values if k.startswith("dlnrho_")] if "density_profile" in effects else []
     mach = [values[k] for k in values if k.startswith("dlncd_M")] if "mach_drag" in effects else []
     level = float(np.mean(rho)) if rho else 0.0
-    mlevel = 0.0  # the Mach correction is anchored at the highest Mach: no level
+    mlevel = 0.0  # the Mach correction is 1 at the highest Mach: no level
     out = {
         "drag_acceleration_scale": s * math.exp(level + mlevel - ln_mu),
         "lift_acceleration_scale": c * math.exp(level - ln_mu),

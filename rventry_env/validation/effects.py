@@ -185,7 +185,7 @@ def effect_parameters(name: str, setup: ReplaySetup, structure: Structure) -> li
         return [Param(_density_name(k), name, 0.0, 0.05, -lim, lim) for k in structure.density_knots]
     if name == "mach_drag":
         lim = math.log(MACH_DRAG_FACTOR_MAX)
-        # every knot but the highest: the correction is anchored to 1 at the top Mach number
+        # every knot but the highest: the correction is fixed to 1 at the top Mach number
         return [Param(_mach_name(k), name, 0.0, 0.05, -lim, lim) for k in structure.mach_knots[:-1]]
     if name == "lift_coefficient":
         return [Param("cl_scale", name, setup.start_lift_scale, 0.05, *CL_SCALE_BOUNDS)]
