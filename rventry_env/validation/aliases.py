@@ -112,11 +112,16 @@ def sparsest_equivalent(effects, new: str, structure: Structure, start_lift_scal
     """The sparsest admissible subset of ``effects`` that contains ``new`` and spans what ``effects`` span.
 
     :return: the subset (a tuple, in the order of ``effects``), or None if ``new`` adds no
-        direction the others do not already move (it is an alias of them).
+        direction the others do not already move (it is an alias of them). An effect without
+        free parameters (J2 at its known value, the measured density) changes the model rather
+        than adding a direction, and is always kept.
     """
     effects = tuple(effects)
     full = directions(effects, structure, start_lift_scale)
     without = tuple(e for e in effects if e != new)
+    if directions((new,), structure, start_lift_scale).shape[1] == 0:
+        # a known constant or a measured atmosphere: no free direction, but a different model
+        return effects if admissible(effects, structure, start_lift_scale) else None
     if same_span(directions(without, structure, start_lift_scale), full):
         return None
     best = None
