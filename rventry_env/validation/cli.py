@@ -114,7 +114,13 @@ def _identify(args: argparse.Namespace) -> int:
         save_model(ident.model, args.model_out)
         rep["model_file"] = str(args.model_out)
     write_json(args.json, rep, indent=2)
-    _print_summary(rep)
+    try:
+        _print_summary(rep)
+        sys.stdout.flush()
+    except BrokenPipeError:  # the summary piped into a reader that stopped (head): the report is written
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 

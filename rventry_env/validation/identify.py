@@ -31,8 +31,14 @@ import numpy as np
 from rventry_env.core.backend import NUMPY
 from rventry_env.physics import ConstantAerodynamics, EntryModel
 from rventry_env.validation.adequacy import adequacy
-from rventry_env.validation.aliases import admissible, alias_groups, directions, identifiable, same_span
-from rventry_env.validation.aliases import sparsest_equivalent
+from rventry_env.validation.aliases import (
+    admissible,
+    alias_groups,
+    directions,
+    identifiable,
+    same_span,
+    sparsest_equivalent,
+)
 from rventry_env.validation.consistency import check_entry_state
 from rventry_env.validation.controls import control_schedule
 from rventry_env.validation.diagnostics import error_metrics, measured_density_correction, run_diagnostics
@@ -464,7 +470,7 @@ def identify(
         "record": {
             "path": str(record.path) if record.path else None,
             "kind": kind,
-            "samples": int(len(replay.rows)),
+            "samples": len(replay.rows),
             "values": int(np.count_nonzero(np.isfinite(replay.y))),
             "t_start_s": replay.t0,
             "t_end_s": float(replay.t_obs[-1]),
