@@ -163,6 +163,8 @@ def _print_summary(rep: dict) -> None:
     print(f"lag-1 autocorrelation: {_fmt(w['before']['lag1_autocorrelation'], '.3f')} -> "
           f"{_fmt(w['after']['lag1_autocorrelation'], '.3f')}   Ljung-Box p: {_fmt(w['before']['ljung_box_p'], '.3g')} -> "
           f"{_fmt(w['after']['ljung_box_p'], '.3g')}")  # fmt: skip
+    for w in (rep.get("entry_state_check") or {}).get("warnings", []):
+        print(f"warning: {w}")
     if rep.get("rejected_outliers"):
         rows = ", ".join(str(r["row"]) for r in rep["rejected_outliers"][:10])
         print(f"outliers rejected: {len(rep['rejected_outliers'])} (rows {rows})")
