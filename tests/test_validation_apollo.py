@@ -1,7 +1,8 @@
-"""Apollo 4 flight data: from a drag-only capsule the loop must find the lift, and beat the published anchor.
+"""Apollo 4 flight data: from a drag-only capsule the loop must find the lift, beat the published
+3-DOF reconstruction, and say that something outside its candidates remains.
 
-Published anchor (a 3-DOF reconstruction of this flight): 27.1 km rms altitude
-error drag-only, 5.4 km rms with the measured lift.
+Published 3-DOF reconstruction of this flight: 27.1 km rms altitude error drag-only, 5.4 km rms
+with the measured lift.
 """
 
 import json
@@ -16,8 +17,7 @@ from rventry_env.validation.record import load_record
 
 @pytest.fixture(scope="module")
 def ident():
-    # step 1 and the diagnostics only: forward selection beyond lift is reported by the CLI run
-    return identify(load_record(apollo4.record_path()), max_effects=1)
+    return identify(load_record(apollo4.record_path()))
 
 
 def test_shipped_record_and_sidecar():
@@ -34,33 +34,42 @@ def test_shipped_record_and_sidecar():
     # the merge kept every sample of the shared data
     assert np.count_nonzero(np.isfinite(rec.lift_to_drag_vertical)) == 650
     assert np.count_nonzero(np.isfinite(rec.bank)) == 513
+    # a merged time axis: the rows of the control series are not missing observations
+    assert any("merged time axis" in n for n in rec.notes)
 
 
+@pytest.mark.slow
 def test_drag_only_start_finds_the_lift(ident):
     rep = ident.report
     assert rep["start_model"] == "drag-only"
-    assert rep["effect"] == "lift_coefficient"
+    assert "lift_coefficient" in rep["effects"]
     # flown with the measured vertical L/D, the fitted lift is the declared L/D within a few per cent
     assert 0.95 < rep["parameters"]["cl_scale"] < 1.1
-    assert rep["margin_to_runner_up"] > 10
+    # nothing accepted sits on a physical bound, and the entry state stays within its noise bound
+    assert not rep["initial_state_at_bound"]
+    for name, bound in rep["initial_state_bound"].items():
+        assert abs(rep["initial_state_offsets"][name]) < bound
+    # the drift the published reconstruction also leaves is reported, not hidden behind a name
+    assert rep["unexplained"] is True and rep["effect"] != "none"
+    assert rep["adequacy"]["whiteness"]["ljung_box_p"] < 1e-3
 
 
-def test_beats_the_published_anchor(ident):
+@pytest.mark.slow
+def test_beats_the_published_reconstruction(ident):
     rep = ident.report
     published = apollo4.PUBLISHED_RMS_ALTITUDE_M
     assert rep["before"]["altitude_rms_m"] > published["drag_only"]  # drag-only really is that bad here too
     assert rep["after"]["altitude_rms_m"] < published["measured_lift"] / 5
-    # without fitting the entry state at all, the identified model still beats the anchor
+    # without fitting the entry state at all, the identified model still beats it
     assert rep["declared_entry_state"]["identified_model"]["altitude_rms_m"] < published["measured_lift"]
-    # the fitted entry state stays within its noise bound
-    for name, bound in rep["initial_state_bound"].items():
-        assert abs(rep["initial_state_offsets"][name]) <= bound * (1 + 1e-9)
 
 
-def test_density_column_traces_the_late_drift(ident):
-    dc = ident.report["density_check"]
+@pytest.mark.slow
+def test_density_column_is_a_candidate(ident):
+    rep = ident.report
+    dc = rep["density_check"]
     assert len(dc["altitude_m"]) == 42  # the rows with a flight-derived density
     assert dc["current"]["rms_log_ratio"] < 0.3  # the exponential atmosphere is within ~30 %
-    late_model = ident.report["windows"]["after"][-1]["rms_m"]
-    late_measured = dc["replay_with_measured_density"]["windows"][-1]["rms_m"]
-    assert late_measured < late_model
+    assert "measured_density" in rep["candidates"]
+    # flying the record's own density as the atmosphere is ranked like any other candidate
+    assert "measured_density" in [r["effect"] for r in rep["ranking"]]

@@ -85,13 +85,27 @@ def test_no_effect_gives_none(tmp_path):
     assert rep["noise"]["difference_estimate"]["position"] == pytest.approx(20.0, rel=0.2)
 
 
-def test_two_effects_are_both_found(tmp_path):
-    rep = _run(tmp_path, ["drag_coefficient=1.1", "wind=120"], (10.0, 0.1), seed=5)
-    assert sorted(rep["effects"]) == ["drag_coefficient", "wind"], rep["steps"]
-    assert len(rep["steps"]) >= 2 and rep["steps"][1]["accepted"] in ("drag_coefficient", "wind")
+TWO = [
+    (["drag_coefficient=1.1", "wind=120"], (10.0, 0.1), {"drag_coefficient": 1.1, "wind": (120.0,)}),
+    (["lift_coefficient=0.92", "j2_gravity"], (5.0, 0.05), {"lift_coefficient": 0.92, "j2_gravity": 1.08262668e-3}),
+    (["j2_gravity", "drag_coefficient=1.06"], (5.0, 0.05), {"drag_coefficient": 1.06, "j2_gravity": 1.08262668e-3}),
+]
+
+
+@pytest.mark.parametrize("specs,noise,truth", TWO, ids=["+".join(t[0]) for t in TWO])
+def test_two_effects_are_both_found(tmp_path, specs, noise, truth):
+    rep = _run(tmp_path, specs, noise, seed=5)
+    assert sorted(rep["effects"]) == sorted(truth), rep["steps"]
+    assert not rep["unexplained"]
     assert rep["before"]["position_rms_m"] >= 5 * rep["after"]["position_rms_m"]
-    _check_parameters("drag_coefficient", 1.1, rep["parameters"])
-    _check_parameters("wind", (120.0,), rep["parameters"])
+    for effect, value in truth.items():
+        _check_parameters(effect, value, rep["parameters"])
+
+
+def test_clean_record_at_10_hz_gives_none(tmp_path):
+    path = simulate_record(tmp_path / "rec.csv", {}, noise=(20.0, 0.2), duration=100.0, rate=10.0, seed=9)
+    rep = identify_record(path).report
+    assert rep["effect"] == "none" and not rep["unexplained"] and rep["record"]["samples"] == 1001
 
 
 def test_cli_on_a_reduced_record(tmp_path, capsys):
@@ -147,4 +161,5 @@ def test_gaps_are_handled_and_reported(tmp_path):
     assert rep["parameters"]["cd_scale"] == pytest.approx(1.1, rel=0.01)
     assert rep["before"]["position_rms_m"] >= 5 * rep["after"]["position_rms_m"]
     notes = " ".join(rep["record"]["notes"])
-    assert "empty observation field(s) are left out" in notes and "alpha_rad:" in notes and "longest gap" in notes
+    assert "empty observation field(s) in rows with observations are left out" in notes
+    assert "10 row(s) carry only controls" in notes

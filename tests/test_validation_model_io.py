@@ -17,7 +17,7 @@ from rventry_env.physics import (
     Vehicle,
 )
 from rventry_env.validation import identified_model, load_model, save_model
-from rventry_env.validation.effects import build_model, candidate_effects
+from rventry_env.validation.effects import Structure, build_model, structure_parameters
 from rventry_env.validation.model_io import model_from_dict, model_to_dict
 from rventry_env.validation.record import FlightRecord
 from rventry_env.validation.replay_setup import replay_setup
@@ -52,14 +52,19 @@ def test_loading_rejects_unknown_parts():
 def test_effects_compose_through_the_physics_parts():
     rec = FlightRecord(t=np.arange(5.0), kind="ecef", observations=np.zeros((5, 6)), observation_names=())
     setup = replay_setup(rec)
-    knots = (40e3, 60e3)
-    eff = candidate_effects(setup, knots)
-    values = {n: s for e in eff.values() for n, s in zip(e.param_names, e.start)}
-    assert build_model(setup, knots, values).wind == HorizontalWind(0.0, 0.0)
-    values.update(j2=1.08e-3, cd_scale=1.2, wind_east_mps=5.0)
-    m = build_model(setup, knots, values)
-    assert m.gravity.j2 == 1.08e-3 and m.vehicle.aerodynamics.cd_scale == 1.2 and m.wind.east == 5.0
-    assert m.atmosphere.knots == knots and m.vehicle.aerodynamics.cl_scale == 1.0
+    st = Structure(("j2_gravity", "density_profile", "drag_coefficient", "wind", "mass", "mach_drag"),
+                   density_knots=(40e3, 60e3), mach_knots=(10.0, 25.0))  # fmt: skip
+    values = {p.name: p.start for p in structure_parameters(setup, st)}
+    assert build_model(setup, st, values).wind == HorizontalWind(0.0, 0.0)
+    values.update(cd_scale=1.2, wind_east_mps=5.0, mass_scale=1.05)
+    m = build_model(setup, st, values)
+    assert m.gravity.j2 == pytest.approx(1.08262668e-3)  # the known value, not a fitted one
+    assert m.vehicle.aerodynamics.cd_scale == 1.2 and m.wind.east == 5.0
+    assert m.vehicle.mass == pytest.approx(907.2 * 1.05)
+    assert m.atmosphere.knots == (40e3, 60e3) and m.vehicle.aerodynamics.cl_scale == 1.0
+    assert m.vehicle.aerodynamics.base.mach_knots == (10.0, 25.0)
+    # the model with every effect round-trips through JSON, the Mach-drag part included
+    assert model_from_dict(json.loads(json.dumps(model_to_dict(m)))) == m
 
 
 def test_env_flies_the_identified_model():

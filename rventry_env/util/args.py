@@ -76,4 +76,50 @@ def seed(text: str) -> int:
     return value
 
 
-__all__ = ["positive_int", "non_negative_int", "positive_float", "non_negative_float", "fraction", "seed"]
+def interval(low: float, high: float, *, low_open: bool = False, high_open: bool = False):
+    """A finite number between ``low`` and ``high`` (each end open or closed) as an argparse type."""
+
+    def check(text: str) -> float:
+        value = _number(text, float)
+        ok_low = value > low if low_open else value >= low
+        ok_high = value < high if high_open else value <= high
+        if not (ok_low and ok_high):
+            lb, hb = "(" if low_open else "[", ")" if high_open else "]"
+            raise argparse.ArgumentTypeError(f"must lie in {lb}{low:g}, {high:g}{hb}, got {text!r}")
+        return value
+
+    check.__name__ = "interval"
+    return check
+
+
+def number_list(item, min_len: int = 1, max_len: int | None = None, what: str = "numbers"):
+    """Comma-separated numbers, each checked by the argparse type ``item`` (e.g. ``positive_float``)."""
+
+    def check(text: str) -> tuple:
+        parts = [p.strip() for p in str(text).split(",")]
+        n_max = max_len if max_len is not None else len(parts)
+        if not min_len <= len(parts) <= n_max:
+            count = f"{min_len}" if min_len == n_max else f"{min_len} to {n_max}"
+            raise argparse.ArgumentTypeError(f"expected {count} comma-separated {what}, got {text!r}")
+        out = []
+        for p in parts:
+            try:
+                out.append(item(p))
+            except argparse.ArgumentTypeError as exc:
+                raise argparse.ArgumentTypeError(f"{exc} (in {text!r})") from None
+        return tuple(out)
+
+    check.__name__ = "number_list"
+    return check
+
+
+__all__ = [
+    "positive_int",
+    "non_negative_int",
+    "positive_float",
+    "non_negative_float",
+    "fraction",
+    "seed",
+    "interval",
+    "number_list",
+]

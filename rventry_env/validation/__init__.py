@@ -5,9 +5,13 @@ Rooms (one-way dependencies, physics knows nothing of this package):
 * :mod:`~rventry_env.validation.record` reads and validates a flight record;
 * :mod:`~rventry_env.validation.replay_setup`, :mod:`~rventry_env.validation.controls`,
   :mod:`~rventry_env.validation.record_replay` fly it with the rv-Euler entry model;
-* :mod:`~rventry_env.validation.effects`, :mod:`~rventry_env.validation.fit`,
+* :mod:`~rventry_env.validation.effects`, :mod:`~rventry_env.validation.aliases`,
+  :mod:`~rventry_env.validation.sensitivity`, :mod:`~rventry_env.validation.fit`,
   :mod:`~rventry_env.validation.statistics`, :mod:`~rventry_env.validation.identify`
   trace the residual to an effect and build the identified model;
+* :mod:`~rventry_env.validation.outliers`, :mod:`~rventry_env.validation.consistency`,
+  :mod:`~rventry_env.validation.adequacy` reject bad rows, check the sidecar against the record,
+  and test what remains against the noise;
 * :mod:`~rventry_env.validation.truth`, :mod:`~rventry_env.validation.simulate`
   make synthetic records through an independent Cartesian truth model;
 * :mod:`~rventry_env.validation.apollo4` ships the Apollo 4 flight record.
@@ -32,7 +36,8 @@ def identify_record(path: str | Path, **kwargs):
 
     :param path: the record CSV (its sidecar is read from beside it).
     :param kwargs: passed to :func:`~rventry_env.validation.identify.identify`
-        (``vehicle``, ``start``, ``candidates``, ``threshold``, ``h_max``, ``max_effects``, ``progress``).
+        (``vehicle``, ``start``, ``candidates``, ``threshold``, ``h_max``, ``max_effects``, ``progress``,
+        ``noise``).
     :return: an :class:`~rventry_env.validation.identify.Identification`; ``.model`` is the
         identified :class:`~rventry_env.physics.EntryModel`, ``.report`` the JSON report.
     """

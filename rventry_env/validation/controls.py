@@ -51,6 +51,13 @@ class Interpolant:
             return float(np.interp(tc, self.t, self.v))
         return float(self._spline(tc))
 
+    def many(self, t: np.ndarray) -> np.ndarray:
+        """Values at an array of times (held beyond the ends)."""
+        tc = np.clip(np.asarray(t, float), self.t[0], self.t[-1])
+        if self._spline is None:
+            return np.interp(tc, self.t, self.v)
+        return np.asarray(self._spline(tc), float)
+
 
 def _series(t: np.ndarray, values: np.ndarray | None, unwrap: bool = False) -> Interpolant | None:
     if values is None:
@@ -66,7 +73,7 @@ def _series(t: np.ndarray, values: np.ndarray | None, unwrap: bool = False) -> I
 
 @dataclass
 class ControlSchedule:
-    """Piecewise-linear control histories.
+    """Control histories (modified Akima cubics through the samples).
 
     :param alpha: angle of attack (rad) history, or None (held at ``alpha_default``).
     :param bank: conventional bank mu (rad, unwrapped) history, or None.
@@ -93,6 +100,21 @@ class ControlSchedule:
         if hit is None:
             hit = self._cache[t] = (self._alpha(t), self._bank(t))
         return hit
+
+    def many(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(alpha, conventional bank mu) in rad at an array of times (same values as :meth:`at`)."""
+        t = np.asarray(t, float)
+        alpha = np.full(t.shape, self.alpha_default) if self.alpha is None else self.alpha.many(t)
+        if self.ld_vertical is not None:
+            ratio = self.ld_vertical.many(t) / self.lift_to_drag
+            mu = np.arccos(np.clip(ratio, -1.0, 1.0))
+            if self.bank is not None:
+                mu = np.where(np.sin(self.bank.many(t)) < 0, -mu, mu)
+        elif self.bank is None:
+            mu = np.zeros(t.shape)
+        else:
+            mu = self.bank.many(t)
+        return alpha, mu
 
     def _alpha(self, t: float) -> float:
         return self.alpha_default if self.alpha is None else self.alpha(t)
@@ -144,22 +166,26 @@ def control_schedule(record: FlightRecord, lift_to_drag: float | None, needs_alp
             + (", sign from bank_rad" if bank is not None else ", sign positive (no bank_rad)")
             + (f"; {n_over} sample(s) with |(L/D)_v| > L/D clipped" if n_over else "")
         )
+    obs_t = record.t[record.observed_rows]
     for name, s in (("alpha_rad", alpha), ("bank_rad", bank), ("lift_to_drag_vertical", ldv)):
         if s is None:
             continue
-        gaps = int(np.count_nonzero(~np.isfinite(getattr(record, _ATTR[name]))))
-        if gaps:
-            k = int(np.argmax(np.diff(s.t)))
-            notes.append(
-                f"{name}: {gaps} empty field(s), interpolated between samples; longest gap "
-                f"{s.t[k + 1] - s.t[k]:g} s ({s.t[k]:g} to {s.t[k + 1]:g} s)"
-            )
-        obs_t = record.t[record.observed_rows]
+        # a merged time axis leaves a control's field empty in the rows of other series: that is
+        # not missing data; what matters is how long the control goes without a sample
+        steps = np.diff(s.t)
+        if steps.size:
+            k = int(np.argmax(steps))
+            typical = float(np.median(steps))
+            if steps[k] > LONG_GAP_FACTOR * typical:
+                notes.append(
+                    f"{name}: sampled every {typical:g} s; longest interval {steps[k]:g} s "
+                    f"({s.t[k]:g} to {s.t[k + 1]:g} s), interpolated"
+                )
         if s.t[0] > obs_t[0] or s.t[-1] < obs_t[-1]:
             notes.append(f"{name}: covers {s.t[0]:g} to {s.t[-1]:g} s only, held at its end values outside")
     return ControlSchedule(alpha, bank, ldv, lift_to_drag, notes=notes)
 
 
-_ATTR = {"alpha_rad": "alpha", "bank_rad": "bank", "lift_to_drag_vertical": "lift_to_drag_vertical"}
+LONG_GAP_FACTOR = 3.0  # a control interval this many times its typical sampling step is reported
 
 __all__ = ["Interpolant", "ControlSchedule", "control_schedule"]

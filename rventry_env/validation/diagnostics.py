@@ -1,10 +1,10 @@
 """What remains after identification: the measured density, the declared entry state, time windows.
 
-These checks use data the fits did not: a record's ``density_kgpm3`` column
-(flight-derived, e.g. from stagnation pressure) is compared with the model
-atmospheres and turned into a *measured* density correction, which then replaces
-the atmosphere in a replay. If the residual's late drift shrinks, the
-atmosphere explains it; if not, something else does.
+A record's ``density_kgpm3`` column (flight-derived, e.g. from stagnation pressure) is
+compared with the model atmospheres and turned into a *measured* density correction, the
+atmosphere of the ``measured_density`` candidate. Reduced records are also replayed from the
+declared entry state with nothing fitted (like-for-like with published reconstructions), and
+the residual is summarised in thirds of the record.
 """
 
 from __future__ import annotations
@@ -16,11 +16,21 @@ import numpy as np
 from rventry_env.core.backend import NUMPY
 from rventry_env.physics import DensityCorrection, EntryModel
 from rventry_env.physics.atmosphere import piecewise_linear
-from rventry_env.validation.effects import build_model
+from rventry_env.validation.effects import Structure, build_model
 from rventry_env.validation.fit import FitResult
 from rventry_env.validation.record import FlightRecord
 from rventry_env.validation.record_replay import Replay
 from rventry_env.validation.selection import FitContext
+
+
+def _rms(x: np.ndarray):
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x**2))) if x.size else None
+
+
+def _max(x: np.ndarray):
+    x = np.abs(x[np.isfinite(x)])
+    return float(np.max(x)) if x.size else None
 
 
 def error_metrics(residual: np.ndarray, kind: str) -> dict:
@@ -28,28 +38,25 @@ def error_metrics(residual: np.ndarray, kind: str) -> dict:
 
     :param residual: replayed - measured ``(n, m)``, NaN in gaps.
     :param kind: ``"ecef"`` or ``"reduced"``.
+    :return: the figures, None where a group has no value.
     """
     e = residual
     if kind == "ecef":
-        pos = np.linalg.norm(e[:, :3], axis=1)
-        vel = np.linalg.norm(e[:, 3:], axis=1)
-        pos, vel = pos[np.isfinite(pos)], vel[np.isfinite(vel)]
+        with np.errstate(over="ignore", invalid="ignore"):
+            pos = np.linalg.norm(e[:, :3], axis=1)
+            vel = np.linalg.norm(e[:, 3:], axis=1)
         return {
-            "position_rms_m": float(np.sqrt(np.mean(pos**2))),
-            "position_max_m": float(np.max(pos)),
-            "velocity_rms_mps": float(np.sqrt(np.mean(vel**2))),
-            "velocity_max_mps": float(np.max(vel)),
+            "position_rms_m": _rms(pos),
+            "position_max_m": _max(pos),
+            "velocity_rms_mps": _rms(vel),
+            "velocity_max_mps": _max(vel),
         }
-    alt = e[:, 0][np.isfinite(e[:, 0])]
-    spd = e[:, 1][np.isfinite(e[:, 1])]
     return {
-        "altitude_rms_m": float(np.sqrt(np.mean(alt**2))),
-        "altitude_max_m": float(np.max(np.abs(alt))),
-        "speed_rms_mps": float(np.sqrt(np.mean(spd**2))),
-        "speed_max_mps": float(np.max(np.abs(spd))),
+        "altitude_rms_m": _rms(e[:, 0]),
+        "altitude_max_m": _max(e[:, 0]),
+        "speed_rms_mps": _rms(e[:, 1]),
+        "speed_max_mps": _max(e[:, 1]),
     }
-
-
 
 
 def log_density_ratio(altitude: np.ndarray, density: np.ndarray, model: EntryModel) -> np.ndarray:
@@ -115,7 +122,7 @@ def fixed_state_errors(replay: Replay, model: EntryModel, kind: str) -> dict:
 
 
 def run_diagnostics(
-    record: FlightRecord, ctx: FitContext, base: FitResult, current: FitResult, chosen: list, kind: str, say
+    record: FlightRecord, ctx: FitContext, base: FitResult, current: FitResult, chosen, kind: str, first: dict
 ) -> dict:
     """Checks on what remains (see :mod:`rventry_env.validation.diagnostics`)."""
     replay, setup = ctx.replay, ctx.setup
@@ -124,7 +131,8 @@ def run_diagnostics(
                        "after": window_errors(t, current.residual, kind)}}  # fmt: skip
     if kind == "reduced":
         # like-for-like with replays that keep the declared entry state (e.g. published reconstructions)
-        declared = build_model(setup, (), {"cl_scale": 1.0}) if setup.start == "drag-only" else setup.model
+        declared = (build_model(setup, Structure(("lift_coefficient",)), {"cl_scale": 1.0})
+                    if setup.start == "drag-only" else setup.model)  # fmt: skip
         out["declared_entry_state"] = {
             "current_model": fixed_state_errors(replay, setup.model, kind),
             "declared_vehicle": fixed_state_errors(replay, declared, kind),
@@ -137,25 +145,23 @@ def run_diagnostics(
     if ok.sum() < 3:
         return out
     h, rho = alt[ok], record.density[ok]
-    say("density check: replay with the record's density")
     lr_cur = log_density_ratio(h, rho, setup.model)
     lr_id = log_density_ratio(h, rho, current.model)
-    corr = measured_density_correction(h, rho, setup.model)
-    ctx_md = dataclasses.replace(ctx, setup=with_atmosphere(setup, corr))
-    effects_md = [e for e in chosen if e != "density_profile"]
-    fit_md = ctx_md.fit(effects_md, current, current.extra["knots"])
+    corr = setup.measured_atmosphere
     out["density_check"] = {
         "altitude_m": h.tolist(),
         "current": {"log_ratio": lr_cur.tolist(), "rms_log_ratio": float(np.sqrt(np.mean(lr_cur**2)))},
         "identified": {"log_ratio": lr_id.tolist(), "rms_log_ratio": float(np.sqrt(np.mean(lr_id**2)))},
-        "measured_correction": {"knots_m": list(corr.knots), "log_factors": list(corr.log_factors)},
-        "replay_with_measured_density": {
-            "effects": effects_md,
-            "parameters": fit_md.parameters(),
-            "errors": error_metrics(fit_md.residual, kind),
-            "windows": window_errors(t, fit_md.residual, kind),
-        },
+        "measured_correction": {"knots_m": list(corr.knots), "log_factors": list(corr.log_factors)}
+        if corr is not None else None,
     }
+    md = first.get("measured_density")
+    if md is not None:
+        out["density_check"]["replay_with_measured_density"] = {
+            "effects": list(md.effects),
+            "errors": error_metrics(md.residual, kind),
+            "windows": window_errors(t, md.residual, kind),
+        }
     return out
 
 

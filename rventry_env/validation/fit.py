@@ -1,12 +1,11 @@
-"""Output-error least squares: the initial state and an effect's parameters against a record.
+"""Output-error least squares: the initial state and an effect set's parameters against a record.
 
-The residual is (replayed - measured) / sigma on every measured value. The
-Jacobian is by forward differences, but all of its columns come from one
-*batched* replay (member 0 the point itself, member j the j-th parameter
-perturbed), so a Jacobian costs about one trajectory. Since that batch also
-contains the residual at the point, every call of the residual function computes
-the Jacobian speculatively and the solver's Jacobian call is served from the
-cache.
+The residual is (replayed - measured) / sigma on every measured value. Its Jacobian is exact:
+the derivative of the discrete RK4 replay, propagated step by step by CasADi's forward-mode
+automatic differentiation (:mod:`~rventry_env.validation.sensitivity`); one evaluation gives the
+residual and the Jacobian together, and the solver's Jacobian call is served from that cache.
+``scipy.optimize.least_squares`` (trust-region reflective) keeps every parameter inside its
+physical bounds, and a fit that ends on one is reported as such (:attr:`FitResult.extra`).
 """
 
 from __future__ import annotations
@@ -16,12 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rventry_env.physics import EntryModel
-from rventry_env.validation.effects import Effect, build_model
-from rventry_env.validation.record_replay import Replay
-from rventry_env.validation.replay_setup import ReplaySetup
+from rventry_env.validation.effects import EARTH_J2, Param, Structure, build_model, structure_parameters
 from rventry_env.validation.statistics import bic
 
 BAD_RESIDUAL = 1e4  # stands in for a diverged replay (normalized units), so the solver backs off
+BOUND_REL = 1e-4  # a parameter within this fraction of its range from a bound is on the bound
 
 
 @dataclass
@@ -38,8 +36,9 @@ class FitResult:
     :param n_by_group: measured values per group.
     :param bic: information criterion (noise profiled per group).
     :param model: the fitted :class:`EntryModel`.
-    :param nfev: residual evaluations (batched replays).
+    :param nfev: residual evaluations (replays with sensitivities).
     :param message: the solver's message.
+    :param structure: the effects and their knots.
     """
 
     effects: tuple
@@ -54,6 +53,7 @@ class FitResult:
     model: EntryModel
     nfev: int
     message: str
+    structure: Structure = field(default_factory=Structure)
     extra: dict = field(default_factory=dict)
 
     @property
@@ -65,48 +65,62 @@ class FitResult:
         n0 = 0 if include_initial else self.extra.get("n_initial", 0)
         return {k: float(v) for k, v in zip(self.names[n0:], self.values[n0:])}
 
+    @property
+    def credible(self) -> bool:
+        """No parameter on a physical bound, the initial state within its bound, nothing implausible."""
+        x = self.extra
+        return not (x.get("at_bound") or x.get("initial_state_at_bound") or x.get("implausible"))
+
 
 class OutputErrorProblem:
-    """The least-squares problem of one set of effects.
+    """The least-squares problem of one effect set.
 
     :param replay: the record's replay.
     :param setup: the current model and declared facts.
-    :param knots: density-correction knots (m).
-    :param effects: the effects whose parameters are fitted (with the initial state).
+    :param structure: the effects fitted (with the initial state) and their knots.
     :param sigma: noise standard deviation per observation channel (the weights).
     :param groups: observation group per channel (profiled separately in BIC).
-    :param fd_step: finite-difference step in units of each parameter's scale.
     :param init_bound: half-widths ``(n_init,)`` bounding the initial-state offsets (the
         record's noise), or None for a free initial state.
+    :param engines: a cache of compiled sensitivity replays shared between problems.
+    :param extra_params: parameters fitted besides the structure's (e.g. a free J2 for the
+        check of the known value).
     """
 
     def __init__(
         self,
-        replay: Replay,
-        setup: ReplaySetup,
-        knots: tuple,
-        effects: list[Effect],
+        replay,
+        setup,
+        structure: Structure,
         sigma: np.ndarray,
         groups: np.ndarray,
-        fd_step: float = 1e-5,
         init_bound: np.ndarray | None = None,
+        engines: dict | None = None,
+        extra_params: tuple = (),
     ):
         self.replay = replay
         self.setup = setup
-        self.knots = knots
-        self.effects = list(effects)
+        self.structure = structure
+        self.params: list[Param] = structure_parameters(setup, structure) + list(extra_params)
         init = replay.init
         self.n_init = init.size
-        self.names = tuple(init.names) + tuple(n for e in self.effects for n in e.param_names)
-        self.start = np.concatenate([np.zeros(init.size)] + [np.array(e.start, float) for e in self.effects])
-        self.scale = np.concatenate([init.scales] + [np.array(e.scale, float) for e in self.effects])
+        self.names = tuple(init.names) + tuple(p.name for p in self.params)
+        self.start = np.concatenate([np.zeros(init.size), [p.start for p in self.params]])
+        self.scale = np.concatenate([init.scales, [p.scale for p in self.params]])
         half = np.full(init.size, np.inf) if init_bound is None else np.asarray(init_bound, float)
-        self.lower = np.concatenate([-half] + [np.array(e.lower, float) for e in self.effects])
-        self.upper = np.concatenate([half] + [np.array(e.upper, float) for e in self.effects])
+        self.lower = np.concatenate([-half, [p.lower for p in self.params]])
+        self.upper = np.concatenate([half, [p.upper for p in self.params]])
         self.sigma = np.asarray(sigma, float)
         self.groups = np.asarray(groups)
         self.mask = np.isfinite(replay.y)
-        self.fd_step = fd_step
+        engines = {} if engines is None else engines
+        pnames = tuple(p.name for p in self.params)
+        key = (structure.key(), pnames)
+        if key not in engines:
+            from rventry_env.validation.sensitivity import SensitivityReplay
+
+            engines[key] = SensitivityReplay(replay, lambda v: build_model(setup, structure, v), pnames)
+        self.engine = engines[key]
         self._cache_key = None
         self._cache = None
         self.nfev = 0
@@ -119,36 +133,26 @@ class OutputErrorProblem:
         return (np.asarray(theta, float) - self.start) / self.scale
 
     def model(self, theta: np.ndarray) -> EntryModel:
-        """The model for parameters ``theta (n,)`` or a batch ``(B, n)`` (then with array parts)."""
-        theta = np.asarray(theta, float)
-        values = {name: theta[..., i] for i, name in enumerate(self.names[self.n_init:], start=self.n_init)}
-        if theta.ndim == 1:
-            values = {k: float(v) for k, v in values.items()}
-        return build_model(self.setup, self.knots, values)
-
-    def predict(self, thetas: np.ndarray) -> np.ndarray:
-        """Replayed observations ``(n_obs, m, B)`` for parameter sets ``thetas (B, n)``."""
-        thetas = np.atleast_2d(thetas)
-        return self.replay.predict(self.model(thetas), thetas[:, : self.n_init])
-
-    def _normalized(self, pred: np.ndarray) -> np.ndarray:
-        """Residual vectors ``(B, n_res)`` from predictions ``(n_obs, m, B)``."""
-        r = (pred - self.replay.y[..., None]) / self.sigma[None, :, None]
-        r = np.moveaxis(r, -1, 0)[:, self.mask]
-        return np.where(np.isfinite(r), r, BAD_RESIDUAL)
+        """The physical model for parameters ``theta``."""
+        values = {p.name: float(v) for p, v in zip(self.params, theta[self.n_init:])}
+        return build_model(self.setup, self.structure, values)
 
     def _evaluate(self, z: np.ndarray):
-        """(residual, Jacobian, prediction) at ``z``, from one batched replay (cached)."""
+        """(residual, Jacobian in z, prediction) at ``z``, from one replay with sensitivities (cached)."""
         key = z.tobytes()
         if key != self._cache_key:
-            n = len(z)
-            zs = np.repeat(z[None, :], n + 1, axis=0)
-            zs[1:] += self.fd_step * np.eye(n)
-            pred = self.predict(self.theta(zs))
-            res = self._normalized(pred)
+            th = self.theta(z)
+            with np.errstate(all="ignore"):
+                pred, jac = self.engine.evaluate(th[: self.n_init], th[self.n_init:])
+                r = (pred - self.replay.y) / self.sigma[None, :]
+                j = jac / self.sigma[None, :, None] * self.scale[None, None, :]
+            r = r[self.mask]
+            j = j[self.mask]
+            bad = ~np.isfinite(r) | ~np.all(np.isfinite(j), axis=1)
+            r = np.where(bad, BAD_RESIDUAL, r)
+            j[bad] = 0.0
             self.nfev += 1
-            jac = (res[1:] - res[0]).T / self.fd_step
-            self._cache_key, self._cache = key, (res[0], jac, pred[..., 0])
+            self._cache_key, self._cache = key, (r, j, pred)
         return self._cache
 
     def solve(self, theta0: np.ndarray | None = None, max_nfev: int = 60) -> FitResult:
@@ -157,7 +161,8 @@ class OutputErrorProblem:
 
         theta0 = self.start if theta0 is None else np.asarray(theta0, float)
         lo, hi = self.z(self.lower), self.z(self.upper)
-        z0 = np.clip(self.z(theta0), lo + 1e-9, hi - 1e-9)
+        width = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+        z0 = np.clip(self.z(theta0), lo + 1e-7 * width, hi - 1e-7 * width)
         sol = least_squares(
             lambda z: self._evaluate(z)[0],
             z0,
@@ -165,32 +170,30 @@ class OutputErrorProblem:
             bounds=(lo, hi),
             method="trf",
             x_scale=1.0,
-            # a relative cost change of 1e-8 is far below what moves BIC by one unit
-            ftol=1e-8,
-            xtol=1e-9,
-            gtol=1e-9,
+            # a relative cost change of 1e-10 is far below what moves BIC by one unit
+            ftol=1e-10,
+            xtol=1e-10,
+            gtol=1e-10,
             max_nfev=max_nfev,
         )
         return self.result(sol.x, sol.message)
 
-    def at_bound(self, theta: np.ndarray, rel: float = 1e-4) -> list[str]:
-        """Names of the effect parameters that ended on a bound (a fit that is not credible)."""
+    def at_bound(self, theta: np.ndarray, first: int, last: int) -> list[str]:
+        """Names of the parameters ``first:last`` that ended on a bound."""
         out = []
-        for i in range(self.n_init, len(theta)):
-            width = self.upper[i] - self.lower[i]
-            if min(theta[i] - self.lower[i], self.upper[i] - theta[i]) < rel * width:
+        for i in range(first, last):
+            lo, hi = self.lower[i], self.upper[i]
+            if not (np.isfinite(lo) and np.isfinite(hi)):
+                continue
+            if min(theta[i] - lo, hi - theta[i]) < BOUND_REL * (hi - lo):
                 out.append(self.names[i])
         return out
 
-    def linearized_chi2(self, theta: np.ndarray, subsets: dict[str, list[int]]) -> dict[str, float]:
-        """Weighted RSS after one Gauss-Newton step on each subset of the parameters.
+    def linearized(self, theta: np.ndarray, subsets: dict[str, list[int]]) -> dict[str, dict]:
+        """One Gauss-Newton step on each subset of the parameters, from the exact Jacobian at ``theta``.
 
-        One batched replay gives the Jacobian of every parameter at ``theta``; each
-        subset's least-squares step is then linear algebra. This screens candidate
-        additions in forward selection before the few promising ones are fitted.
-
-        :param theta: the linearization point.
-        :param subsets: name -> parameter indices (the initial state should be included).
+        :return: per subset, the weighted RSS after the step, the step in parameter units and
+            the parameters' standard errors (noise variance from the residual after the step).
         """
         res, jac, _ = self._evaluate(self.z(theta))
         out = {}
@@ -198,12 +201,20 @@ class OutputErrorProblem:
             js = jac[:, idx]
             step, *_ = np.linalg.lstsq(js, -res, rcond=None)
             r = res + js @ step
-            out[name] = float(r @ r)
+            rss = float(r @ r)
+            s2 = rss / max(len(r) - len(idx), 1)
+            cov = np.linalg.pinv(js.T @ js) * s2
+            out[name] = {
+                "chi2": rss,
+                "step": step * self.scale[idx],
+                "stderr": np.sqrt(np.clip(np.diag(cov), 0, None)) * self.scale[idx],
+            }
         return out
 
     def result(self, z: np.ndarray, message: str = "") -> FitResult:
         """A :class:`FitResult` at scaled unknowns ``z``."""
-        res, jac, pred = self._evaluate(np.asarray(z, float))
+        z = np.asarray(z, float)
+        res, jac, pred = self._evaluate(z)
         theta = self.theta(z)
         resid = np.where(self.mask, pred - self.replay.y, np.nan)
         rss, nval = [], []
@@ -215,13 +226,15 @@ class OutputErrorProblem:
         # covariance with the weighted residual's variance as the noise level
         dof = max(len(res) - len(z), 1)
         s2 = float(res @ res) / dof
-        try:
-            cov_z = np.linalg.pinv(jac.T @ jac) * s2
-            stderr = np.sqrt(np.clip(np.diag(cov_z), 0, None)) * self.scale
-        except np.linalg.LinAlgError:
-            stderr = np.full(len(z), np.nan)
+        with np.errstate(all="ignore"):
+            try:
+                cov_z = np.linalg.pinv(jac.T @ jac) * s2
+                stderr = np.sqrt(np.clip(np.diag(cov_z), 0, None)) * self.scale
+            except np.linalg.LinAlgError:
+                stderr = np.full(len(z), np.nan)
+        diverged = bool(np.any(res == BAD_RESIDUAL)) or not np.all(np.isfinite(pred[self.mask]))
         return FitResult(
-            effects=tuple(e.name for e in self.effects),
+            effects=self.structure.effects,
             names=self.names,
             values=theta,
             stderr=stderr,
@@ -229,13 +242,26 @@ class OutputErrorProblem:
             residual=resid,
             rss_by_group=rss,
             n_by_group=nval,
-            bic=bic(rss, nval, len(z)),
+            bic=bic(rss, nval, len(z)) if not diverged else float("inf"),
             model=self.model(theta),
             nfev=self.nfev,
             message=message,
-            extra={"n_initial": self.n_init, "cost": 0.5 * float(res @ res), "knots": self.knots,
-                   "at_bound": self.at_bound(theta)},
+            structure=self.structure,
+            extra={
+                "n_initial": self.n_init,
+                "cost": 0.5 * float(res @ res),
+                "knots": self.structure.density_knots,
+                "at_bound": self.at_bound(theta, self.n_init, len(theta)),
+                "initial_state_at_bound": self.at_bound(theta, 0, self.n_init),
+                "diverged": diverged,
+                "implausible": ["the replay diverged"] if diverged else [],
+            },
         )
 
 
-__all__ = ["FitResult", "OutputErrorProblem"]
+def j2_free_param() -> Param:
+    """A free J2 (to check the value a record prefers against the known one); no bounds."""
+    return Param("j2", "j2_gravity", EARTH_J2, 1e-4, -np.inf, np.inf)
+
+
+__all__ = ["BAD_RESIDUAL", "FitResult", "OutputErrorProblem", "j2_free_param"]

@@ -12,19 +12,20 @@ import dataclasses
 import json
 from pathlib import Path
 
-import numpy as np
-
 from rventry_env import physics
+from rventry_env.physics import mach_drag
+from rventry_env.util.files import write_json
 
 FORMAT = "rventry-entry-model/1"
 
 
 def _part_classes() -> dict:
     out = {}
-    for name in physics.__all__:
-        obj = getattr(physics, name)
-        if isinstance(obj, type) and dataclasses.is_dataclass(obj):
-            out[name] = obj
+    for module in (physics, mach_drag):
+        for name in module.__all__:
+            obj = getattr(module, name)
+            if isinstance(obj, type) and dataclasses.is_dataclass(obj):
+                out[name] = obj
     return out
 
 
@@ -59,24 +60,22 @@ def model_from_dict(d: dict) -> physics.EntryModel:
 
 
 def save_model(model: physics.EntryModel, path: str | Path) -> Path:
-    """Write ``model`` to a JSON file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(model_to_dict(model), indent=2, default=_default) + "\n")
-    return path
+    """Write ``model`` to a JSON file, whole or not at all (strict JSON)."""
+    return write_json(Path(path), model_to_dict(model), indent=2)
 
 
 def load_model(path: str | Path) -> physics.EntryModel:
     """Read a model written by :func:`save_model`, or the ``"model"`` of an identification report."""
-    return model_from_dict(json.loads(Path(path).read_text()))
-
-
-def _default(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"cannot write {type(o).__name__} as JSON")
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory, not a model JSON file")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object")
+    return model_from_dict(data)
 
 
 __all__ = ["FORMAT", "model_to_dict", "model_from_dict", "save_model", "load_model"]

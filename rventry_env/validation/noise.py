@@ -32,6 +32,7 @@ def record_noise(replay: Replay, kind: str) -> tuple[dict, dict]:
     """
     out, kind_of = {}, {}
     for name, _, cols in GROUPS[kind]:
+        kind_of[name] = "none (too few uniformly sampled values)"
         est, ratios = [], []
         for c in cols:
             e4 = difference_noise(replay.t_obs, replay.y[:, c])
@@ -70,4 +71,9 @@ def init_bounds(replay: Replay, kind: str, noise: dict) -> np.ndarray | None:
     return np.array([k * sh, k * sv, k * math.sqrt(2.0) * sh / (v0 * max(dt, 1e-3))])
 
 
-__all__ = ["GROUPS", "PROVISIONAL_SIGMA", "INIT_BOUND_SIGMAS", "record_noise", "init_bounds"]
+def is_noise(kind_text: str) -> bool:
+    """True when a difference estimate is the noise itself (not an upper bound, not missing)."""
+    return kind_text == "noise"
+
+
+__all__ = ["is_noise", "GROUPS", "PROVISIONAL_SIGMA", "INIT_BOUND_SIGMAS", "record_noise", "init_bounds"]

@@ -6,6 +6,28 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_env.util.files import save_figure
+
+
+def with_gap_breaks(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The finite samples of a series, with a NaN inserted wherever the line must not be drawn.
+
+    A line is broken across missing values and across time steps longer than twice the
+    median step (a data gap), so no segment joins samples the record does not connect.
+    """
+    t = np.asarray(t, float)
+    y = np.asarray(y, float)
+    ok = np.isfinite(y)
+    tt, yy = t[ok], y[ok]
+    if tt.size < 2:
+        return tt, yy
+    idx = np.flatnonzero(ok)
+    dt = np.diff(tt)
+    med = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    brk = (np.diff(idx) > 1) | (dt > 2.0 * med)
+    pos = np.flatnonzero(brk) + 1
+    return np.insert(tt, pos, np.nan), np.insert(yy, pos, np.nan)
+
 
 def _pyplot():
     import matplotlib
@@ -36,8 +58,7 @@ def plot_residuals(ident, path: Path) -> Path:
         for fit, label, color in fits:
             e = fit.residual
             for ax, y in zip(axes, (np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1))):
-                ok = np.isfinite(y)
-                ax.plot(t[ok], y[ok], "-", color=color, label=label, lw=1)
+                ax.plot(*with_gap_breaks(t, y), "-", color=color, label=label, lw=1)
         axes[0].set_ylabel("position error |dr| (m)")
         axes[1].set_ylabel("velocity error |dv| (m/s)")
         for ax in axes:
@@ -50,18 +71,13 @@ def plot_residuals(ident, path: Path) -> Path:
         for col, (fit, label, color) in enumerate(fits):
             for row, unit in enumerate(("altitude residual (m)", "speed residual (m/s)")):
                 ax = axes[row, col]
-                y = fit.residual[:, row]
-                ok = np.isfinite(y)
-                ax.plot(t[ok], y[ok], ".-", color=color, lw=1, ms=3)
+                ax.plot(*with_gap_breaks(t, fit.residual[:, row]), ".-", color=color, lw=1, ms=3)
                 ax.axhline(0.0, color="k", lw=0.5)
                 ax.set_ylabel(unit)
             axes[0, col].set_title(label, fontsize=10)
             axes[1, col].set_xlabel("t (s)")
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_ranking(ident, path: Path) -> Path:
@@ -69,10 +85,12 @@ def plot_ranking(ident, path: Path) -> Path:
     plt = _pyplot()
     step = ident.report["steps"][0]
     rows = step["tried"]
-    names = [r["effect"] for r in rows][::-1]
-    imp = np.array([r["improvement_over_current"] for r in rows][::-1])
-    fig, ax = plt.subplots(figsize=(7, 3.2))
-    colors = ["C2" if n == step["accepted"] else "C7" for n in names]
+    names = [r["effect"] + ("" if r["credible"] else " (not credible)") for r in rows][::-1]
+    imp = np.array([r["improvement_over_current"] for r in rows][::-1], float)
+    imp = np.where(np.isfinite(imp), imp, 0.0)
+    fig, ax = plt.subplots(figsize=(7, 0.8 + 0.35 * len(rows)))
+    colors = ["C2" if r["effect"] == step["accepted"] else ("C7" if r["credible"] else "C3")
+              for r in rows][::-1]  # fmt: skip
     # symmetric log: improvements span from a few units to tens of thousands
     ax.barh(names, np.sign(imp) * np.log10(1 + np.abs(imp)), color=colors)
     thr = ident.report["bic_threshold"]
@@ -80,12 +98,9 @@ def plot_ranking(ident, path: Path) -> Path:
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("BIC improvement over the current model, sign(x) log10(1 + |x|)")
     ax.set_title(f"candidates (effect: {ident.report['effect']}, effective samples "
-                 f"{step['effective_samples']:.0f})", fontsize=10)  # fmt: skip
+                 f"{step['effective_samples']:.0f}; red: on a bound or implausible)", fontsize=10)  # fmt: skip
     ax.legend(fontsize=8, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_density(ident, path: Path) -> Path | None:
@@ -101,9 +116,10 @@ def plot_density(ident, path: Path) -> Path | None:
     h = np.array(dc["altitude_m"])
     ax.plot(dc["current"]["log_ratio"], h / 1e3, "o", ms=4, label="record / current model")
     hh = np.linspace(h.min(), h.max(), 200)
-    mc = dc["measured_correction"]
-    ax.plot(piecewise_linear(hh, mc["knots_m"], mc["log_factors"], NUMPY), hh / 1e3, "-", color="C1",
-            label="correction fitted to the record's density")  # fmt: skip
+    mc = dc.get("measured_correction")
+    if mc:
+        ax.plot(piecewise_linear(hh, mc["knots_m"], mc["log_factors"], NUMPY), hh / 1e3, "-", color="C1",
+                label="correction fitted to the record's density")  # fmt: skip
     knots = ident.report.get("density_knots_m")
     if knots:
         lf = [v for k, v in ident.report["parameters"].items() if k.startswith("dlnrho_")]
@@ -114,15 +130,14 @@ def plot_density(ident, path: Path) -> Path | None:
     ax.set_ylabel("altitude (km)")
     ax.legend(fontsize=8)
     ax.set_title("flight-derived density vs the model atmosphere", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def write_plots(ident, folder: str | Path) -> list[Path]:
-    """Write every plot of an identification into ``folder``; returns the files."""
+    """Write every plot of an identification into ``folder`` (each file whole or not at all)."""
     folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"--plots {folder}: exists and is not a folder")
     folder.mkdir(parents=True, exist_ok=True)
     out = [plot_residuals(ident, folder / "residuals.png"), plot_ranking(ident, folder / "ranking.png")]
     d = plot_density(ident, folder / "density.png")

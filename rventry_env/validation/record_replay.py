@@ -1,15 +1,22 @@
-"""Replay a record: fly the rv-Euler entry model with the record's controls, many models at once.
+"""Replay a record: fly the rv-Euler entry model with the record's controls.
 
-The state is integrated with the project's one RK4 (:func:`~rventry_env.core.integrate.rk4_step`)
-on a grid whose nodes include every observed sample time, so predictions need
-no interpolation. All arrays carry a trailing batch axis: one replay flies B
-initial states and B parameter sets of the force-model parts together (the parts
-accept per-member NumPy arrays), which is how a finite-difference Jacobian costs
-about as much as one trajectory.
+The state is integrated with the classical RK4 on a grid of steps no longer than ``h_max``
+whose nodes fall on sample times wherever the sampling allows (every sample of a 1 Hz record
+at ``h_max`` = 1 s, every tenth of a 10 Hz record). Samples between nodes are read from the
+cubic Hermite interpolant of the node states and their derivatives, which is fourth-order
+like the steps themselves, so a dense record costs no more steps than a sparse one.
 
-The angle of attack and the paper's bank angle sigma are not integrated: they are
-set from the record at every evaluation (sigma from the conventional mu and the
-current velocity frame), so only the 10 rv-Euler parameters are states here.
+Two evaluations share the grid, the controls and the interpolation:
+
+* :meth:`Replay.predict` flies any :class:`~rventry_env.physics.EntryModel` (NumPy, batched
+  over a trailing axis), through :func:`~rventry_env.physics.entry_rhs` and the project's
+  :func:`~rventry_env.core.integrate.rk4_step`;
+* :mod:`~rventry_env.validation.sensitivity` builds the same step from the same ``entry_rhs``
+  in CasADi and propagates its exact derivatives, which is what the fits use.
+
+The angle of attack and the paper's bank angle sigma are not integrated: they are set from the
+record at every evaluation (sigma from the conventional mu and the current velocity frame), so
+only the 10 rv-Euler parameters are states here.
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ from rventry_env.validation.record import FlightRecord, RecordError
 from rventry_env.validation.replay_setup import ReplaySetup
 
 N_RV = 10  # rv-Euler parameters integrated (alpha and sigma come from the record)
+MAX_RK4_STEPS = 50_000  # a bound on the work of one replay
 
 
 @dataclass(frozen=True)
@@ -47,7 +55,7 @@ class InitialState:
     kind: str
     reference: np.ndarray  # ECEF (6,) or spherical (6,)
     names: tuple
-    scales: np.ndarray  # typical size of each offset (for scaling and finite differences)
+    scales: np.ndarray  # typical size of each offset (for scaling)
 
     @property
     def size(self) -> int:
@@ -67,6 +75,23 @@ class InitialState:
             x = rv_euler_from_spherical(s)
         return x.T.copy()
 
+    def jacobian(self, offsets: np.ndarray) -> np.ndarray:
+        """d(rv-Euler parameters)/d(offsets) ``(10, size)`` by central differences.
+
+        The map is a smooth closed-form conversion, so differences with steps of 1e-3 of each
+        offset's scale are exact to about 1e-9 relative.
+        """
+        offsets = np.asarray(offsets, float)
+        step = 1e-3 * self.scales
+        zs = np.repeat(offsets[None, :], 2 * self.size, axis=0)
+        for i in range(self.size):
+            zs[2 * i, i] += step[i]
+            zs[2 * i + 1, i] -= step[i]
+        x = self.rv_euler(zs)
+        jac = (x[:, 0::2] - x[:, 1::2]) / (2 * step[None, :])
+        # the Euler parameters' sign is fixed by the conversion; guard against a flip between members
+        return jac
+
 
 def initial_state(record: FlightRecord, setup: ReplaySetup, t0_row: int) -> InitialState:
     """The initial-state parameterization for a record (see :class:`InitialState`)."""
@@ -80,20 +105,81 @@ def initial_state(record: FlightRecord, setup: ReplaySetup, t0_row: int) -> Init
     return InitialState("reduced", ref, ("dh0_m", "dv0_mps", "dgamma0_rad"), np.array([100.0, 1.0, 1e-3]))
 
 
+@dataclass(frozen=True)
+class Grid:
+    """RK4 nodes and where every observed sample falls between them.
+
+    :param nodes: node times ``(N + 1,)``.
+    :param step: of each observed sample, the step it falls in ``(n_obs,)``.
+    :param tau: its position in that step, 0 (start) to 1 (end).
+    """
+
+    nodes: np.ndarray
+    step: np.ndarray
+    tau: np.ndarray
+
+    @property
+    def h(self) -> np.ndarray:
+        return np.diff(self.nodes)
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.nodes) - 1
+
+
+def make_grid(t0: float, t_obs: np.ndarray, h_max: float) -> Grid:
+    """Nodes from ``t0`` through the last sample: on sample times where the sampling allows, no
+    step longer than ``h_max``; a longer gap between samples is divided evenly."""
+    nodes = [float(t0)]
+    last_in_reach = None  # latest sample time within h_max of the last node
+    eps = 1e-9 * max(1.0, h_max)
+    for t in np.asarray(t_obs, float):
+        if t - nodes[-1] <= eps:
+            continue
+        while t - nodes[-1] > h_max + eps:
+            if last_in_reach is not None and last_in_reach > nodes[-1] + eps:
+                nodes.append(last_in_reach)
+                last_in_reach = None
+                continue
+            n = math.ceil((t - nodes[-1]) / h_max - 1e-9)
+            nodes.extend(np.linspace(nodes[-1], t, n + 1)[1:].tolist())
+            last_in_reach = None
+        if t - nodes[-1] > eps:
+            last_in_reach = float(t)
+    if last_in_reach is not None and last_in_reach > nodes[-1] + eps:
+        nodes.append(last_in_reach)
+    if len(nodes) < 2:
+        nodes.append(nodes[0] + min(h_max, 1.0))
+    g = np.array(nodes)
+    step = np.clip(np.searchsorted(g, t_obs, side="right") - 1, 0, len(g) - 2)
+    tau = np.clip((t_obs - g[step]) / (g[step + 1] - g[step]), 0.0, 1.0)
+    return Grid(g, step, tau)
+
+
+def hermite_weights(tau: np.ndarray, h: np.ndarray) -> tuple:
+    """Cubic Hermite weights of (x_k, f_k, x_k+1, f_k+1), derivative weights scaled by the step."""
+    t2, t3 = tau * tau, tau * tau * tau
+    return (2 * t3 - 3 * t2 + 1, (t3 - 2 * t2 + tau) * h, -2 * t3 + 3 * t2, (t3 - t2) * h)
+
+
 class Replay:
-    """Batched replays of one record.
+    """Replays of one record.
 
     :param record: the validated record.
     :param setup: the declared vehicle and entry state.
     :param controls: the control histories.
-    :param h_max: longest RK4 step (s); the grid also has a node at every observed sample.
+    :param h_max: longest RK4 step (s).
     """
 
     def __init__(
         self, record: FlightRecord, setup: ReplaySetup, controls: ControlSchedule, h_max: float = 1.0
     ):
+        if not (math.isfinite(h_max) and h_max > 0):
+            raise ValueError(f"h_max must be a positive number of seconds, got {h_max!r}")
         self.record = record
+        self.setup = setup
         self.controls = controls
+        self.h_max = float(h_max)
         self.notes: list[str] = []
         obs = record.observations
         if record.kind == "ecef":
@@ -108,7 +194,7 @@ class Replay:
             t0 = setup.entry_state.t
             later = np.flatnonzero(record.t >= t0 - 1e-9)
             if later.size == 0:
-                raise RecordError(f"the entry state's t_s = {t0:g} is after the last row")
+                raise RecordError(f"sidecar: entry_state.t_s = {t0:g} is after the last row of the record")
             t0_row = int(later[0])
         self.t0 = t0
         rows = record.observed_rows
@@ -119,9 +205,25 @@ class Replay:
         if self.rows.size < 3:
             raise RecordError("fewer than 3 observed rows after the start of the replay")
         self.init = initial_state(record, setup, t0_row)
-        self.y = obs[self.rows]  # (n, m) measured, NaN in gaps
+        self.y = obs[self.rows].copy()  # (n, m) measured, NaN in gaps and rejected values
         self.t_obs = record.t[self.rows]
-        self.grid, self.node_of_row = _grid(t0, self.t_obs, h_max)
+        span = float(self.t_obs[-1] - t0)
+        if span / self.h_max > MAX_RK4_STEPS:
+            raise RecordError(
+                f"column t_s: {span:g} s from the start to the last observation would take "
+                f"{span / self.h_max:.0f} RK4 steps of {self.h_max:g} s (at most {MAX_RK4_STEPS}); "
+                "check the time unit or raise --h-max"
+            )
+        self.grid = make_grid(t0, self.t_obs, self.h_max)
+        g = self.grid.nodes
+        h = self.grid.h
+        stage_t = np.stack([g[:-1], g[:-1] + 0.5 * h, g[1:]])  # (3, N)
+        alpha, mu = controls.many(stage_t)
+        self.stage_controls = np.concatenate([alpha, mu])  # (6, N): alpha at 3 stages, then mu
+        a_end, m_end = controls.many(np.array([g[-1]]))
+        self.end_controls = np.array([a_end[0], m_end[0]])
+
+    # ------------------------------------------------------------------ NumPy replay of any model
 
     def rhs(self, model: EntryModel):
         """dx/dt for rv-Euler states ``(10, B)`` with the record's controls."""
@@ -139,51 +241,51 @@ class Replay:
 
         return f
 
-    def states(self, model: EntryModel, x0: np.ndarray) -> np.ndarray:
-        """rv-Euler states at the observed samples, ``(n_obs, 10, B)``, for initial states ``x0 (10, B)``."""
+    def node_states(self, model: EntryModel, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States and their derivatives at the nodes, each ``(N + 1, 10, B)``."""
         f = self.rhs(model)
-        g = self.grid
-        out = np.empty((len(self.node_of_row), N_RV) + x0.shape[1:])
+        g = self.grid.nodes
         x = np.array(x0, dtype=float)
-        k_out = 0
+        xs = np.empty((len(g),) + x.shape)
+        fs = np.empty_like(xs)
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            if self.node_of_row[0] == 0:
-                out[0] = x
-                k_out = 1
             for k in range(len(g) - 1):
-                x = rk4_step(f, g[k], x, g[k + 1] - g[k])
+                k1 = f(g[k], x)
+                xs[k], fs[k] = x, k1
+                x = rk4_step(f, g[k], x, g[k + 1] - g[k], k1=k1)
                 # the Euler parameters are unit by construction; RK4 lets their norms drift,
-                # so project back (the dynamics assume unit norms, PROBLEM.md)
+                # so project back (the dynamics assume unit norms, docs/conventions.md)
                 x[1:5] /= np.sqrt(np.sum(x[1:5] ** 2, axis=0))
                 x[6:10] /= np.sqrt(np.sum(x[6:10] ** 2, axis=0))
-                while k_out < len(self.node_of_row) and self.node_of_row[k_out] == k + 1:
-                    out[k_out] = x
-                    k_out += 1
-        return out
+            xs[-1], fs[-1] = x, f(g[-1], x)
+        return xs, fs
+
+    def interpolate(self, xs: np.ndarray, fs: np.ndarray) -> np.ndarray:
+        """States at the observed samples from node states and derivatives (cubic Hermite)."""
+        k = self.grid.step
+        w = hermite_weights(self.grid.tau, self.grid.h[k])
+        shape = (-1,) + (1,) * (xs.ndim - 1)
+        return (w[0].reshape(shape) * xs[k] + w[1].reshape(shape) * fs[k]
+                + w[2].reshape(shape) * xs[k + 1] + w[3].reshape(shape) * fs[k + 1])  # fmt: skip
+
+    def states(self, model: EntryModel, x0: np.ndarray) -> np.ndarray:
+        """rv-Euler states at the observed samples, ``(n_obs, 10, B)``, for initial states ``x0 (10, B)``."""
+        return self.interpolate(*self.node_states(model, x0))
 
     def observe(self, states: np.ndarray, model: EntryModel) -> np.ndarray:
         """Predicted observations ``(n_obs, m, B)`` from :meth:`states`."""
         if self.record.kind == "ecef":
-            xs = np.moveaxis(states, 1, -1)  # (n, B, 10)
+            xs = np.moveaxis(states, 1, -1).copy()  # (n, B, 10)
+            xs[..., 1:5] /= np.linalg.norm(xs[..., 1:5], axis=-1, keepdims=True)
+            xs[..., 6:10] /= np.linalg.norm(xs[..., 6:10], axis=-1, keepdims=True)
             r_e, v_e = cartesian_from_rv_euler(xs)
             return np.moveaxis(np.concatenate([r_e, v_e], axis=-1), -1, 1)
         return np.stack([states[:, 0] - model.planet.radius, states[:, 5]], axis=1)
 
     def predict(self, model: EntryModel, offsets: np.ndarray) -> np.ndarray:
         """Predicted observations ``(n_obs, m, B)`` for initial-state offsets ``(B, n_init)``."""
-        return self.observe(self.states(model, self.init.rv_euler(offsets)), model)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return self.observe(self.states(model, self.init.rv_euler(offsets)), model)
 
 
-def _grid(t0: float, t_obs: np.ndarray, h_max: float) -> tuple[np.ndarray, np.ndarray]:
-    """Integration nodes from t0 through every observed time, no step longer than h_max."""
-    nodes = [t0]
-    node_of_row = np.empty(len(t_obs), dtype=int)
-    for i, t in enumerate(t_obs):
-        if t - nodes[-1] > 1e-9:
-            n = max(1, math.ceil((t - nodes[-1]) / h_max - 1e-9))
-            nodes.extend(np.linspace(nodes[-1], t, n + 1)[1:].tolist())
-        node_of_row[i] = len(nodes) - 1
-    return np.array(nodes), node_of_row
-
-
-__all__ = ["InitialState", "initial_state", "Replay"]
+__all__ = ["InitialState", "initial_state", "Grid", "make_grid", "hermite_weights", "MAX_RK4_STEPS", "Replay"]

@@ -4,9 +4,9 @@
 
 The vehicle flies a scripted glide (angle of attack and conventional bank as
 smooth functions of time) through :mod:`rventry_env.validation.truth`, which
-contains the requested effects. The record is written in the PROBLEM.md format
-*without* a sidecar, so the identification is told nothing: it sees a CAV-H
-flight under the default Earth and atmosphere. The effects and the noise are
+contains the requested effects. The record is written in the format of
+docs/conventions.md *without* a sidecar, so the identification is told nothing:
+it sees a CAV-H flight under the default Earth and atmosphere. The effects and the noise are
 written to a separate ``<record>.truth.json`` for checking, never read by
 ``rventry identify``.
 
@@ -16,20 +16,28 @@ Effect values (defaults in brackets):
 * ``density_profile=A`` ln(rho_true / rho_exp) = A sin(2 pi (h - 30 km) / 80 km) [0.2];
 * ``lift_coefficient=S`` C_L multiplied by S [0.9];
 * ``drag_coefficient=S`` C_D multiplied by S [1.1];
-* ``wind=E[,N]`` a horizontal wind, east and north (m/s) [50].
+* ``wind=E[,N]`` a horizontal wind, east and north (m/s) [50];
+* ``mass=S`` the vehicle's true mass is S times the declared 907.2 kg [1.06];
+* ``us76_density`` the U.S. Standard Atmosphere 1976 in place of the exponential one;
+* ``mach_drag=A`` C_D multiplied by exp(A (1 - exp((M - 22) / 5))): 1 at Mach 22, the
+  start of the scripted glide, and growing toward lower Mach [0.15];
+* ``time_offset=DT`` the observations' time tags are DT seconds early: the row of time t
+  holds the state at t + DT (the controls keep their own time) [0.5].
+
+The last two are outside the identification's candidate set in shape (a smooth Mach law
+against a piecewise-linear correction) or altogether (a clock error).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from rventry_env.util.files import write_json
 from rventry_env.validation import truth
-from rventry_env.validation.effects import EFFECT_NAMES
 from rventry_env.validation.record import write_record
 
 GENERATED_BY = "rventry simulate-record"
@@ -39,7 +47,12 @@ DEFAULT_VALUES = {
     "lift_coefficient": "0.9",
     "drag_coefficient": "1.1",
     "wind": "50",
+    "mass": "1.06",
+    "us76_density": "",
+    "mach_drag": "0.15",
+    "time_offset": "0.5",
 }
+SIMULATED_EFFECTS = tuple(DEFAULT_VALUES)
 
 
 @dataclass(frozen=True)
@@ -84,29 +97,36 @@ def parse_effects(specs: list[str]) -> dict[str, str]:
     for spec in specs:
         name, _, value = spec.partition("=")
         name = name.strip()
-        if name not in EFFECT_NAMES:
-            raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
+        if name not in SIMULATED_EFFECTS:
+            raise ValueError(f"--effect: unknown effect {name!r}; choose from {', '.join(SIMULATED_EFFECTS)}")
         if name in out:
-            raise ValueError(f"effect {name!r} given twice")
+            raise ValueError(f"--effect: effect {name!r} given twice")
         out[name] = value.strip() or DEFAULT_VALUES[name]
     return out
 
 
 def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
-    """The truth model containing ``effects`` (name -> value text)."""
+    """The truth model containing ``effects`` (name -> value text); ``time_offset`` is not a world effect."""
     w = truth.TruthWorld()
     for name, text in effects.items():
+        if name == "us76_density":
+            if text.strip():
+                raise ValueError("--effect us76_density takes no value")
+            w = replace(w, atmosphere="us76")
+            continue
         try:
             values = [float(v) for v in text.split(",")]
         except ValueError:
-            raise ValueError(f"effect {name}: cannot read {text!r} as number(s)") from None
+            raise ValueError(f"--effect {name}: cannot read {text!r} as number(s)") from None
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"--effect {name}: values must be finite, got {text!r}")
         if name == "wind":
             if len(values) > 2:
-                raise ValueError("wind takes EAST or EAST,NORTH (m/s)")
+                raise ValueError("--effect wind takes EAST or EAST,NORTH (m/s)")
             w = replace(w, wind_east=values[0], wind_north=values[1] if len(values) > 1 else 0.0)
             continue
         if len(values) != 1:
-            raise ValueError(f"effect {name} takes one value")
+            raise ValueError(f"--effect {name} takes one value")
         v = values[0]
         if name == "j2_gravity":
             w = replace(w, j2=v)
@@ -114,10 +134,15 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
             w = replace(w, density_amplitude=v)
         elif name == "lift_coefficient":
             w = replace(w, cl_scale=v)
-        elif name == "drag_coefficient":
+        elif name in ("drag_coefficient", "mass"):
             if v <= 0:
-                raise ValueError("drag_coefficient scale must be positive")
-            w = replace(w, cd_scale=v)
+                raise ValueError(f"--effect {name}: the scale must be positive, got {v:g}")
+            w = replace(w, cd_scale=v) if name == "drag_coefficient" else replace(w, mass=w.mass * v)
+        elif name == "mach_drag":
+            w = replace(w, mach_drag_amplitude=v)
+        elif name == "time_offset":
+            if abs(v) > 10.0:
+                raise ValueError(f"--effect time_offset: at most 10 s, got {v:g}")
     return w
 
 
@@ -150,12 +175,29 @@ def simulate_record(
     world = truth_world(effects)
     if rate <= 0 or duration <= 0:
         raise ValueError("rate and duration must be positive")
+    if not (math.isfinite(rate) and math.isfinite(duration)):
+        raise ValueError("rate and duration must be finite")
+    if len(noise) != 2 or not all(math.isfinite(x) and x >= 0 for x in noise):
+        raise ValueError(f"--noise: two finite numbers >= 0 (position m, velocity m/s), got {noise!r}")
     t = np.arange(0.0, duration + 1e-9, 1.0 / rate)
+    if len(t) < 5:
+        raise ValueError(f"--duration {duration:g} s at --rate {rate:g} Hz gives {len(t)} sample(s); at least 5")
+    if len(t) > 200_000:
+        raise ValueError(f"--duration {duration:g} s at --rate {rate:g} Hz gives {len(t)} samples; at most 200000")
+    dt_tag = float(effects.get("time_offset", "0") or 0.0) if "time_offset" in effects else 0.0
     r0, v0 = truth.ecef_from_spherical(
         world.radius + sc.altitude, math.radians(sc.longitude_deg), math.radians(sc.latitude_deg),
         sc.speed, math.radians(sc.flight_path_deg), math.radians(sc.azimuth_deg),
     )  # fmt: skip
-    r, v = truth.fly(world, r0, v0, sc.controls, t)
+    # a time-tag offset: the row of time t holds the state at t + dt_tag (started that much later)
+    t_true = t + dt_tag
+    if dt_tag:
+        t_fly = np.concatenate([[0.0], t_true]) if t_true[0] > 0 else t_true
+        r, v = truth.fly(world, r0, v0, sc.controls, t_fly)
+        if t_true[0] > 0:
+            r, v = r[1:], v[1:]
+    else:
+        r, v = truth.fly(world, r0, v0, sc.controls, t)
     h = np.linalg.norm(r, axis=1) - world.radius
     if np.any(h < 0):
         t_ground = t[np.argmax(h < 0)]
@@ -179,13 +221,14 @@ def simulate_record(
         }
         sidecar = {
             "generated_by": GENERATED_BY,
-            "vehicle": {"name": "CAV-H", "mass_kg": world.mass, "reference_area_m2": world.area,
+            # the declared vehicle: a mass effect stays undeclared
+            "vehicle": {"name": "CAV-H", "mass_kg": truth.TruthWorld().mass, "reference_area_m2": world.area,
                         "aerodynamics": {"type": "cav-h"}},
             "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude, "speed_rel_mps": sc.speed,
                             "flight_path_angle_deg": sc.flight_path_deg, "longitude_deg": sc.longitude_deg,
                             "latitude_deg": sc.latitude_deg, "azimuth_deg": sc.azimuth_deg},
         }  # fmt: skip
-        out.with_suffix(".json").write_text(json.dumps(sidecar, indent=2) + "\n")
+        write_json(out.with_suffix(".json"), sidecar, indent=2)
     else:
         raise ValueError("observe must be 'ecef' or 'reduced'")
     cols["alpha_rad"] = ctrl[:, 0]
@@ -200,8 +243,8 @@ def simulate_record(
         "truth_world": asdict(world),
         "note": "for checking only: rventry identify never reads this file",
     }  # fmt: skip
-    out.with_name(out.stem + ".truth.json").write_text(json.dumps(meta, indent=2) + "\n")
+    write_json(out.with_name(out.stem + ".truth.json"), meta, indent=2)
     return out
 
 
-__all__ = ["DEFAULT_VALUES", "Scenario", "parse_effects", "truth_world", "simulate_record"]
+__all__ = ["DEFAULT_VALUES", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "truth_world", "simulate_record"]

@@ -9,7 +9,7 @@ the identification's assumptions or code:
   cross products (-2 w x v - w x (w x r)) rather than the paper's apparent force;
 * every force (point-mass + J2 gravity in Cartesian form, exponential density,
   the CAV-H coefficient fit, lift direction from the conventional bank angle,
-  wind) is evaluated here from PROBLEM.md's formulas, with nothing imported from
+  wind) is evaluated here from the formulas of docs/conventions.md, with nothing imported from
   :mod:`rventry_env.physics` or :mod:`rventry_env.core`;
 * it is integrated by SciPy's adaptive DOP853 with tight tolerances, not by the
   project's fixed-step RK4;
@@ -20,7 +20,7 @@ the identification's assumptions or code:
 Shared with the identification is only what a flight record *means*: the
 conventional bank angle mu (0 = lift up, positive toward b1 x up, measured about
 the Earth-relative velocity) and that lift is normal to the air-relative velocity
-(PROBLEM.md). ``tests/test_validation_truth.py`` cross-checks this model against
+(docs/conventions.md). ``tests/test_validation_truth.py`` cross-checks this model against
 the rv-Euler entry dynamics without effects, and each effect against its
 force-model part.
 """
@@ -56,8 +56,16 @@ class TruthWorld:
     :param cd_scale: the ``drag_coefficient`` effect (C_D multiplied by this).
     :param wind_east: the ``wind`` effect, eastward air velocity (m/s).
     :param wind_north: northward air velocity (m/s).
-    :param mass: vehicle mass (kg), CAV-H by default.
+    :param mass: vehicle mass (kg), CAV-H by default; a value other than the declared
+        907.2 kg is the ``mass`` effect.
     :param area: reference area (m^2).
+    :param atmosphere: ``"exponential"`` (rho0, scale_height) or ``"us76"`` (the U.S. Standard
+        Atmosphere 1976, :func:`us76_density`).
+    :param mach_drag_amplitude: a Mach-dependent drag: C_D multiplied by
+        exp(A (1 - exp((M - mach_drag_centre) / mach_drag_width))), 1 at the centre and
+        growing (for A > 0) toward lower Mach.
+    :param mach_drag_centre: the Mach number where that factor is 1.
+    :param mach_drag_width: its e-folding width in Mach.
     """
 
     radius: float = 6378137.0
@@ -76,6 +84,57 @@ class TruthWorld:
     wind_north: float = 0.0
     mass: float = 907.2
     area: float = 0.4839
+    atmosphere: str = "exponential"
+    mach_drag_amplitude: float = 0.0
+    mach_drag_centre: float = 22.0
+    mach_drag_width: float = 5.0
+
+
+# U.S. Standard Atmosphere 1976 below 86 km: layers in geopotential altitude (m') with their
+# base temperature gradients (K/m'); sea-level temperature and pressure; gas constants
+_US76_LAYERS = ((0.0, -6.5e-3), (11e3, 0.0), (20e3, 1.0e-3), (32e3, 2.8e-3), (47e3, 0.0), (51e3, -2.8e-3),
+                (71e3, -2.0e-3), (84852.0, None))  # fmt: skip
+_US76_T0, _US76_P0 = 288.15, 101325.0
+_US76_R, _US76_M0, _US76_G0, _US76_R0 = 8.31432, 28.9644e-3, 9.80665, 6356766.0
+# above 86 km: the standard's tabulated densities (kg/m^3), interpolated in log density
+_US76_HIGH = ((86e3, None), (90e3, 3.416e-6), (95e3, 1.393e-6), (100e3, 5.604e-7), (110e3, 9.708e-8),
+              (120e3, 2.222e-8), (130e3, 8.152e-9), (150e3, 2.076e-9), (200e3, 2.541e-10),
+              (300e3, 1.916e-11), (500e3, 5.215e-13), (1000e3, 3.561e-15))  # fmt: skip
+
+
+def _us76_low(z: float) -> float:
+    """Density below 86 km from the hydrostatic layers (molecular-scale temperature)."""
+    h = _US76_R0 * z / (_US76_R0 + z)  # geopotential altitude
+    k = _US76_G0 * _US76_M0 / _US76_R
+    t, p = _US76_T0, _US76_P0
+    for (hb, lapse), (hn, _) in zip(_US76_LAYERS[:-1], _US76_LAYERS[1:]):
+        top = min(h, hn)
+        if lapse == 0.0:
+            p_top = p * math.exp(-k * (top - hb) / t)
+            t_top = t
+        else:
+            t_top = t + lapse * (top - hb)
+            p_top = p * (t / t_top) ** (k / lapse)
+        t, p = t_top, p_top
+        if h <= hn:
+            break
+    return p * _US76_M0 / (_US76_R * t)
+
+
+def us76_density(z: float) -> float:
+    """Density (kg/m^3) of the U.S. Standard Atmosphere 1976 at geometric altitude ``z`` (m).
+
+    Below 86 km the hydrostatic layers of the standard; above, its tabulated densities,
+    interpolated linearly in log density; below 0 m the sea-level layer extends.
+    """
+    if z < 86e3:
+        return _us76_low(z)
+    table = [(h, d if d is not None else _us76_low(86e3 - 1e-9)) for h, d in _US76_HIGH]
+    for (h0, d0), (h1, d1) in zip(table[:-1], table[1:]):
+        if z <= h1:
+            return d0 * math.exp(math.log(d1 / d0) * (z - h0) / (h1 - h0))
+    (h0, d0), (h1, d1) = table[-2], table[-1]
+    return d1 * math.exp(math.log(d1 / d0) * (z - h1) / (h1 - h0))
 
 
 def gravity_ecef(r: np.ndarray, world: TruthWorld) -> np.ndarray:
@@ -96,7 +155,12 @@ def gravity_ecef(r: np.ndarray, world: TruthWorld) -> np.ndarray:
 
 def density(h: float, world: TruthWorld) -> float:
     """Truth density (kg/m^3) at altitude ``h`` (m), including the density-profile effect."""
-    rho = world.rho0 * math.exp(-h / world.scale_height)
+    if world.atmosphere == "us76":
+        rho = us76_density(h)
+    elif world.atmosphere == "exponential":
+        rho = world.rho0 * math.exp(-h / world.scale_height)
+    else:
+        raise ValueError(f"unknown truth atmosphere {world.atmosphere!r}")
     if world.density_amplitude:
         phase = 2.0 * math.pi * (h - world.density_phase_altitude) / world.density_wavelength
         rho *= math.exp(world.density_amplitude * math.sin(phase))
@@ -104,7 +168,7 @@ def density(h: float, world: TruthWorld) -> float:
 
 
 def cav_h_coefficients(alpha: float, mach: float) -> tuple[float, float]:
-    """(C_L, C_D) of the CAV-H fit in PROBLEM.md, with alpha in rad (converted to degrees)."""
+    """(C_L, C_D) of the CAV-H fit in docs/conventions.md, with alpha in rad (converted to degrees)."""
     a = math.degrees(alpha)
     cl = -0.2317 + 0.0513 * a + 0.2945 * math.exp(-0.1028 * mach)
     cd = 0.024 + 7.24e-4 * a * a + 0.406 * math.exp(-0.323 * mach)
@@ -151,7 +215,11 @@ def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world:
     v_air = v - wind_ecef(r, world)
     speed_air = np.linalg.norm(v_air)
     q = 0.5 * density(h, world) * speed_air**2
-    cl, cd = cav_h_coefficients(alpha, speed_air / world.sound_speed)
+    mach = speed_air / world.sound_speed
+    cl, cd = cav_h_coefficients(alpha, mach)
+    if world.mach_drag_amplitude:
+        shape = 1.0 - math.exp((mach - world.mach_drag_centre) / world.mach_drag_width)
+        cd *= math.exp(world.mach_drag_amplitude * shape)
     k = q * world.area / world.mass
     drag = -k * world.cd_scale * cd * v_air / speed_air
     lift = k * world.cl_scale * cl * lift_direction(r, v, v_air, bank)
@@ -211,6 +279,7 @@ def fly(
 
 __all__ = [
     "EARTH_J2",
+    "us76_density",
     "TruthWorld",
     "gravity_ecef",
     "density",

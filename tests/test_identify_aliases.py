@@ -1,0 +1,143 @@
+"""What the record can and cannot tell: aliases, physical plausibility and model adequacy.
+
+Records come from the independent Cartesian truth model (``simulate_record``) with effects the
+identification is not told: a mass error, the U.S. Standard Atmosphere 1976 in place of the
+exponential one, a Mach-dependent drag, and effects outside the candidate set (a clock offset).
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from rventry_env.validation import identify_record
+from rventry_env.validation.aliases import admissible, alias_groups, sparsest_equivalent
+from rventry_env.validation.effects import Structure
+from rventry_env.validation.simulate import parse_effects, simulate_record
+
+
+def _run(tmp_path, specs, noise=(20.0, 0.2), duration=200.0, rate=1.0, seed=0, **kw):
+    path = simulate_record(tmp_path / "rec.csv", parse_effects(specs), noise=noise, duration=duration, rate=rate,
+                           seed=seed)  # fmt: skip
+    return identify_record(path, **kw).report
+
+
+def _explained_by(rep, allowed):
+    """Every named effect is in the allowed set or in a listed alias group."""
+    listed = {e for g in rep["aliases"] for e in g["effects"]}
+    return set(rep["effects"]) <= set(allowed) | listed
+
+
+# ------------------------------------------------------------------ structure (no flights)
+
+ST = Structure((), density_knots=(40e3, 50e3, 60e3), mach_knots=(10.0, 20.0))
+
+
+def test_mass_density_level_and_both_coefficients_are_one_direction():
+    assert admissible(("mass",), ST, 1.0) and admissible(("lift_coefficient", "drag_coefficient"), ST, 1.0)
+    assert not admissible(("mass", "density_profile"), ST, 1.0)  # the profile's level is the mass
+    assert not admissible(("mass", "lift_coefficient", "drag_coefficient"), ST, 1.0)
+    # a drag-only capsule: C_D and the mass are the same thing
+    assert not admissible(("mass", "drag_coefficient"), ST, 0.0)
+    assert admissible(("mass", "drag_coefficient"), ST, 1.0)
+
+
+def test_adding_an_alias_adds_nothing_and_a_redundant_set_is_thinned():
+    assert sparsest_equivalent(("density_profile", "mass"), "mass", ST, 1.0) is None
+    # density + C_L + C_D spans what density + C_D spans: the sparsest set with the new effect
+    assert sparsest_equivalent(("lift_coefficient", "drag_coefficient", "density_profile"), "density_profile",
+                               ST, 1.0) == ("lift_coefficient", "density_profile")  # fmt: skip
+
+
+def test_alias_members_fly_the_same_accelerations():
+    """Each member's parameters give the same rho C_D S / m and rho C_L S / m as the answer."""
+    st = Structure(("density_profile", "lift_coefficient"), density_knots=(40e3, 60e3))
+    values = {"dlnrho_40.0km": -0.1, "dlnrho_60.0km": 0.05, "cl_scale": 0.96}
+    groups = alias_groups(values, st.effects, st, 1.0)
+    assert len(groups) == 1
+    members = {tuple(m["effects"]): m["parameters"] for m in groups[0]["members"]}
+    drag = members[("density_profile", "drag_coefficient")]
+    # density + C_L x 0.96 == density x 0.96 + C_D x 1/0.96
+    assert drag["cd_scale"] == pytest.approx(1 / 0.96)
+    for k in ("dlnrho_40.0km", "dlnrho_60.0km"):
+        assert np.exp(drag[k]) * drag["cd_scale"] == pytest.approx(np.exp(values[k]))  # drag acceleration
+        assert np.exp(drag[k]) == pytest.approx(np.exp(values[k]) * 0.96)  # lift acceleration (C_L unchanged)
+
+
+# ------------------------------------------------------------------ flights through the truth model
+
+
+@pytest.mark.slow
+def test_a_mass_error_is_named_with_its_aliases(tmp_path):
+    rep = _run(tmp_path, ["mass=1.06"], seed=4)
+    assert rep["effects"] == ["mass"], rep["steps"]
+    assert rep["parameters"]["mass_scale"] == pytest.approx(1.06, rel=0.005)
+    group = rep["aliases"][0]
+    assert {"mass", "density_profile", "lift_coefficient", "drag_coefficient"} <= set(group["effects"])
+    assert group["drag_acceleration_scale"] == pytest.approx(1 / 1.06, rel=0.005)
+    both = next(m for m in group["members"] if m["effects"] == ["lift_coefficient", "drag_coefficient"])
+    assert both["tied"] and both["parameters"]["cd_scale"] == pytest.approx(1 / 1.06, rel=0.005)
+    assert both["parameters"]["cl_scale"] == pytest.approx(both["parameters"]["cd_scale"])
+    assert not rep["unexplained"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rate", [10.0, 1.0])
+@pytest.mark.parametrize("specs", [["us76_density"], ["us76_density", "lift_coefficient=0.96"]],
+                         ids=["us76", "us76+cl0.96"])  # fmt: skip
+def test_us76_atmosphere_is_a_density_profile_never_j2(tmp_path, specs, rate):
+    rep = _run(tmp_path, specs, rate=rate, duration=200.0, seed=int(rate) + len(specs))
+    assert "j2_gravity" not in rep["effects"]
+    assert "density_profile" in rep["effects"]
+    true_set = {"density_profile"} | ({"lift_coefficient"} if len(specs) > 1 else set())
+    assert _explained_by(rep, true_set), (rep["effects"], rep["aliases"])
+    assert not rep["unexplained"], rep["adequacy"]["statement"]
+    if len(specs) > 1:
+        # the lift change, or its alias C_D x 1/0.96 with the density level x 0.96
+        assert rep["identifiable"]["lift_to_drag_scale"] == pytest.approx(0.96, rel=0.01)
+
+
+@pytest.mark.slow
+def test_a_mach_dependent_drag_is_named(tmp_path):
+    rep = _run(tmp_path, ["mach_drag=0.15"], duration=300.0, seed=3)
+    assert "mach_drag" in rep["effects"], rep["steps"]
+    assert set(rep["effects"]) <= {"mach_drag", "drag_coefficient"}  # a Mach law's level is a C_D scale
+    assert not rep["unexplained"]
+
+
+@pytest.mark.slow
+def test_a_clock_offset_is_reported_as_unexplained(tmp_path):
+    """A time-tag offset is outside the candidate set: the report must say that something remains."""
+    rep = _run(tmp_path, ["time_offset=0.5"], duration=300.0, seed=5)
+    assert rep["unexplained"] is True
+    assert rep["effect"] != "none"
+    assert "outside the candidate set" in rep["statement"]
+    assert rep["adequacy"]["whiteness"]["ljung_box_p"] < 1e-3
+
+
+@pytest.mark.slow
+def test_declared_noise_sets_the_adequacy_test(tmp_path):
+    path = simulate_record(tmp_path / "rec.csv", parse_effects(["drag_coefficient=1.1"]), noise=(20.0, 0.2),
+                           duration=200.0, rate=0.5, seed=8)  # fmt: skip
+    right = identify_record(path, h_max=2.0, noise=(20.0, 0.2)).report
+    assert right["adequacy"]["noise_source"] == "declared" and not right["unexplained"]
+    assert right["effects"] == ["drag_coefficient"]
+    # a noise declared 3 times too small: the residual is not that noise, and the report says so
+    small = identify_record(path, h_max=2.0, noise=(6.0, 0.06)).report
+    assert small["unexplained"] is True and small["effect"] != "none"
+    assert not small["adequacy"]["size"]["position"]["consistent"]
+    assert "declared noise" in small["statement"]
+    # the sidecar can declare it too
+    (tmp_path / "rec.json").write_text(json.dumps({"noise": {"position_m": 20.0, "velocity_mps": 0.2}}))
+    side = identify_record(path, h_max=2.0).report
+    assert side["noise"]["declared"] == {"position": 20.0, "velocity": 0.2}
+
+
+@pytest.mark.slow
+def test_a_wrong_j2_is_never_accepted(tmp_path):
+    """J2 is tested at its known value; a record that would prefer another value gets it marked implausible."""
+    rep = _run(tmp_path, ["j2_gravity=-1e-3"], noise=(3.0, 0.03), rate=0.5, seed=6, h_max=2.0)
+    assert "j2_gravity" not in rep["effects"]
+    j2_row = next(r for r in rep["ranking"] if r["effect"] == "j2_gravity")
+    assert not j2_row["credible"]
+    assert rep["unexplained"] is True  # and the wrong-signed J2 the record holds is not explained away
