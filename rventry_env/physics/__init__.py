@@ -12,6 +12,7 @@ from rventry_env.physics.atmosphere import (
 )
 from rventry_env.physics.entry import CONTROL_NAMES, ENTRY_STATE_NAMES, EntryForces, entry_forces, entry_rhs
 from rventry_env.physics.gravity import J2Gravity, PointMassGravity
+from rventry_env.physics.mach_drag import MachDragCorrection
 from rventry_env.physics.model import EntryModel, scaled_model, with_aero_scales
 from rventry_env.physics.planet import EARTH, Planet
 from rventry_env.physics.vehicle import Vehicle, cav_h
@@ -33,6 +34,7 @@ __all__ = [
     "J2Gravity",
     "PointMassGravity",
     "EntryModel",
+    "MachDragCorrection",
     "scaled_model",
     "with_aero_scales",
     "EARTH",
