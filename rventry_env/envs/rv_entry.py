@@ -107,7 +107,10 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
 
     Every step: ``r_ecef_m``, ``v_ecef_mps``, ``latitude_deg``, ``longitude_deg``,
     ``altitude_m``, ``speed_mps``, ``dynamic_pressure_pa``, ``load_factor_g``,
-    ``cost`` (running cost J so far), ``time_s``, ``action_clipped``,
+    ``sensed_accel_b`` (what an accelerometer measures: the aerodynamic specific
+    force in B components, m/s^2, so ``-sensed[0]`` is the drag acceleration and
+    ``sensed[1:]`` the lift's; the navigation state plus this is all a guidance law
+    may know), ``cost`` (running cost J so far), ``time_s``, ``action_clipped``,
     ``alpha_saturated``. The last step also: ``miss_km``, ``vertical_error_deg``,
     ``speed_error_mps``, ``alpha_final_deg``, ``max_load_factor_g``,
     ``min_dynamic_pressure_pa``, ``constraint_violation`` (load > 12 g or q < 12 kPa
@@ -278,6 +281,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             "speed_mps": self._x[5],
             "dynamic_pressure_pa": f.dynamic_pressure,
             "load_factor_g": f.aero_accel / self._g0,
+            "sensed_accel_b": np.array(f.aero_b, dtype=np.float64),
             "cost": self._cost,
             "time_s": self._t,
             "action_clipped": action_clipped,

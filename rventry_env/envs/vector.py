@@ -54,7 +54,10 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         after an episode ends returns the reset observation, zero reward, and ignores
         the action) or ``AutoresetMode.SAME_STEP`` (the ending step already returns
         the reset observation; the final one is in ``infos["final_obs"]`` and the
-        final info in ``infos["final_info"]``).
+        final info in ``infos["final_info"]``) or ``AutoresetMode.DISABLED`` (a copy whose
+        episode ended stays frozen at its final state, is not stepped again and reports
+        neither reward nor ending until the next ``reset``: what an evaluation of one
+        episode per copy wants).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -74,8 +77,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         if int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs}")
         autoreset_mode = AutoresetMode(autoreset_mode)
-        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-            raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode}")
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED):
+            raise ValueError(f"autoreset_mode must be NEXT_STEP, SAME_STEP or DISABLED, got {autoreset_mode}")
         self.metadata = {**self.metadata, "autoreset_mode": autoreset_mode}
         self.num_envs = int(num_envs)
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
@@ -140,6 +143,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._max_load = np.zeros(n)
         self._min_q = np.zeros(n)
         self._prev_done = np.zeros(n, dtype=bool)
+        self._frozen = np.zeros(n, dtype=bool)  # DISABLED: copies whose episode ended
         self.dispersion_draw = np.zeros((n, 9))
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
         self._reset_copies(np.arange(n), dispersion)
@@ -157,10 +161,12 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             raise ValueError(f"actions contain NaN or inf (copies {bad[:10].tolist()})")
         action_clipped = np.any((a < -1.0) | (a > 1.0), axis=1)
         a = np.clip(a, -1.0, 1.0)
-        next_step = self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+        mode = self.metadata["autoreset_mode"]
+        next_step = mode == AutoresetMode.NEXT_STEP
         restart = self._prev_done if next_step else np.zeros(self.num_envs, bool)
         if np.any(restart):  # NEXT_STEP: these copies start over and ignore their action
             self._reset_copies(np.nonzero(restart)[0])
+        restart = restart | self._frozen  # copies not stepped this time
         p = self.task.problem
         out = self._prop.step(
             self._x, self._forces, a[:, 0] * p.u_alpha_max, a[:, 1] * p.u_sigma_max, self._model, active=~restart
@@ -187,6 +193,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._record()
         if next_step:
             self._prev_done = ended
+        elif mode == AutoresetMode.DISABLED:
+            self._frozen |= ended
         elif np.any(ended):  # SAME_STEP: report the final step, then start over at once
             idx = np.nonzero(ended)[0]
             infos["final_obs"] = obs.copy()
@@ -258,6 +266,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             "speed_mps": self._x[5].copy(),
             "dynamic_pressure_pa": np.array(f.dynamic_pressure, dtype=float),
             "load_factor_g": f.aero_accel / self._g0,
+            "sensed_accel_b": np.stack(np.broadcast_arrays(*f.aero_b), axis=-1).astype(np.float64),
             "cost": self._cost.copy(),
             "time_s": self._t.copy(),
             "action_clipped": np.asarray(action_clipped, bool),

@@ -1,15 +1,23 @@
 """Fly a guidance policy through RvEntry-v0 episodes, batched, and record the task metrics.
 
-A policy is any callable ``policy(obs, time_s, state) -> actions``:
+A policy (a guidance law) is any callable ``policy(obs, time_s, state) -> actions``:
 
 * ``obs``: float32 observations, shape (N, 26);
 * ``time_s``: time since each episode's start (N,);
-* ``state``: the float64 states (N, 12), state order of docs/conventions.md;
+* ``state``: the float64 navigation states (N, 12), state order of docs/conventions.md;
 * returns actions (N, 2) in [-1, 1].
 
-Closed-loop policies (PPO) use ``obs``; the open-loop reference replay uses
-``time_s``. All N episodes run side by side in one :class:`RvEntryVectorEnv`, so
-episode i is exactly a single ``RvEntry-v0`` episode reset with seed ``seed + i``.
+A law that reads the accelerometer says so with ``uses_sensed_acceleration = True``;
+it is then called ``policy(obs, time_s, state, sensed_accel_b=...)`` with the
+sensed aerodynamic specific force (N, 3) in B components (``info["sensed_accel_b"]``).
+That is everything a law is given: never the dispersion draw or the true model.
+A law with per-episode memory implements ``reset(n_episodes)``, called before the
+first step; one that reports on its episodes implements ``episode_stats()``, a list of
+one dict per episode merged into the records (``replans``, solve times, ...).
+
+All N episodes run side by side in one :class:`RvEntryVectorEnv`, so episode i is
+exactly a single ``RvEntry-v0`` episode reset with seed ``seeds[i]`` (``seed + i`` by
+default).
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+from gymnasium.vector import AutoresetMode
 
 from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
@@ -42,6 +51,8 @@ class EpisodeBatch:
     failure: np.ndarray
     time_s: np.ndarray
     dispersion_draw: np.ndarray
+    seeds: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    law_stats: list = field(default_factory=list)  # per episode, from the law's episode_stats()
     # histories: time (T,), states (T, N, 12), actions (T, N, 2); T = longest episode
     history_t: np.ndarray | None = None
     history_x: np.ndarray | None = None
@@ -67,15 +78,20 @@ class EpisodeBatch:
                 "tf_s": float(self.time_s[i]),
                 "dispersion": dict(zip(Dispersion.__dataclass_fields__, map(float, self.dispersion_draw[i]))),
             }
+            if self.seeds.size:
+                rec["seed"] = int(self.seeds[i])
+            if self.law_stats:
+                rec.update(self.law_stats[i])
             out.append(rec)
         return out
 
 
 def rollout(
     policy: Policy,
-    n_episodes: int,
+    n_episodes: int | None = None,
     *,
     seed: int = 0,
+    seeds=None,
     dispersion: Dispersion | dict | str | None = None,
     task: EntryTask | None = None,
     model: EntryModel | None = None,
@@ -86,19 +102,33 @@ def rollout(
 
     :param policy: ``policy(obs, time_s, state) -> actions`` (see module docstring).
     :param n_episodes: number of episodes (one copy each).
-    :param seed: base seed.
+    :param seed: base seed: episode i uses ``seed + i``.
+    :param seeds: the seeds of the episodes, one each (instead of ``n_episodes`` and ``seed``).
     :param dispersion: initial-state and model dispersions (None = nominal).
     :param task: the task (default :class:`EntryTask`).
     :param model: the force model (default :class:`EntryModel`).
     :param max_episode_steps: time limit in steps (default the registration's).
     :param record_history: keep the state and action of every step (for plots).
     """
-    if n_episodes < 1:
-        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    if seeds is None:
+        if n_episodes is None or n_episodes < 1:
+            raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+        seeds = [seed + i for i in range(n_episodes)]
+    seeds = [int(s) for s in seeds]
+    if not seeds or (n_episodes is not None and n_episodes != len(seeds)):
+        raise ValueError(f"give n_episodes >= 1 or a non-empty list of seeds, got {n_episodes} and {len(seeds)} seeds")
+    if any(s < 0 for s in seeds):
+        raise ValueError("seeds must be >= 0")
+    n = len(seeds)
     kwargs = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
-    venv = RvEntryVectorEnv(num_envs=n_episodes, task=task, model=model, dispersion=dispersion, **kwargs)
-    obs, info = venv.reset(seed=seed)
-    n = n_episodes
+    # one episode per copy: an ended copy stays frozen (no autoreset), so the law's memory and
+    # time for it stand still too
+    venv = RvEntryVectorEnv(num_envs=n, task=task, model=model, dispersion=dispersion,
+                            autoreset_mode=AutoresetMode.DISABLED, **kwargs)  # fmt: skip
+    obs, info = venv.reset(seed=seeds)
+    if hasattr(policy, "reset"):
+        policy.reset(n)
+    sensed = getattr(policy, "uses_sensed_acceleration", False)
     done = np.zeros(n, bool)
     keys = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
             "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
@@ -109,7 +139,11 @@ def rollout(
     time_s = np.zeros(n)
     while not done.all():
         state = venv.state
-        actions = np.asarray(policy(obs, time_s.copy(), state), dtype=np.float32)
+        if sensed:
+            actions = policy(obs, time_s.copy(), state, sensed_accel_b=info["sensed_accel_b"].copy())
+        else:
+            actions = policy(obs, time_s.copy(), state)
+        actions = np.asarray(actions, dtype=np.float32)
         if record_history:
             hist_t.append(time_s.copy())
             hist_x.append(state)
@@ -122,12 +156,14 @@ def rollout(
         lengths[ended] = venv._steps[ended]
         done |= ended
         if record_history:
-            # after an episode ends the copy restarts; keep its final state, freeze it afterwards
+            # the ended copy stays frozen: keep its final state once, NaN afterwards
             if np.any(ended):
                 hist_t.append(np.where(ended, time_s, np.nan))
                 hist_x.append(np.where(ended[:, None], venv.state, np.nan))
                 hist_a.append(np.full((n, 2), np.nan, np.float32))
-    batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths)
+    stats = list(policy.episode_stats()) if hasattr(policy, "episode_stats") else []
+    batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths,
+                         seeds=np.array(seeds), law_stats=stats)  # fmt: skip
     if record_history:
         batch.history_t, batch.history_x, batch.history_a = _tidy_history(hist_t, hist_x, hist_a, lengths)
     return batch

@@ -47,6 +47,7 @@ class EntryForces(NamedTuple):
     accel_b: tuple  # applied specific force (aero + gravity), B components
     e3_a: tuple  # the planet's spin axis in A, C_AE(:, 3); (sin latitude, ., .)
     c_ba: tuple
+    aero_b: tuple  # aerodynamic specific force, B components: what an accelerometer senses
 
     @property
     def aero_accel(self):
@@ -93,7 +94,7 @@ def entry_forces(x: Sequence, model: EntryModel, ns=NUMPY) -> EntryForces:
         aero = tuple(-drag * u[i] + lift * lv[i] / ln for i in range(3))
     g_nz = sparse(model.gravity.acceleration_a(r, e3_a, ns))  # point mass: (g, 0, 0)
     accel_b = tuple(aero[i] + sparse_dot(c_ba[i], g_nz) for i in range(3))
-    return EntryForces(h, rho, q, mach, cl, cd, lift, drag, accel_b, e3_a, c_ba)
+    return EntryForces(h, rho, q, mach, cl, cd, lift, drag, accel_b, e3_a, c_ba, aero)
 
 
 def entry_rhs(x: Sequence, u: Sequence, model: EntryModel, ns=NUMPY, forces: EntryForces | None = None):

@@ -83,6 +83,12 @@ class EntryProblemConfig:
     :param final_gamma_equality: with ``final_gamma_max_deg``, impose gamma(tf) = that
         angle instead (the singularity study compares equal terminal angles).
     :param tf_bounds: (smallest, largest) final time (s).
+    :param soft_path_penalty: ``None`` (default) for the hard path constraints of Eq.
+        ``Ex2-path``; a number makes them soft: relative slacks on the load factor and
+        the dynamic pressure, charged this much per unit and per second in the running
+        cost (an exact penalty: above the constraints' multipliers, the optimum is that
+        of the hard problem whenever that one is feasible). A re-planning law needs it: a
+        vehicle already past a bound must still get a plan.
     :param aero_scale_parameters: give the problem two parameters, the logarithms of the
         drag-acceleration and lift-to-drag scale factors
         (:func:`~rventry_env.physics.model.with_aero_scales`), so that one transcription
@@ -96,6 +102,7 @@ class EntryProblemConfig:
     final_gamma_max_deg: float | None = None
     final_gamma_equality: bool = False
     tf_bounds: tuple = (50.0, 3000.0)
+    soft_path_penalty: float | None = None
     aero_scale_parameters: bool = False
 
     def __post_init__(self):
@@ -103,6 +110,8 @@ class EntryProblemConfig:
             raise ValueError(f"norm_mode must be one of {NORM_MODES}, got {self.norm_mode!r}")
         if not (self.delta > 0 and math.isfinite(self.delta)):
             raise ValueError(f"delta must be positive and finite, got {self.delta}")
+        if self.soft_path_penalty is not None and not (self.soft_path_penalty > 0 and math.isfinite(self.soft_path_penalty)):
+            raise ValueError(f"soft_path_penalty must be None or positive and finite, got {self.soft_path_penalty}")
         lo, hi = self.tf_bounds
         if not 0 < lo < hi:
             raise ValueError(f"tf_bounds must satisfy 0 < lower < upper, got {self.tf_bounds}")
@@ -182,12 +191,17 @@ def _printed_a1_component(i: int):
     return lambda x0, xf, t0, tf: _printed_a1(xf[1:5])[i]
 
 
+SLACK_NAMES = ("load_excess", "q_shortfall")
+
+
 def control_names(config: EntryProblemConfig) -> tuple[str, ...]:
     if config.norm_mode == "projection":
-        return ("u_alpha", "u_sigma", "lambda_A", "lambda_B")
-    if config.norm_mode == "none":
-        return ("u_alpha", "u_sigma")
-    return ("u_alpha", "u_sigma", "u1", "u2", "u3", "u4")
+        names = ("u_alpha", "u_sigma", "lambda_A", "lambda_B")
+    elif config.norm_mode == "none":
+        names = ("u_alpha", "u_sigma")
+    else:
+        names = ("u_alpha", "u_sigma", "u1", "u2", "u3", "u4")
+    return names + (SLACK_NAMES if config.soft_path_penalty is not None else ())
 
 
 AERO_SCALE_PARAMETERS = ("ln_drag_accel_scale", "ln_lift_to_drag_scale")
@@ -252,17 +266,36 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     # --- cost, Eq. Ex2-Cost
     uam, usm = config.u_alpha_max, config.u_sigma_max
 
+    names = control_names(config)
+    soft = config.soft_path_penalty is not None
+    i_slack = len(names) - len(SLACK_NAMES)  # where the slacks sit among the controls, when soft
+
     def lagrange(x, u, t, *par):
-        return config.problem.cost_integrand(x[10], u[0], u[1])
+        cost = config.problem.cost_integrand(x[10], u[0], u[1])
+        if soft:  # exact (L1) penalty on the relative violations, per second
+            cost = cost + config.soft_path_penalty * (u[i_slack] + u[i_slack + 1])
+        return cost
 
     # --- path constraints, Eq. Ex2-path (alpha and the rates are bounds below)
-    path = [
-        PathConstraint("aero_accel", lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).aero_accel,
-                       upper=config.a_max, scale=config.a_max),
-        PathConstraint("dynamic_pressure",
-                       lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).dynamic_pressure,
-                       lower=config.problem.q_min, scale=1e5),
-    ]  # fmt: skip
+    if soft:
+        # relative, with slacks: n / n_max - excess <= 1 and q / q_min + shortfall >= 1
+        path = [
+            PathConstraint("aero_accel",
+                           lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).aero_accel
+                           / config.a_max - u[i_slack], upper=1.0),
+            PathConstraint("dynamic_pressure",
+                           lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).dynamic_pressure
+                           / max(config.problem.q_min, 1.0) + u[i_slack + 1], lower=1.0),
+        ]  # fmt: skip
+    else:
+        path = [
+            PathConstraint("aero_accel",
+                           lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).aero_accel,
+                           upper=config.a_max, scale=config.a_max),
+            PathConstraint("dynamic_pressure",
+                           lambda x, u, t, *par: entry_forces(x, model_of(config, ns, par), ns).dynamic_pressure,
+                           lower=config.problem.q_min, scale=1e5),
+        ]  # fmt: skip
     invariants = []
     if config.norm_mode == "projection":
         invariants = [
@@ -317,12 +350,12 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     if config.final_gamma_max_deg is None:
         final_lower[6] = final_upper[6] = 0.0  # eB1(tf) = 0 } vertical impact, exact
         final_lower[9] = final_upper[9] = 0.0  # etaB(tf) = 0 }
-    names = control_names(config)
-    n_extra = len(names) - 2
+    n_extra = len(names) - 2 - (len(SLACK_NAMES) if soft else 0)
     extra_bound = 10.0 if config.norm_mode == "projection" else 1.0  # 1/s: far from any value reached
-    control_lower = [-uam, -usm] + [-extra_bound] * n_extra
-    control_upper = [uam, usm] + [extra_bound] * n_extra
+    control_lower = [-uam, -usm] + [-extra_bound] * n_extra + [0.0] * (len(names) - 2 - n_extra)
+    control_upper = [uam, usm] + [extra_bound] * n_extra + [1.0] * (len(names) - 2 - n_extra)
     extra_scale = 1e-3 if config.norm_mode == "projection" else 1e-2
+    slack_scale = [1e-2] * (len(names) - 2 - n_extra)
 
     return OptimalControlProblem(
         name=f"rv-euler-entry-{config.norm_mode}",
@@ -346,7 +379,7 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
         invariants=invariants,
         state_scale=[1e5, 1, 1, 1, 1, 1e4, 1, 1, 1, 1, 0.5, math.pi],
         state_shift=[re, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
-        control_scale=[uam, usm] + [extra_scale] * n_extra,
+        control_scale=[uam, usm] + [extra_scale] * n_extra + slack_scale,
         control_shift=[0.0] * len(names),
         time_scale=500.0,
         cost_scale=10.0,

@@ -32,6 +32,8 @@ from rventry_env.reference.collocation.transcription import (
     WARM_START_IPOPT,
     SolverOptions,
     Transcription,
+    initial_point,
+    solve_from,
     solve_on_mesh,
     transcribe,
 )
@@ -54,6 +56,8 @@ __all__ = [
     "Transcription",
     "WARM_START_IPOPT",
     "estimate_errors",
+    "initial_point",
+    "solve_from",
     "refine_ph",
     "solve",
     "solve_on_mesh",

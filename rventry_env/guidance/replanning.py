@@ -1,0 +1,333 @@
+"""Re-planning guidance (the agent ``mpc``): Example 2 solved again in flight, with estimated aerodynamics.
+
+Every ``replan_s`` seconds the law solves the paper's Example 2 again, from the vehicle's
+current state to the same terminal conditions (exact vertical impact on the target at
+1219 m/s with alpha = 0), on the project's own LGR transcription of
+:func:`~rventry_env.physics.entry_rhs`. The model in that problem carries the
+drag-acceleration and lift-to-drag scale factors the accelerometer has measured
+(:class:`~rventry_env.guidance.estimation.AeroScaleEstimator`) as NLP parameters, so one
+transcription, built once per process, serves every solve. Between solves, TV-LQR
+(:mod:`rventry_env.guidance.tvlqr`) tracks the current plan, with gains computed along it
+for the estimated model, and a feedforward on any change of the estimate since the plan.
+
+Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
+
+* **Warm start.** A solve starts from the previous plan shifted in time (and its
+  multipliers); the first one of an episode from a nominal plan solved once per process
+  on the same mesh from the shipped optimum.
+* **A mesh chosen for speed.** A fixed LGR mesh in normalized time: ``mesh_intervals``
+  intervals of ``mesh_degree`` points plus a finer block over the last ``end_fraction``
+  (the pull-up to vertical). As the horizon shrinks the same mesh grows finer in seconds.
+* **Soft path constraints with small margins.** The plan keeps the load factor below
+  ``1 - load_margin`` of 12 g and the dynamic pressure above ``1 + q_margin`` of 12 kPa,
+  as soft constraints with an exact L1 penalty: a vehicle already outside them must
+  still get a plan. The q margin covers what the accelerometer cannot tell: how much of
+  a drag error is density (which sets q) rather than C_D.
+* **A budget.** IPOPT stops after ``max_iterations`` iterations (the deterministic
+  budget: an episode's result does not depend on the machine's load) or after
+  ``max_wall_s`` seconds (a safety net). A failed or unfinished solve keeps the previous
+  plan, and is counted.
+* **Freeze.** No new plan within ``freeze_s`` of the planned impact: the last plan is
+  tracked into the ground.
+
+The law sees only the navigation state and the sensed acceleration.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+
+import numpy as np
+
+from rventry_env.envs.task import EntryTask
+from rventry_env.guidance.estimation import AeroScaleEstimator, EstimatorSettings
+from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
+from rventry_env.physics.model import EntryModel
+
+
+@dataclass(frozen=True)
+class ReplanningSettings:
+    """Every default of the re-planning law (see the module docstring for each one's role)."""
+
+    replan_s: float = 20.0
+    mesh_intervals: int = 20
+    mesh_degree: int = 5
+    end_fraction: float = 0.05
+    end_intervals: int = 3
+    end_degree: int = 4
+    q_margin: float = 0.05
+    load_margin: float = 0.02
+    soft_penalty: float = 30.0
+    max_iterations: int = 80
+    max_wall_s: float = 2.0
+    freeze_s: float = 30.0
+    nlp_tolerance: float = 1e-6
+    q_weight: float = 1e-5
+    r_weight: float = 100.0
+
+    def __post_init__(self):
+        positive = ("replan_s", "soft_penalty", "max_wall_s", "nlp_tolerance", "r_weight")
+        for name in positive:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive and finite, got {v!r}")
+        for name in ("mesh_intervals", "mesh_degree", "end_intervals", "end_degree", "max_iterations"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and v >= 1):
+                raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        for name, hi in (("end_fraction", 0.5), ("q_margin", 0.5), ("load_margin", 0.5)):
+            v = getattr(self, name)
+            if not (0.0 <= v < hi):
+                raise ValueError(f"{name} must lie in [0, {hi}), got {v!r}")
+        if not (self.freeze_s >= 0 and self.q_weight >= 0):
+            raise ValueError("freeze_s and q_weight must be >= 0")
+
+
+class _Shifted:
+    """A solved plan seen from ``shift`` seconds later (time 0 = then): a warm-start guess."""
+
+    t0 = 0.0
+
+    def __init__(self, sol, shift: float):
+        self.sol, self.shift = sol, float(shift)
+
+    @property
+    def tf(self) -> float:
+        return self.sol.tf - self.shift
+
+    def state(self, t):
+        return self.sol.state(np.asarray(t, dtype=float) + self.shift)
+
+    def control(self, t):
+        return self.sol.control(np.asarray(t, dtype=float) + self.shift)
+
+
+class _ReferenceGuess:
+    """The shipped optimum as a guess for the re-planning problem's controls (zeros for the extra ones)."""
+
+    t0 = 0.0
+
+    def __init__(self, reference, n_controls: int):
+        self.reference, self.n_controls = reference, n_controls
+
+    @property
+    def tf(self) -> float:
+        return self.reference.tf
+
+    def state(self, t):
+        return self.reference.state(t)
+
+    def control(self, t):
+        u = np.atleast_2d(self.reference.control(t))
+        return np.hstack([u, np.zeros((u.shape[0], self.n_controls - u.shape[1]))])
+
+
+class PlanSolver:
+    """The re-planning NLP: compiled and transcribed once, solved from any state and estimate.
+
+    :param task: the problem's constants (bounds, terminal conditions).
+    :param model: the nominal model; the estimates scale it.
+    :param settings: :class:`ReplanningSettings`.
+    """
+
+    def __init__(self, task: EntryTask, model: EntryModel, settings: ReplanningSettings):
+        from rventry_env.reference.collocation import CompiledProblem, SolverOptions, transcribe
+        from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
+        from rventry_env.reference.pipeline import end_clustered_mesh
+
+        s = self.settings = settings
+        p = task.problem
+        self.radius = model.planet.radius
+        problem = replace(p, q_min=p.q_min * (1 + s.q_margin), a_max_g=p.a_max_g * (1 - s.load_margin))
+        config = EntryProblemConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
+                                    soft_path_penalty=s.soft_penalty, aero_scale_parameters=True)  # fmt: skip
+        self.problem = entry_problem(config)
+        self.compiled = CompiledProblem(self.problem)
+        if s.end_fraction > 0:
+            mesh = end_clustered_mesh(s.mesh_intervals, s.mesh_degree, s.end_fraction, s.end_intervals, s.end_degree)
+        else:
+            from rventry_env.reference.collocation import Mesh
+
+            mesh = Mesh.uniform(s.mesh_intervals, s.mesh_degree)
+        ipopt = {"max_wall_time": float(s.max_wall_s), "mu_init": 1e-4, "warm_start_init_point": "yes",
+                 "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
+                 "warm_start_slack_bound_push": 1e-6}  # fmt: skip
+        opts = SolverOptions(graph="sx", nlp_tolerance=s.nlp_tolerance, max_nlp_iterations=s.max_iterations,
+                             warm_ipopt={}, ipopt=ipopt)  # fmt: skip
+        start = time.perf_counter()
+        self.transcription = transcribe(self.compiled, mesh, opts)
+        self.build_time_s = time.perf_counter() - start
+
+    def solve(self, x0: np.ndarray, theta: np.ndarray, guess, warm=None):
+        """A plan from state ``x0`` (time 0) for log-scales ``theta``.
+
+        :param guess: anything with ``t0``, ``tf``, ``state``, ``control`` (the previous plan, shifted).
+        :param warm: a previous solution whose multipliers start this solve.
+        :return: the :class:`~rventry_env.reference.collocation.CollocationSolution` (check ``success``).
+        """
+        from rventry_env.reference.collocation import initial_point, solve_from
+
+        tr = self.transcription
+        lbx, ubx = tr.bounds_with_initial_state(x0)
+        z0 = initial_point(tr, guess, lbx, ubx)
+        lam = (warm.lam_x, warm.lam_g) if warm is not None and warm.lam_x is not None else (None, None)
+        return solve_from(tr, z0, theta, lbx, ubx, *lam)
+
+    def nominal_plan(self, task: EntryTask):
+        """The plan for the nominal start and model on this mesh, from the shipped optimum (cached)."""
+        if getattr(self, "_nominal", None) is None:
+            from rventry_env.reference import load_reference
+
+            ref = load_reference()
+            x0 = task.problem.initial_state(self.radius)
+            sol = self.solve(x0, np.zeros(2), _ReferenceGuess(ref, self.problem.n_u))
+            if not sol.success:
+                raise RuntimeError(f"the nominal plan did not converge on the re-planning mesh ({sol.status})")
+            self._nominal = sol
+        return self._nominal
+
+
+@lru_cache(maxsize=4)
+def _plan_solver(task: EntryTask, model: EntryModel, settings: ReplanningSettings) -> PlanSolver:
+    return PlanSolver(task, model, settings)
+
+
+@dataclass
+class _Track:
+    """One episode's current plan and the TV-LQR gains along it."""
+
+    t_start: float  # the plan's time 0, in episode time
+    solution: object
+    theta: np.ndarray  # the log-scales it was solved with
+    x_ref: np.ndarray
+    u_ref: np.ndarray
+    gains: np.ndarray
+    theta_gains: np.ndarray
+
+    @property
+    def t_end(self) -> float:
+        return self.t_start + self.solution.tf
+
+
+@dataclass
+class _EpisodeLog:
+    replans: int = 0
+    replan_failures: int = 0
+    solve_times: list = field(default_factory=list)
+    iterations: list = field(default_factory=list)
+    failures: list = field(default_factory=list)  # (time, status)
+
+
+class ReplanningGuidance:
+    """The re-planning law (agent ``mpc``): batched over episodes, one plan each.
+
+    :param task: the task (problem constants, dt).
+    :param model: the nominal model.
+    :param settings: :class:`ReplanningSettings`.
+    :param estimator_settings: the filter's settings.
+    """
+
+    uses_sensed_acceleration = True
+
+    def __init__(self, task: EntryTask | None = None, model: EntryModel | None = None,
+                 settings: ReplanningSettings | None = None, estimator_settings: EstimatorSettings | None = None):  # fmt: skip
+        self.task = EntryTask() if task is None else task
+        self.model = EntryModel() if model is None else model
+        self.settings = ReplanningSettings() if settings is None else settings
+        self.solver = _plan_solver(self.task, self.model, self.settings)
+        self.linearization = StepLinearization(self.task, self.model)
+        self.weights = tracking_weights(self.task, self.settings.q_weight, self.settings.r_weight)
+        p = self.task.problem
+        self.u_max = np.array([p.u_alpha_max, p.u_sigma_max])
+        self.estimator = AeroScaleEstimator(self.model, 1, estimator_settings)
+        self.nominal = self.solver.nominal_plan(self.task)
+        self.reset(1)
+
+    def reset(self, n_episodes: int) -> None:
+        """New episodes: no plan, the estimates at their prior, empty logs."""
+        self.n = int(n_episodes)
+        self.estimator.reset(self.n)
+        self.tracks: list[_Track | None] = [None] * self.n
+        self.next_replan = np.zeros(self.n)
+        self.logs = [_EpisodeLog() for _ in range(self.n)]
+
+    # ------------------------------------------------------------------ planning
+    def _track(self, t_start: float, sol, theta: np.ndarray) -> _Track:
+        dt = self.task.dt
+        x_ref, u_ref = sample_plan(sol, dt)
+        a, b, g = self.linearization.along(x_ref[:-1], u_ref, theta)
+        gains, theta_gains = lqr_gains(a, b, *self.weights, g=g)
+        return _Track(t_start, sol, np.asarray(theta, float).copy(), x_ref, u_ref, gains, theta_gains)
+
+    def _replan(self, i: int, t: float, x: np.ndarray, theta: np.ndarray) -> None:
+        log = self.logs[i]
+        old = self.tracks[i]
+        if old is None:
+            guess, warm = self.nominal, self.nominal
+        else:
+            guess, warm = _Shifted(old.solution, t - old.t_start), old.solution
+        start = time.perf_counter()
+        sol = self.solver.solve(x, theta, guess, warm)
+        elapsed = time.perf_counter() - start
+        log.replans += 1
+        log.solve_times.append(elapsed)
+        log.iterations.append(sol.nlp_iterations)
+        if sol.success and math.isfinite(sol.tf) and sol.tf > 0:
+            self.tracks[i] = self._track(t, sol, theta)
+        else:
+            log.replan_failures += 1
+            log.failures.append((round(t, 3), sol.status))
+            if old is None:  # nothing to keep: fly the nominal plan, the estimate fed forward
+                self.tracks[i] = self._track(t, self.nominal, np.zeros(2))
+        self.next_replan[i] = t + self.settings.replan_s
+
+    # ------------------------------------------------------------------ the law
+    def rates(self, time_s, state, theta) -> np.ndarray:
+        """Commanded (u_alpha, u_sigma) in rad/s for every episode, from its current plan."""
+        u = np.zeros((self.n, 2))
+        dt = self.task.dt
+        for i, tr in enumerate(self.tracks):
+            if tr is None or time_s[i] >= tr.t_end:
+                continue
+            k = min(int(round((time_s[i] - tr.t_start) / dt)), tr.u_ref.shape[0] - 1)
+            u[i] = (tr.u_ref[k] - tr.gains[k] @ (state[i] - tr.x_ref[k])
+                    - tr.theta_gains[k] @ (theta[i] - tr.theta))  # fmt: skip
+        return u
+
+    def __call__(self, obs, time_s, state, sensed_accel_b=None):
+        if sensed_accel_b is None:
+            raise ValueError("mpc needs the sensed acceleration (info['sensed_accel_b'])")
+        time_s = np.asarray(time_s, dtype=float)
+        state = np.asarray(state, dtype=float)
+        if len(state) != self.n:
+            self.reset(len(state))
+        self.estimator.update(time_s, state, sensed_accel_b)
+        theta = self.estimator.log_scales()
+        for i in range(self.n):
+            tr = self.tracks[i]
+            due = tr is None or (time_s[i] >= self.next_replan[i] and tr.t_end - time_s[i] > self.settings.freeze_s)
+            if due:
+                self._replan(i, float(time_s[i]), state[i], theta[i])
+        return np.clip(self.rates(time_s, state, theta) / self.u_max, -1.0, 1.0).astype(np.float32)
+
+    def episode_stats(self) -> list[dict]:
+        """Per episode: ``replans``, ``replan_failures``, solve-time percentiles (s) and IPOPT iterations."""
+        out = []
+        for log in self.logs:
+            t = np.asarray(log.solve_times)
+            out.append({
+                "replans": log.replans,
+                "replan_failures": log.replan_failures,
+                "solve_time_s": ({f"p{q}": float(np.percentile(t, q)) for q in (50, 90, 99)} | {"max": float(t.max())})
+                if t.size else None,
+                "first_solve_s": float(t[0]) if t.size else None,
+                "solve_iterations_median": float(np.median(log.iterations)) if log.iterations else None,
+                "replan_failure_events": [list(f) for f in log.failures],
+            })  # fmt: skip
+        return out
+
+
+__all__ = ["ReplanningSettings", "PlanSolver", "ReplanningGuidance"]
