@@ -21,22 +21,36 @@ AGENT_GROUP = "rventry.agents"
 FILE_GROUP = "rventry.agent_files"
 
 
-def _reference(task):
+def _reference(task, **options):
     from rventry_env.guidance.reference_replay import ReferencePolicy
 
-    return ReferencePolicy(task)
+    return ReferencePolicy(task, **options)
 
 
-def _lqr(task):
+def _lqr(task, **options):
     from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
 
-    return NeighboringOptimalGuidance(task=task)
+    return NeighboringOptimalGuidance(task=task, **options)
 
 
-# name -> (description, factory(task))
+def _lqr_est(task, **options):
+    from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
+
+    return NeighboringOptimalGuidance(task=task, estimate=True, **options)
+
+
+def _mpc(task, **options):
+    from rventry_env.guidance.replanning import ReplanningGuidance
+
+    return ReplanningGuidance(task=task, **options)
+
+
+# name -> (description, factory(task, **options))
 BUILTIN: dict[str, tuple[str, Callable]] = {
     "reference": ("open-loop replay of the optimal collocation reference", _reference),
     "lqr": ("time-varying LQR around the margined guidance reference", _lqr),
+    "lqr-est": ("the same TV-LQR with online estimation of the aerodynamic scales", _lqr_est),
+    "mpc": ("re-planning on the LGR transcription every 20 s, with online estimation", _mpc),
 }
 
 
@@ -50,15 +64,19 @@ def agent_names() -> list[str]:
     return [*BUILTIN, *sorted(set(plugin_agents()) - set(BUILTIN))]
 
 
-def load_agent(spec: str, task: EntryTask | None = None):
+def load_agent(spec: str, task: EntryTask | None = None, **options):
     """The guidance law called ``spec``, or the saved policy at the path ``spec``.
+
+    :param options: keyword arguments for a built-in law (``settings=...`` for ``mpc``, say).
 
     :raises ValueError: an unknown name, or a path no installed loader can read.
     :raises FileNotFoundError: a path that does not exist.
     """
     task = EntryTask() if task is None else task
     if spec in BUILTIN:
-        return BUILTIN[spec][1](task)
+        return BUILTIN[spec][1](task, **options)
+    if options:
+        raise ValueError(f"options {sorted(options)} apply to the built-in laws only, not to {spec!r}")
     plugins = plugin_agents()
     if spec in plugins:
         return plugins[spec].load()(spec, task)

@@ -18,6 +18,7 @@ from rventry_env.util.files import check_writable, write_json
 NOMINAL_TARGETS = {"miss_km": 5.0, "vertical_error_deg": 2.0, "abs_speed_error_mps": 50.0, "cost_ratio": 1.5}
 DISPERSED_SUCCESS_TARGET = 0.90
 DISPERSIONS = ("none", "standard", "wide")
+MPC_EPISODES = 20
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,18 +32,34 @@ def register(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--seed", type=seed, default=0, help="episode i uses seed SEED + i (default 0)")
     ev.add_argument("--json", required=True, metavar="PATH", help="write the summary and per-episode records here")
     ev.add_argument("--plots", metavar="DIR", help="write PNG plots here")
+    _parallel_arguments(ev)
     ev.set_defaults(func=_evaluate)
 
     cmp_ = sub.add_parser(
         "compare", help="evaluate the shipped guidance laws, nominal and dispersed, against the optimal reference"
     )
     cmp_.add_argument("--episodes", type=positive_int, default=200, help="dispersed episodes per agent (default 200)")
+    cmp_.add_argument("--mpc-episodes", type=positive_int, default=MPC_EPISODES,
+                      help=f"dispersed episodes for mpc, which re-plans in flight (default {MPC_EPISODES}: "
+                           "about 8 s each on two cores)")  # fmt: skip
     cmp_.add_argument("--seed", type=seed, default=0, help="dispersed episode i uses seed SEED + i (default 0)")
     cmp_.add_argument("--agent", default="ppo", help="the learned agent to compare (default: the shipped ppo)")
     _dispersion_arguments(cmp_, default="standard")
     cmp_.add_argument("--json", default="out/compare.json", metavar="PATH", help="default out/compare.json")
     cmp_.add_argument("--plots", default="out/plots", metavar="DIR", help="default out/plots")
+    _parallel_arguments(cmp_)
     cmp_.set_defaults(func=_compare)
+
+
+def _parallel_arguments(parser) -> None:
+    from rventry_env.evaluation.parallel import default_workers
+
+    n = default_workers()
+    parser.add_argument("--workers", type=positive_int, default=n,
+                        help=f"local processes for laws that run one episode per task, such as mpc (default {n}, "
+                             "the cores available)")  # fmt: skip
+    parser.add_argument("--cluster", metavar="ADDRESS",
+                        help="run the episodes on this Dask scheduler instead (tcp://host:8786; needs rventry[cluster])")
 
 
 def _dispersion_arguments(parser, default: str = "none") -> None:
@@ -65,17 +82,17 @@ def dispersion_name(args) -> str:
     return args.dispersion or args.dispersion_default
 
 
-def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool):
-    """Evaluate one agent; returns (batch, summary)."""
+def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
+              cluster: str | None = None, progress=None):  # fmt: skip
+    """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary)."""
     from rventry_env.envs.task import EntryTask
-    from rventry_env.evaluation.agents import load_agent
-    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.evaluation.parallel import EvaluationJob, evaluate
     from rventry_env.evaluation.summary import summarize
     from rventry_env.reference import load_reference
 
     task = EntryTask()
-    policy = load_agent(agent, task)
-    batch = rollout(policy, episodes, seed=seed, dispersion=dispersion, task=task, record_history=history)
+    job = EvaluationJob(agent, dispersion, task, record_history=history)
+    batch = evaluate(job, list(range(seed, seed + episodes)), workers=workers, cluster=cluster, progress=progress)
     return batch, summarize(batch, float(load_reference().cost), task)
 
 
@@ -103,6 +120,8 @@ def _label(agent: str) -> str:
 
 
 def _evaluate(args) -> int:
+    from rich.progress import Progress
+
     from rventry_env.envs.task import EntryTask
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.reference import load_reference
@@ -110,9 +129,14 @@ def _evaluate(args) -> int:
     dispersion = dispersion_name(args)
     check_writable(args.json, folders=(args.plots,) if args.plots else ())
     t0 = time.time()
-    batch, summary = run_agent(args.agent, args.episodes, dispersion, args.seed, history=bool(args.plots))
+    with Progress(transient=True) as progress:
+        job = progress.add_task(f"{args.agent}: {args.episodes} episode(s)", total=args.episodes)
+        batch, summary = run_agent(args.agent, args.episodes, dispersion, args.seed, history=bool(args.plots),
+                                   workers=args.workers, cluster=args.cluster,
+                                   progress=lambda n: progress.advance(job, n))  # fmt: skip
     doc = _document(args.agent, args.episodes, dispersion, args.seed, batch, summary)
     doc["wall_time_s"] = time.time() - t0
+    doc["workers"] = None if args.cluster else args.workers
     write_json(args.json, doc)
     _print_summary(args.agent, summary)
     if args.plots:
@@ -120,6 +144,11 @@ def _evaluate(args) -> int:
         plot_trajectories({label: batch}, Path(args.plots) / f"trajectories_{label}.png", reference=load_reference())
         plot_outcomes({label: batch}, Path(args.plots) / f"outcomes_{label}.png", EntryTask().success)
     return 0
+
+
+# the columns of `rventry compare`: (agent, label); the first is the learned agent given by --agent
+COMPARED = (("lqr", "TV-LQR"), ("lqr-est", "TV-LQR + estimation"), ("mpc", "re-planning (mpc)"),
+            ("reference", "reference (open loop)"))  # fmt: skip
 
 
 def _compare(args) -> int:
@@ -134,17 +163,24 @@ def _compare(args) -> int:
     check_writable(args.json, folders=(args.plots,))
     t0 = time.time()
     label = _label(args.agent)
-    agents = ((args.agent, label), ("lqr", "TV-LQR"), ("reference", "reference (open loop)"))
-    cases = (("nominal", 1, "none"), ("dispersed", args.episodes, dispersion))
-    plan = [(case, agent, name, n, d) for case, n, d in cases for agent, name in agents]
+    agents = ((args.agent, label), *COMPARED)
+    episodes = {name: (args.mpc_episodes if agent == "mpc" else args.episodes) for agent, name in agents}
+    plan = [(case, agent, name, 1 if case == "nominal" else episodes[name], "none" if case == "nominal" else dispersion)
+            for case in ("nominal", "dispersed") for agent, name in agents]  # fmt: skip
     runs = {}
-    with Progress(transient=True) as progress:
-        job = progress.add_task("evaluating", total=len(plan))
+    with Progress() as progress:
+        overall = progress.add_task("rventry compare", total=sum(p[3] for p in plan))
         for case, agent, name, n, d in plan:
-            progress.update(job, description=f"{case}: {name} ({n} episode{'s' if n > 1 else ''})")
-            batch, summary = run_agent(agent, n, d, args.seed, history=True)
+            job = progress.add_task(f"  {case}: {name}", total=n)
+
+            def advance(k, job=job):
+                progress.advance(job, k)
+                progress.advance(overall, k)
+
+            batch, summary = run_agent(agent, n, d, args.seed, history=True, workers=args.workers,
+                                       cluster=args.cluster, progress=advance)  # fmt: skip
             runs[(case, name)] = (batch, summary, _document(agent, n, d, args.seed, batch, summary))
-            progress.advance(job)
+            progress.remove_task(job)
     nominal, dispersed = runs[("nominal", label)][1], runs[("dispersed", label)][1]
     checks = {
         **{f"nominal_{k}": {"target": v, "measured": nominal[k], "met": nominal[k] is not None and abs(nominal[k]) <= v}
@@ -156,27 +192,30 @@ def _compare(args) -> int:
         "agent": args.agent,
         "seed": args.seed,
         "dispersion_set": dispersion,
+        "episodes": episodes,
         "targets": checks,
         "runs": {f"{case}/{name}": d for (case, name), (_, _, d) in runs.items()},
         "wall_time_s": time.time() - t0,
+        "workers": None if args.cluster else args.workers,
     }
     write_json(args.json, doc)
-    console = Console(width=130)
-    for table in _tables(runs, [name for _, name in agents], args.episodes, dispersion, checks):
+    console = Console(width=150)
+    for table in _tables(runs, [name for _, name in agents], episodes, dispersion, checks):
         console.print(table)
     ref = load_reference()
     plots = Path(args.plots)
     for case, title in (("nominal", "Nominal: guidance laws vs the optimal reference"),
-                        ("dispersed", f"Dispersed ({dispersion} set): {args.episodes} episodes each")):  # fmt: skip
-        plot_trajectories({name: runs[(case, name)][0] for _, name in agents}, plots / f"{case}_trajectories.png",
+                        ("dispersed", f"Dispersed ({dispersion} set)")):  # fmt: skip
+        plot_trajectories({f"{name}": runs[(case, name)][0] for _, name in agents}, plots / f"{case}_trajectories.png",
                           reference=ref, title=title)  # fmt: skip
     plot_outcomes({name: runs[("dispersed", name)][0] for _, name in agents}, plots / "dispersed_outcomes.png",
                   EntryTask().success)  # fmt: skip
-    print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)")
+    print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)"
+          f" in {time.time() - t0:.0f} s")  # fmt: skip
     return 0
 
 
-def _tables(runs, names, n_dispersed, dispersion, checks):
+def _tables(runs, names, episodes, dispersion, checks):
     """Two tables, nominal and dispersed, with the agents as columns."""
     from rich.table import Table
 
@@ -191,10 +230,14 @@ def _tables(runs, names, n_dispersed, dispersion, checks):
         ("min dynamic pressure (kPa)", "min_dynamic_pressure_pa", "{:.2f}", "", ""),
         ("path-violation rate", "constraint_violation_rate", "{:.2f}", "", ""),
         ("success rate", "success_rate", "{:.2f}", "", f">= {DISPERSED_SUCCESS_TARGET:.2f}"),
+        ("episodes", "episodes", "{:d}", "", ""),
+        ("re-solve time p50 / p99 (s)", "replanning", "", "", ""),
     )
     tables = []
+    counts = sorted(set(episodes.values()), reverse=True)
+    n_text = " or ".join(str(c) for c in counts)
     for case, title in (("nominal", "Nominal flight (targets apply to the learned agent)"),
-                        ("dispersed", f"{n_dispersed} dispersed episodes ({dispersion} set): "
+                        ("dispersed", f"{n_text} dispersed episodes per law ({dispersion} set): "
                                       "mean (5th / 95th percentile)")):  # fmt: skip
         t = Table(title=title)
         t.add_column("metric")
@@ -207,6 +250,12 @@ def _tables(runs, names, n_dispersed, dispersion, checks):
             for name in names:
                 s = runs[(case, name)][1]
                 v = s.get(key)
+                if key == "replanning":
+                    cells.append("-" if not v else f"{v['solve_time_s']['p50']:.2f} / {v['solve_time_s']['p99']:.2f}")
+                    continue
+                if key == "episodes":
+                    cells.append(str(v))
+                    continue
                 scale = 1e-3 if key == "min_dynamic_pressure_pa" else 1.0
                 cell = "-" if v is None else fmt.format(v * scale)
                 if case == "dispersed" and key in s.get("percentiles", {}):

@@ -44,7 +44,27 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     failures, counts = np.unique(batch.failure.astype(str), return_counts=True)
     out["endings"] = {("impact" if f == "" else f): int(c) for f, c in zip(failures, counts)}
     out["success_thresholds"] = dataclasses.asdict(task.success)
+    out["replanning"] = replanning_summary(batch.law_stats)
     return out
+
+
+def replanning_summary(stats: list[dict]) -> dict | None:
+    """Over every solve of every episode of a re-planning law: counts and solve-time percentiles (s)."""
+    if not stats or "replans" not in stats[0]:
+        return None
+    times = np.array([t for s in stats for t in s.get("solve_times_s", [])])
+    firsts = np.array([s["first_solve_s"] for s in stats if s.get("first_solve_s") is not None])
+    # the first solve of an episode starts from the nominal plan; the re-solves from the previous plan
+    resolves = np.array([t for s in stats for t in s.get("solve_times_s", [])[1:]])
+    pct = {f"p{q}": _f(np.percentile(resolves, q)) for q in (50, 90, 99)} if resolves.size else None
+    return {
+        "replans": int(sum(s["replans"] for s in stats)),
+        "replan_failures": int(sum(s["replan_failures"] for s in stats)),
+        "episodes_with_a_failure": int(sum(1 for s in stats if s["replan_failures"])),
+        "solves": int(times.size),
+        "solve_time_s": {**pct, "max": _f(resolves.max())} if pct else None,
+        "first_solve_time_s": {"p50": _f(np.median(firsts)), "max": _f(firsts.max())} if firsts.size else None,
+    }
 
 
 def _f(x) -> float | None:

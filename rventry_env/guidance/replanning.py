@@ -184,6 +184,12 @@ class PlanSolver:
             ref = load_reference()
             x0 = task.problem.initial_state(self.radius)
             sol = self.solve(x0, np.zeros(2), _ReferenceGuess(ref, self.problem.n_u))
+            # before flight, not in it: the budget per solve is the in-flight one, so continue
+            # from where a solve stopped until it converges
+            for _ in range(20):
+                if sol.success:
+                    break
+                sol = self.solve(x0, np.zeros(2), _Shifted(sol, 0.0), sol)
             if not sol.success:
                 raise RuntimeError(f"the nominal plan did not converge on the re-planning mesh ({sol.status})")
             self._nominal = sol
@@ -231,6 +237,7 @@ class ReplanningGuidance:
     """
 
     uses_sensed_acceleration = True
+    episodes_per_task = 1  # seconds per episode: parallel evaluations give each episode its own task
 
     def __init__(self, task: EntryTask | None = None, model: EntryModel | None = None,
                  settings: ReplanningSettings | None = None, estimator_settings: EstimatorSettings | None = None):  # fmt: skip
@@ -326,6 +333,7 @@ class ReplanningGuidance:
                 "first_solve_s": float(t[0]) if t.size else None,
                 "solve_iterations_median": float(np.median(log.iterations)) if log.iterations else None,
                 "replan_failure_events": [list(f) for f in log.failures],
+                "solve_times_s": [round(float(x), 5) for x in t],
             })  # fmt: skip
         return out
 

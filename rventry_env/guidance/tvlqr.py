@@ -109,7 +109,7 @@ class StepLinearization:
     def along(self, xs: np.ndarray, us: np.ndarray, theta=(0.0, 0.0)):
         """(A (n, 12, 12), B (n, 12, 2), G (n, 12, 2)) at states ``xs (n, 12)`` and rates ``us (n, 2)``."""
         n = xs.shape[0]
-        size = max(64, 1 << (n - 1).bit_length())  # a few mapped functions serve every length
+        size = 64 * math.ceil(n / 64)  # a few mapped functions serve every length, padded at most 63
         fn = self._maps.get(size)
         if fn is None:
             fn = self._maps[size] = self._jac.map(size)

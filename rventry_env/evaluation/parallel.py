@@ -1,0 +1,177 @@
+"""Evaluate episodes in parallel: in this process, over a local process pool, or on a Dask cluster.
+
+Episodes are independent. They are cut into *tasks* of consecutive seeds: one episode per
+task for a law that declares ``episodes_per_task`` (the re-planning law, whose episodes
+cost seconds each), one task holding every episode otherwise (the batched laws, which fly
+thousands of episodes per second side by side). The cut depends only on the law and the
+seeds, never on where the tasks run, so a run on one process, on ``--workers N`` local
+processes or on a Dask cluster gives identical per-episode results for the same seeds.
+
+* ``workers=1``: the tasks run here, one after the other.
+* ``workers=N``: a :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` start, one
+  BLAS thread per process).
+* ``cluster=ADDRESS``: ``dask.distributed.Client(ADDRESS)``; the workers there need
+  rventry installed (``pip install rventry[cluster]``). Dask is imported only for this.
+
+Each process builds a law once and reuses it for all its tasks (building the
+re-planning law compiles its NLP, about a second).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from rventry_env.envs.task import EntryTask
+from rventry_env.evaluation.rollout import EpisodeBatch, rollout
+
+
+@dataclass(frozen=True)
+class EvaluationJob:
+    """What every task of an evaluation shares (picklable: it travels to the workers).
+
+    :param agent: an agent name or a saved policy's path (:func:`~rventry_env.evaluation.agents.load_agent`).
+    :param dispersion: a dispersion set's name or a dict of :class:`~rventry_env.envs.task.Dispersion` fields.
+    :param task: the task.
+    :param options: keyword arguments for the built-in law.
+    :param record_history: keep every step's state and action.
+    """
+
+    agent: str
+    dispersion: object = "none"
+    task: EntryTask = field(default_factory=EntryTask)
+    options: tuple = ()  # (name, value) pairs, hashable
+    record_history: bool = False
+
+
+_LAWS: dict = {}
+
+
+def _law(job: EvaluationJob):
+    """The law of ``job``, built once per process."""
+    key = (job.agent, job.task, job.options)
+    if key not in _LAWS:
+        from rventry_env.evaluation.agents import load_agent
+
+        _LAWS[key] = load_agent(job.agent, job.task, **dict(job.options))
+    return _LAWS[key]
+
+
+def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
+    """Fly the episodes of one task (a worker's unit of work)."""
+    return rollout(_law(job), seeds=seeds, dispersion=job.dispersion, task=job.task, record_history=job.record_history)
+
+
+def episodes_per_task(job: EvaluationJob, n: int) -> int:
+    """How many episodes one task holds: the law's own ``episodes_per_task``, else all of them."""
+    return max(1, int(getattr(_law(job), "episodes_per_task", n) or n))
+
+
+def split(seeds: list[int], size: int) -> list[list[int]]:
+    return [seeds[i : i + size] for i in range(0, len(seeds), size)]
+
+
+def _single_thread_worker() -> None:
+    # before the first task's unpickling imports NumPy in this fresh (spawned) process
+    os.environ["OMP_NUM_THREADS"] = "1"
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+
+
+def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: str | None = None,
+             progress: Callable[[int], None] | None = None) -> EpisodeBatch:  # fmt: skip
+    """Fly one episode per seed; returns them in seed order, however they were spread.
+
+    :param job: the law, dispersion and task.
+    :param seeds: one seed per episode.
+    :param workers: local processes (1: this one).
+    :param cluster: the address of a Dask scheduler (instead of local processes).
+    :param progress: called with the number of episodes each finished task held.
+    """
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise ValueError("no episodes to evaluate")
+    if not (isinstance(workers, int) and workers >= 1):
+        raise ValueError(f"workers must be a positive integer, got {workers!r}")
+    tasks = split(seeds, episodes_per_task(job, len(seeds)))
+    results: list[EpisodeBatch | None] = [None] * len(tasks)
+
+    def done(i, batch):
+        results[i] = batch
+        if progress is not None:
+            progress(len(tasks[i]))
+
+    if cluster is not None:
+        _on_cluster(job, tasks, cluster, done)
+    elif workers == 1 or len(tasks) == 1:
+        for i, t in enumerate(tasks):
+            done(i, run_task(job, t))
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=ctx,
+                                 initializer=_single_thread_worker) as pool:  # fmt: skip
+            futures = {pool.submit(run_task, job, t): i for i, t in enumerate(tasks)}
+            for f in as_completed(futures):
+                done(futures[f], f.result())
+    return concatenate(results)
+
+
+def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) -> None:
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise ValueError("--cluster needs Dask: pip install 'rventry[cluster]'") from None
+    try:
+        client = Client(address, timeout="20s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ValueError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    try:
+        futures = [client.submit(run_task, job, t, pure=False, key=f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}")
+                   for i, t in enumerate(tasks)]  # fmt: skip
+        index = {f.key: i for i, f in enumerate(futures)}
+        for f in as_completed(futures):
+            done(index[f.key], f.result())
+    finally:
+        client.close()
+
+
+def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
+    """One batch from several, episodes in order (histories padded with NaN to the longest)."""
+    if len(batches) == 1:
+        return batches[0]
+    fields_1d = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
+                 "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
+    out = EpisodeBatch(
+        **{k: np.concatenate([getattr(b, k) for b in batches]) for k in fields_1d},
+        dispersion_draw=np.concatenate([b.dispersion_draw for b in batches]),
+        seeds=np.concatenate([b.seeds for b in batches]),
+        law_stats=[s for b in batches for s in b.law_stats],
+        lengths=np.concatenate([b.lengths for b in batches]),
+    )
+    if all(b.history_t is not None for b in batches):
+        t_max = max(b.history_t.shape[0] for b in batches)
+
+        def pad(a):
+            extra = t_max - a.shape[0]
+            return np.concatenate([a, np.full((extra, *a.shape[1:]), np.nan)]) if extra else a
+
+        out.history_t = np.concatenate([pad(b.history_t) for b in batches], axis=1)
+        out.history_x = np.concatenate([pad(b.history_x) for b in batches], axis=1)
+        out.history_a = np.concatenate([pad(b.history_a) for b in batches], axis=1)
+    return out
+
+
+def default_workers() -> int:
+    """The local process count by default: every core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+__all__ = ["EvaluationJob", "evaluate", "run_task", "concatenate", "split", "default_workers"]

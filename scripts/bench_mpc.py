@@ -1,0 +1,202 @@
+"""Benchmark of the re-planning guidance (``mpc``): how each default was chosen, and the targets.
+
+Two parts:
+
+``--scan``: each setting of :class:`~rventry_env.guidance.replanning.ReplanningSettings`
+varied alone around the defaults, flown on the same episodes (default: 40 of the wide set,
+seeds 100000...) and nominally. Prints success rate, path violations, J/J*, the re-solve
+time percentiles and the failed solves for every variant.
+
+``--evaluate``: the benchmark's targets: success on 200 episodes of the standard and the wide
+sets (seed 0), the nominal J/J*, re-solve time median / p99, and the wall time of the
+200-episode evaluation with ``--workers``.
+
+    python scripts/bench_mpc.py --evaluate --workers 2 --json out/bench_mpc.json
+    python scripts/bench_mpc.py --scan --episodes 40 --workers 2 --json out/scan_mpc.json
+
+Timings depend on the machine: the README quotes this 2-core machine's (``--workers 2``).
+Success rates do not: the solver's budget is an iteration count.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, replace
+
+import numpy as np
+
+from rventry_env.envs.task import EntryTask
+from rventry_env.evaluation.parallel import EvaluationJob, _single_thread_worker, concatenate, run_task
+from rventry_env.evaluation.summary import summarize
+from rventry_env.guidance.replanning import ReplanningSettings
+from rventry_env.util.args import non_negative_int, positive_int
+from rventry_env.util.files import write_json
+
+TARGETS = {"standard_success": 0.99, "wide_success": 0.95, "nominal_cost_ratio": 1.10, "resolve_p50_s": 0.5,
+           "resolve_p99_s": 2.0, "wall_200_standard_s": 1800.0}  # fmt: skip
+
+DEFAULT = ReplanningSettings()
+VARIANTS = {
+    "defaults": {},
+    "replan every 10 s": {"replan_s": 10.0},
+    "replan every 30 s": {"replan_s": 30.0},
+    "replan every 45 s": {"replan_s": 45.0},
+    "mesh 15 x 5": {"mesh_intervals": 15},
+    "mesh 20 x 4": {"mesh_degree": 4},
+    "mesh 30 x 5": {"mesh_intervals": 30},
+    "margins q 2 %, load 1 %": {"q_margin": 0.02, "load_margin": 0.01},
+    "margins q 8 %, load 4 %": {"q_margin": 0.08, "load_margin": 0.04},
+    "budget 25 iterations": {"max_iterations": 25},
+    "penalty 10": {"soft_penalty": 10.0},
+    "penalty 100": {"soft_penalty": 100.0},
+    "freeze 10 s": {"freeze_s": 10.0},
+    "freeze 60 s": {"freeze_s": 60.0},
+}
+
+
+def _reference_cost() -> float:
+    from rventry_env.reference import load_reference
+
+    return float(load_reference().cost)
+
+
+def run_all(jobs: dict, workers: int, progress_label: str) -> dict:
+    """Run {name: (job, seeds)} as one-episode tasks on one pool; returns {name: batch}."""
+    from rich.progress import Progress
+
+    tasks = [(name, job, [s]) for name, (job, seeds) in jobs.items() for s in seeds]
+    out: dict = {name: [None] * len(seeds) for name, (_, seeds) in jobs.items()}
+    position = {name: {s: i for i, s in enumerate(seeds)} for name, (_, seeds) in jobs.items()}
+    ctx = multiprocessing.get_context("spawn")
+    with Progress() as bar, ProcessPoolExecutor(workers, mp_context=ctx, initializer=_single_thread_worker) as pool:
+        job_bar = bar.add_task(progress_label, total=len(tasks))
+        futures = {pool.submit(run_task, job, seeds): (name, seeds[0]) for name, job, seeds in tasks}
+        for f in as_completed(futures):
+            name, seed = futures[f]
+            out[name][position[name][seed]] = f.result()
+            bar.advance(job_bar)
+    return {name: concatenate(batches) for name, batches in out.items()}
+
+
+def _row(summary: dict, nominal: dict, wall_per_episode: float) -> dict:
+    rp = summary["replanning"]
+    return {
+        "success_rate": summary["success_rate"],
+        "violation_rate": summary["constraint_violation_rate"],
+        "miss_km_p95": summary["percentiles"]["miss_km"]["p95"],
+        "cost_ratio_mean": summary["cost_ratio"],
+        "nominal_cost_ratio": nominal["cost_ratio"],
+        "nominal_success": nominal["success_rate"],
+        "resolve_p50_s": rp["solve_time_s"]["p50"],
+        "resolve_p99_s": rp["solve_time_s"]["p99"],
+        "replans_per_episode": rp["replans"] / summary["episodes"],
+        "replan_failures": rp["replan_failures"],
+        "episode_cpu_s": wall_per_episode,
+    }
+
+
+def scan(args) -> dict:
+    task = EntryTask()
+    seeds = list(range(args.seed, args.seed + args.episodes))
+    jobs = {}
+    for name, change in VARIANTS.items():
+        opts = (("settings", replace(DEFAULT, **change)),)
+        jobs[name] = (EvaluationJob("mpc", args.dispersion, task, opts), seeds)
+        jobs[name + " (nominal)"] = (EvaluationJob("mpc", "none", task, opts), [0])
+    t0 = time.time()
+    batches = run_all(jobs, args.workers, f"scan: {len(VARIANTS)} variants x {args.episodes} episodes")
+    wall = time.time() - t0
+    ref_cost = _reference_cost()
+    rows = {}
+    for name in VARIANTS:
+        s = summarize(batches[name], ref_cost, task)
+        nominal = summarize(batches[name + " (nominal)"], ref_cost, task)
+        cpu = float(np.mean([sum(st["solve_times_s"]) for st in batches[name].law_stats]))
+        rows[name] = _row(s, nominal, cpu)
+    print(f"\n{args.episodes} episodes of the {args.dispersion} set (seeds {seeds[0]}...) per variant, "
+          f"and the nominal flight; {wall:.0f} s on {args.workers} workers")  # fmt: skip
+    head = f"{'variant':28s} {'success':>8s} {'viol.':>6s} {'miss p95':>9s} {'J/J*':>6s} {'nom J/J*':>9s} " \
+           f"{'p50 (s)':>8s} {'p99 (s)':>8s} {'solves':>7s} {'failed':>7s} {'solve s/ep':>10s}"
+    print(head)
+    for name, r in rows.items():
+        print(f"{name:28s} {r['success_rate']:8.3f} {r['violation_rate']:6.3f} {r['miss_km_p95']:9.3f} "
+              f"{r['cost_ratio_mean']:6.3f} {r['nominal_cost_ratio']:9.3f} {r['resolve_p50_s']:8.3f} "
+              f"{r['resolve_p99_s']:8.3f} {r['replans_per_episode']:7.1f} {r['replan_failures']:7d} "
+              f"{r['episode_cpu_s']:10.1f}")  # fmt: skip
+    return {"scan": rows, "episodes": args.episodes, "dispersion": args.dispersion, "seed": args.seed,
+            "wall_s": wall, "workers": args.workers, "defaults": asdict(DEFAULT)}  # fmt: skip
+
+
+def evaluate(args) -> dict:
+    from rventry_env.evaluation.parallel import evaluate as run
+
+    task = EntryTask()
+    ref_cost = _reference_cost()
+    out = {"defaults": asdict(DEFAULT), "workers": args.workers, "episodes": args.episodes}
+    nominal = summarize(run(EvaluationJob("mpc", "none", task), [0]), ref_cost, task)
+    out["nominal"] = {k: nominal[k] for k in ("success_rate", "miss_km", "vertical_error_deg", "abs_speed_error_mps",
+                                              "cost_ratio")}  # fmt: skip
+    from rich.progress import Progress
+
+    for dispersion in args.sets:
+        t0 = time.time()
+        with Progress() as bar:
+            job_bar = bar.add_task(f"mpc, {dispersion} set", total=args.episodes)
+            batch = run(EvaluationJob("mpc", dispersion, task), list(range(args.seed, args.seed + args.episodes)),
+                        workers=args.workers, progress=lambda n: bar.advance(job_bar, n))  # fmt: skip
+        wall = time.time() - t0
+        s = summarize(batch, ref_cost, task)
+        out[dispersion] = {
+            "success_rate": s["success_rate"], "violation_rate": s["constraint_violation_rate"],
+            "miss_km": s["percentiles"]["miss_km"], "vertical_error_deg": s["percentiles"]["vertical_error_deg"],
+            "cost_ratio": s["cost_ratio"], "endings": s["endings"], "replanning": s["replanning"], "wall_s": wall,
+            "failed_episodes": [{"seed": int(batch.seeds[i]), "miss_km": float(batch.miss_km[i]),
+                                 "vertical_error_deg": float(batch.vertical_error_deg[i]),
+                                 "speed_error_mps": float(batch.speed_error_mps[i]),
+                                 "violation": bool(batch.constraint_violation[i]), "failure": str(batch.failure[i])}
+                                for i in np.nonzero(~batch.is_success)[0]],
+        }  # fmt: skip
+    print(f"\nmpc with its defaults, {args.workers} worker(s)")
+    print(f"  nominal: J/J* {out['nominal']['cost_ratio']:.3f} (target <= {TARGETS['nominal_cost_ratio']}), "
+          f"miss {out['nominal']['miss_km'] * 1000:.1f} m, vertical {out['nominal']['vertical_error_deg']:.2f} deg")
+    for dispersion in args.sets:
+        r = out[dispersion]
+        rp = r["replanning"]
+        target = TARGETS.get(f"{dispersion}_success")
+        print(f"  {dispersion}: success {r['success_rate']:.3f}" + (f" (target >= {target})" if target else "")
+              + f", violations {r['violation_rate']:.3f}, miss p95 {r['miss_km']['p95'] * 1000:.0f} m, "
+              f"re-solve p50 {rp['solve_time_s']['p50']:.3f} s / p99 {rp['solve_time_s']['p99']:.3f} s "
+              f"(targets {TARGETS['resolve_p50_s']} / {TARGETS['resolve_p99_s']}), {rp['replan_failures']} failed of "
+              f"{rp['replans']} solves, {args.episodes} episodes in {r['wall_s']:.0f} s")  # fmt: skip
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    mode = ap.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--scan", action="store_true", help="vary each setting alone around the defaults")
+    mode.add_argument("--evaluate", action="store_true", help="the benchmark's targets with the defaults")
+    ap.add_argument("--episodes", type=positive_int, help="episodes per variant (scan: 40) or per set (evaluate: 200)")
+    ap.add_argument("--dispersion", default="wide", choices=("standard", "wide"), help="the scan's set (wide)")
+    ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
+    ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
+    ap.add_argument("--workers", type=positive_int, default=2)
+    ap.add_argument("--json", help="write the figures here")
+    args = ap.parse_args(argv)
+    if args.episodes is None:
+        args.episodes = 40 if args.scan else 200
+    if args.seed is None:
+        args.seed = 100_000 if args.scan else 0
+    out = scan(args) if args.scan else evaluate(args)
+    out["command"] = " ".join(["python scripts/bench_mpc.py", *(argv if argv is not None else sys.argv[1:])])
+    if args.json:
+        print(f"wrote {write_json(args.json, out)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
