@@ -12,6 +12,8 @@ import json
 import shutil
 from pathlib import Path
 
+from rventry_env.util.files import write_json
+
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
 
 
@@ -39,5 +41,5 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
         shutil.copy2(run_dir / name, dest / name)
     meta = json.loads((dest / "metadata.json").read_text())
     meta["shipped_from"] = str(run_dir)
-    (dest / "metadata.json").write_text(json.dumps(meta, indent=1))
+    write_json(dest / "metadata.json", meta)
     return dest

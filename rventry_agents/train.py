@@ -16,7 +16,6 @@ A run writes into its output directory:
 
 from __future__ import annotations
 
-import json
 import math
 import shlex
 import sys
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.util.files import save_figure, write_json
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
 
@@ -184,7 +184,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
                 self.model.save(out / "model.zip")
                 vecnorm.save(str(out / "vecnormalize.pkl"))
                 rec["best"] = True
-            (out / "evaluations.json").write_text(json.dumps(self.history, indent=1))
+            write_json(out / "evaluations.json", self.history)
             print(
                 f"[eval @ {rec['timesteps']:,}] success {rec['success_rate']:.2f} miss {rec['miss_km']:.1f} km "
                 f"(median {rec['median_miss_km']:.1f}) vertical {rec['vertical_error_deg']:.1f} deg "
@@ -229,7 +229,7 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
     out.mkdir(parents=True, exist_ok=True)
     mode, authority = policy_mode(cfg)
     # how to fly any model saved under ``out`` (best, final, checkpoints)
-    (out / "policy.json").write_text(json.dumps({"mode": mode, "authority_rad": authority}))
+    write_json(out / "policy.json", {"mode": mode, "authority_rad": authority})
     torch.set_num_threads(int(t.get("torch_threads", 1)))
     task = make_task(cfg, task)
     try:
@@ -286,7 +286,7 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
         "best_evaluation": best,
         "reference_cost": reference_cost,
     }
-    (out / "metadata.json").write_text(json.dumps(meta, indent=1))
+    write_json(out / "metadata.json", meta)
     plot_learning_curve(evaluator.history, out / "learning_curve.png")
     return out
 
@@ -313,6 +313,4 @@ def plot_learning_curve(history: list[dict], path: Path) -> None:
     axes[2].set(xlabel="timesteps (M)", ylabel="training episode return")
     for ax in axes:
         ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

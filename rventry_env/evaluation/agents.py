@@ -50,7 +50,7 @@ BUILTIN: dict[str, tuple[str, Callable]] = {
     "reference": ("open-loop replay of the optimal collocation reference", _reference),
     "lqr": ("time-varying LQR around the margined guidance reference", _lqr),
     "lqr-est": ("the same TV-LQR with online estimation of the aerodynamic scales", _lqr_est),
-    "mpc": ("re-planning on the LGR transcription every 20 s, with online estimation", _mpc),
+    "mpc": ("re-planning on the LGR transcription every 30 s, with online estimation", _mpc),
 }
 
 

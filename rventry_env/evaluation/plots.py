@@ -8,6 +8,7 @@ import numpy as np
 
 from rventry_env.core.conversions import cartesian_from_rv_euler
 from rventry_env.evaluation.rollout import EpisodeBatch
+from rventry_env.util.files import save_figure
 
 R_E = 6378137.0
 
@@ -21,17 +22,6 @@ def _ground_track(x: np.ndarray):
     lat[ok] = np.degrees(np.arcsin(np.clip(a1[..., 2], -1, 1)))[ok]
     lon[ok] = np.degrees(np.arctan2(a1[..., 1], a1[..., 0]))[ok]
     return lat, lon
-
-
-def _save(fig, path) -> Path:
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def plot_trajectories(
@@ -90,7 +80,7 @@ def plot_trajectories(
         a.grid(alpha=0.3)
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds) -> Path:
@@ -107,19 +97,25 @@ def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds
         ("speed_error_mps", "speed error (m/s)", thresholds.speed_error_mps, False),
     )
     for ax, (key, label, thr, positive) in zip(axes, specs):
-        for name, b in batches.items():
-            v = np.asarray(getattr(b, key), float)
-            v = v[np.isfinite(v)]
-            if positive:
-                bins = np.logspace(np.log10(max(v.min(), 1e-3)), np.log10(max(v.max(), 1e-2)), 30) if v.size else 10
-                ax.set_xscale("log")
-            else:
-                bins = 30
-            ax.hist(v, bins=bins, alpha=0.55, label=name)
+        values = {name: np.asarray(getattr(b, key), float) for name, b in batches.items()}
+        values = {name: v[np.isfinite(v)] for name, v in values.items()}
+        pooled = np.concatenate([v for v in values.values()]) if values else np.zeros(0)
+        # one set of bins for every law, so the bars compare; heights are fractions of each law's episodes
+        if positive:
+            lo = max(pooled.min(), 1e-3) if pooled.size else 1e-3
+            hi = max(pooled.max(), 10 * lo) if pooled.size else 1.0
+            bins = np.logspace(np.log10(lo), np.log10(hi), 40)
+            ax.set_xscale("log")
+        else:
+            bins = np.linspace(pooled.min(), pooled.max(), 40) if pooled.size > 1 else 10
+        for name, v in values.items():
+            if v.size:
+                ax.hist(np.clip(v, bins[0], bins[-1]) if positive else v, bins=bins, alpha=0.5,
+                        weights=np.full(v.size, 1.0 / v.size), label=f"{name} ({v.size})", histtype="stepfilled")
         ax.axvline(thr, color="r", ls="--", lw=1)
         if not positive:
             ax.axvline(-thr, color="r", ls="--", lw=1)
-        ax.set(xlabel=label, ylabel="episodes")
+        ax.set(xlabel=label, ylabel="fraction of episodes")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path)

@@ -52,9 +52,9 @@ from rventry_env.physics.model import EntryModel
 class ReplanningSettings:
     """Every default of the re-planning law (see the module docstring for each one's role)."""
 
-    replan_s: float = 20.0
+    replan_s: float = 30.0
     mesh_intervals: int = 20
-    mesh_degree: int = 5
+    mesh_degree: int = 4
     end_fraction: float = 0.05
     end_intervals: int = 3
     end_degree: int = 4

@@ -1,0 +1,142 @@
+"""Re-planning guidance (mpc): lands, survives failed solves, sees only what a vehicle measures, runs anywhere.
+
+A coarse mesh and rare re-plans keep these short; the benchmark (scripts/bench_mpc.py) flies the defaults.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rventry_env.envs.task import EntryTask
+from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.evaluation.parallel import EvaluationJob, evaluate
+from rventry_env.evaluation.rollout import rollout
+from rventry_env.guidance.replanning import PlanSolver, ReplanningGuidance, ReplanningSettings
+from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
+from rventry_env.physics import EntryModel, scaled_model
+
+COARSE = ReplanningSettings(mesh_intervals=10, mesh_degree=4, replan_s=60.0)
+
+
+@pytest.fixture(scope="module")
+def law():
+    return ReplanningGuidance(settings=COARSE)
+
+
+@pytest.mark.slow
+def test_mpc_lands_the_nominal_case_within_the_success_thresholds(law):
+    b = rollout(law, 1)
+    assert b.is_success[0] and b.failure[0] == ""
+    assert b.miss_km[0] < 0.5 and b.vertical_error_deg[0] < 2.0 and abs(b.speed_error_mps[0]) < 20.0
+    stats = b.law_stats[0]
+    assert stats["replans"] >= 10 and stats["replan_failures"] == 0
+    assert len(stats["solve_times_s"]) == stats["replans"]
+
+
+@pytest.mark.slow
+def test_a_failed_resolve_keeps_the_previous_plan_and_is_counted(monkeypatch):
+    law = ReplanningGuidance(settings=COARSE)
+    original = PlanSolver.solve
+    calls = {"n": 0}
+    kept = {}
+
+    def failing_second_and_third(self, x0, theta, guess, warm=None):
+        calls["n"] += 1
+        sol = original(self, x0, theta, guess, warm)
+        if calls["n"] in (2, 3):
+            kept[calls["n"]] = law.tracks[0].solution
+            sol.success, sol.status = False, "Injected_Failure"
+        return sol
+
+    monkeypatch.setattr(PlanSolver, "solve", failing_second_and_third)
+    b = rollout(law, 1)
+    stats = b.law_stats[0]
+    assert stats["replan_failures"] == 2
+    assert [e[1] for e in stats["replan_failure_events"]] == ["Injected_Failure"] * 2
+    assert kept[2] is kept[3]  # the plan of the first solve was flown on through both failures
+    assert b.failure[0] == "" and b.miss_km[0] < 5.0  # and the episode still ends on the target
+
+
+def test_a_failed_first_solve_falls_back_to_the_nominal_plan(monkeypatch):
+    law = ReplanningGuidance(settings=COARSE)
+    original = PlanSolver.solve
+
+    def fail_once(self, x0, theta, guess, warm=None):
+        sol = original(self, x0, theta, guess, warm)
+        sol.success = False
+        return sol
+
+    monkeypatch.setattr(PlanSolver, "solve", fail_once)
+    venv = RvEntryVectorEnv(num_envs=1)
+    obs, info = venv.reset(seed=0)
+    law.reset(1)
+    law(obs, info["time_s"], venv.state, sensed_accel_b=info["sensed_accel_b"])
+    assert law.tracks[0].solution is law.nominal and law.logs[0].replan_failures == 1
+
+
+def _fly(law, venv, obs, info, steps):
+    actions = []
+    for _ in range(steps):
+        a = law(obs, info["time_s"], venv.state, sensed_accel_b=info["sensed_accel_b"])
+        actions.append(a.copy())
+        obs, _, _, _, info = venv.step(a)
+    return np.array(actions)
+
+
+@pytest.mark.parametrize("make", [lambda: NeighboringOptimalGuidance(estimate=True),
+                                  lambda: ReplanningGuidance(settings=COARSE)])  # fmt: skip
+def test_a_law_cannot_tell_a_dispersion_draw_from_the_same_vehicle_built_by_hand(make):
+    """Guidance laws never receive the dispersion draw: a dispersed episode, and the same initial
+    state and model given explicitly with no draw at all, get the very same actions."""
+    drawn = RvEntryVectorEnv(num_envs=2, dispersion="wide")
+    obs_a, info_a = drawn.reset(seed=5)
+    d = drawn.dispersion_draw.copy()
+    assert np.any(d != 0)
+    model = scaled_model(EntryModel(), 1 + d[:, 0], 1 + d[:, 1], 1 + d[:, 2])
+    built = RvEntryVectorEnv(num_envs=2, model=model)
+    obs_b, info_b = built.reset(seed=99, options={"state": drawn.state})
+    assert np.all(built.dispersion_draw == 0)
+    law_a, law_b = make(), make()
+    law_a.reset(2)
+    law_b.reset(2)
+    np.testing.assert_array_equal(_fly(law_a, drawn, obs_a, info_a, 25), _fly(law_b, built, obs_b, info_b, 25))
+
+
+def test_rollout_hands_a_law_only_what_a_vehicle_measures():
+    seen = []
+
+    class Spy:
+        uses_sensed_acceleration = True
+
+        def __call__(self, *args, **kwargs):
+            seen.append((len(args), sorted(kwargs), [np.shape(a) for a in args], np.shape(kwargs["sensed_accel_b"])))
+            return np.zeros((len(args[0]), 2), np.float32)
+
+    rollout(Spy(), 3, dispersion="standard", max_episode_steps=4)
+    assert seen and all(s == (3, ["sensed_accel_b"], [(3, 26), (3,), (3, 12)], (3, 3)) for s in seen)
+
+
+@pytest.mark.slow
+def test_local_processes_and_a_dask_cluster_give_identical_episodes():
+    distributed = pytest.importorskip("distributed")
+    job = EvaluationJob("mpc", "standard", EntryTask(), options=(("settings", COARSE),))
+    seeds = [3, 4]
+    here = evaluate(job, seeds, workers=1)
+    pool = evaluate(job, seeds, workers=2)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl:
+        dask = evaluate(job, seeds, cluster=cl.scheduler_address)
+    for other in (pool, dask):
+        for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost", "time_s"):
+            np.testing.assert_array_equal(getattr(here, key), getattr(other, key))
+        assert [s["replans"] for s in other.law_stats] == [s["replans"] for s in here.law_stats]
+    assert here.seeds.tolist() == seeds
+
+
+def test_settings_are_checked():
+    with pytest.raises(ValueError, match="replan_s must be positive"):
+        ReplanningSettings(replan_s=0.0)
+    with pytest.raises(ValueError, match="q_margin must lie in"):
+        ReplanningSettings(q_margin=0.6)
+    with pytest.raises(ValueError, match="mesh_degree must be a positive integer"):
+        ReplanningSettings(mesh_degree=2.5)
