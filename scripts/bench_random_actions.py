@@ -4,7 +4,7 @@ Flies uniformly random actions in [-1.2, 1.2] (out-of-range ones included, to ex
 clipping) through the vector env, in batches, at several control steps, with the standard
 and wide dispersions; and a share of the same episodes through the single env. It counts:
 
-* exceptions (crashes);
+* exceptions (crashes), NumPy's RuntimeWarnings included;
 * non-finite observations or rewards;
 * observations outside the observation Box (the env clips and flags them; none should need it);
 * ended episodes that lack an end-of-episode key (``failure``, ``is_success``, ``miss_km``, ...);
@@ -96,8 +96,12 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=seed, default=0)
     ap.add_argument("--json", help="write the counts here")
     args = ap.parse_args(argv)
+    import warnings
+
     from rich.progress import Progress
 
+    # a NumPy overflow warning is a silent non-finite value: count it as a crash
+    warnings.simplefilter("error", RuntimeWarning)
     per_case = args.episodes // len(CASES)
     n_single = max(1, int(per_case * args.single_share))
     report = {"episodes_vector": per_case * len(CASES), "episodes_single": n_single * len(CASES), "cases": {}}

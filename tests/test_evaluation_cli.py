@@ -12,11 +12,16 @@ from rventry_env.cli import main
 @pytest.mark.slow
 def test_compare_on_a_few_episodes_writes_the_report_and_plots(tmp_path, capsys):
     out, plots = tmp_path / "c.json", tmp_path / "plots"
-    assert main(["compare", "--episodes", "2", "--seed", "5", "--json", str(out), "--plots", str(plots)]) == 0
+    args = ["compare", "--episodes", "2", "--mpc-episodes", "1", "--seed", "5", "--workers", "1", "--json", str(out),
+            "--plots", str(plots)]  # fmt: skip
+    assert main(args) == 0
     doc = json.loads(out.read_text())
-    assert set(doc["runs"]) == {f"{case}/{name}" for case in ("nominal", "dispersed")
-                                for name in ("ppo", "TV-LQR", "reference (open loop)")}  # fmt: skip
+    names = ("ppo", "TV-LQR", "TV-LQR + estimation", "re-planning (mpc)", "reference (open loop)")
+    assert set(doc["runs"]) == {f"{case}/{name}" for case in ("nominal", "dispersed") for name in names}
     assert doc["runs"]["dispersed/TV-LQR"]["n_episodes"] == 2 and doc["dispersion_set"] == "standard"
+    mpc = doc["runs"]["dispersed/re-planning (mpc)"]
+    assert mpc["n_episodes"] == 1 and mpc["episodes"][0]["replans"] >= 10
+    assert mpc["summary"]["replanning"]["solve_time_s"]["p50"] > 0
     assert [e["dispersion"]["density"] != 0 for e in doc["runs"]["dispersed/TV-LQR"]["episodes"]] == [True, True]
     # the nominal TV-LQR flight tracks the guidance reference to a success
     assert doc["runs"]["nominal/TV-LQR"]["summary"]["success_rate"] == 1.0
@@ -25,7 +30,7 @@ def test_compare_on_a_few_episodes_writes_the_report_and_plots(tmp_path, capsys)
     assert sorted(p.name for p in plots.iterdir()) == ["dispersed_outcomes.png", "dispersed_trajectories.png",
                                                        "nominal_trajectories.png"]  # fmt: skip
     printed = capsys.readouterr().out
-    assert "2 dispersed episodes (standard set)" in printed and "benchmark's targets" in printed
+    assert "2 or 1 dispersed episodes per law (standard set)" in printed and "benchmark's targets" in printed
 
 
 def test_compare_checks_its_destinations_before_flying(tmp_path, capsys):

@@ -187,7 +187,8 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         d = common.draw_dispersion(self.np_random, dispersion)
         if not dispersion.is_zero:
             x0 = common.apply_state_dispersion(x0, d)
-            self._episode_model = scaled_model(self.model, 1 + d[0], 1 + d[1], 1 + d[2])
+            # Python floats, not NumPy scalars: the single env works on floats (overflow raises, and is caught)
+            self._episode_model = scaled_model(self.model, float(1 + d[0]), float(1 + d[1]), float(1 + d[2]))
         else:
             self._episode_model = self.model
         self.dispersion_draw = d

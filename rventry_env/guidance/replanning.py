@@ -56,7 +56,7 @@ class ReplanningSettings:
     mesh_intervals: int = 20
     mesh_degree: int = 4
     end_fraction: float = 0.05
-    end_intervals: int = 3
+    end_intervals: int = 4
     end_degree: int = 4
     q_margin: float = 0.05
     load_margin: float = 0.02
@@ -84,6 +84,27 @@ class ReplanningSettings:
                 raise ValueError(f"{name} must lie in [0, {hi}), got {v!r}")
         if not (self.freeze_s >= 0 and self.q_weight >= 0):
             raise ValueError("freeze_s and q_weight must be >= 0")
+
+
+def replanning_mesh(s: ReplanningSettings):
+    """The re-planning mesh in normalized time: uniform intervals, then an end block over the last
+    ``end_fraction`` whose intervals shrink geometrically toward the impact (each half the one before).
+
+    The optimum ends by driving alpha to zero at its rate bound in the last half second, as the
+    load factor climbs in the thickening air. Equal end intervals could not follow it: the plan's
+    polynomials overshot between nodes and its load factor reached 12.7 g in the last second,
+    which the flown vehicle then did too.
+    """
+    from rventry_env.reference.collocation import Mesh
+
+    if s.end_fraction == 0:
+        return Mesh.uniform(s.mesh_intervals, s.mesh_degree)
+    split = 1.0 - s.end_fraction
+    widths = 0.5 ** np.arange(s.end_intervals)
+    ends = split + s.end_fraction * np.cumsum(widths) / widths.sum()
+    breaks = np.concatenate([np.linspace(0.0, split, s.mesh_intervals + 1), ends])
+    breaks[-1] = 1.0
+    return Mesh(breaks, np.array([s.mesh_degree] * s.mesh_intervals + [s.end_degree] * s.end_intervals))
 
 
 class _Shifted:
@@ -136,7 +157,6 @@ class PlanSolver:
     def __init__(self, task: EntryTask, model: EntryModel, settings: ReplanningSettings):
         from rventry_env.reference.collocation import CompiledProblem, SolverOptions, transcribe
         from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
-        from rventry_env.reference.pipeline import end_clustered_mesh
 
         s = self.settings = settings
         p = task.problem
@@ -146,12 +166,7 @@ class PlanSolver:
                                     soft_path_penalty=s.soft_penalty, aero_scale_parameters=True)  # fmt: skip
         self.problem = entry_problem(config)
         self.compiled = CompiledProblem(self.problem)
-        if s.end_fraction > 0:
-            mesh = end_clustered_mesh(s.mesh_intervals, s.mesh_degree, s.end_fraction, s.end_intervals, s.end_degree)
-        else:
-            from rventry_env.reference.collocation import Mesh
-
-            mesh = Mesh.uniform(s.mesh_intervals, s.mesh_degree)
+        mesh = replanning_mesh(s)
         ipopt = {"max_wall_time": float(s.max_wall_s), "mu_init": 1e-4, "warm_start_init_point": "yes",
                  "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
                  "warm_start_slack_bound_push": 1e-6}  # fmt: skip
