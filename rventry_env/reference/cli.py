@@ -12,7 +12,7 @@ import math
 import sys
 from pathlib import Path
 
-from rventry_env.util.args import fraction, positive_float, positive_int
+from rventry_env.util.args import interval, positive_float, positive_int
 from rventry_env.util.files import atomic_write, check_writable, write_json
 
 # the shipped files, and the margins each must be solved with
@@ -36,14 +36,14 @@ def register(subparsers) -> None:
     p.add_argument("--mesh-tolerance", type=positive_float, default=1e-6, help="target max relative error")
     p.add_argument("--first-mesh", type=positive_int, nargs=2, metavar=("INTERVALS", "POINTS"), default=(39, 6),
                    help="uniform part of the first mesh (default 39 intervals of 6 LGR points)")
-    p.add_argument("--end-fraction", type=fraction(0.0, 1.0), default=0.025,
+    p.add_argument("--end-fraction", type=interval(0.0, 1.0, high_open=True), default=0.025,
                    help="last fraction of the time meshed finer in the first mesh (0.025; 0 for none)")
     p.add_argument("--max-mesh-iterations", type=positive_int, default=15, help="mesh passes per stage (15)")
     p.add_argument("--norm-mode", choices=("projection", "paper", "none"), default="projection",
                    help="how the quaternion norms are kept (see docs/reference.md)")  # fmt: skip
-    p.add_argument("--q-margin", type=fraction(0.0, 0.5), default=0.0, metavar="FRACTION",
+    p.add_argument("--q-margin", type=interval(0.0, 0.5, high_open=True), default=0.0, metavar="FRACTION",
                    help="solve with q >= q_min (1 + FRACTION): a guidance reference with room for dispersions (0)")
-    p.add_argument("--load-margin", type=fraction(0.0, 0.5), default=0.0, metavar="FRACTION",
+    p.add_argument("--load-margin", type=interval(0.0, 0.5, high_open=True), default=0.0, metavar="FRACTION",
                    help="solve with the load factor <= a_max (1 - FRACTION) (0)")
     p.add_argument("--quiet", action="store_true", help="no per-pass table")
     p.set_defaults(func=_solve)

@@ -21,51 +21,22 @@ def _number(text: str, kind) -> float | int:
     return value
 
 
-def positive_int(text: str) -> int:
-    """An integer >= 1."""
-    value = _number(text, int)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
+def _at_least(kind, low, strict: bool, phrase: str):
+    """An argparse type: a number of ``kind`` above ``low`` (or at least ``low``), else "must be <phrase>"."""
 
-
-def non_negative_int(text: str) -> int:
-    """An integer >= 0."""
-    value = _number(text, int)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """A finite number > 0."""
-    value = _number(text, float)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text!r}")
-    return value
-
-
-def non_negative_float(text: str) -> float:
-    """A finite number >= 0."""
-    value = _number(text, float)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
-    return value
-
-
-def fraction(low: float = 0.0, high: float = 1.0, include_high: bool = False):
-    """A number in [low, high) (or [low, high]) as an argparse type."""
-
-    def check(text: str) -> float:
-        value = _number(text, float)
-        ok = low <= value <= high if include_high else low <= value < high
-        if not ok:
-            bracket = "]" if include_high else ")"
-            raise argparse.ArgumentTypeError(f"must lie in [{low:g}, {high:g}{bracket}, got {text!r}")
+    def check(text: str):
+        value = _number(text, kind)
+        if value < low or (strict and value == low):
+            raise argparse.ArgumentTypeError(f"must be {phrase}, got {text!r}")
         return value
 
-    check.__name__ = "fraction"
     return check
+
+
+positive_int = _at_least(int, 1, False, "a positive integer")
+non_negative_int = _at_least(int, 0, False, "an integer >= 0")
+positive_float = _at_least(float, 0.0, True, "a positive finite number")
+non_negative_float = _at_least(float, 0.0, False, "a finite number >= 0")
 
 
 def seed(text: str) -> int:
@@ -118,7 +89,6 @@ __all__ = [
     "non_negative_int",
     "positive_float",
     "non_negative_float",
-    "fraction",
     "seed",
     "interval",
     "number_list",
