@@ -42,12 +42,13 @@ TARGETS = {"standard_success": 0.99, "wide_success": 0.95, "nominal_cost_ratio":
 DEFAULT = ReplanningSettings()
 VARIANTS = {
     "defaults": {},
-    "replan every 10 s": {"replan_s": 10.0},
-    "replan every 30 s": {"replan_s": 30.0},
+    "replan every 20 s": {"replan_s": 20.0},
     "replan every 45 s": {"replan_s": 45.0},
-    "mesh 15 x 5": {"mesh_intervals": 15},
-    "mesh 20 x 4": {"mesh_degree": 4},
-    "mesh 30 x 5": {"mesh_intervals": 30},
+    "mesh 15 x 4": {"mesh_intervals": 15},
+    "mesh 30 x 4": {"mesh_intervals": 30},
+    "mesh 20 x 5": {"mesh_degree": 5},
+    "no end block (20 equal intervals)": {"end_fraction": 0.0},
+    "end block of 2 intervals": {"end_intervals": 2},
     "margins q 2 %, load 1 %": {"q_margin": 0.02, "load_margin": 0.01},
     "margins q 8 %, load 4 %": {"q_margin": 0.08, "load_margin": 0.04},
     "budget 25 iterations": {"max_iterations": 25},

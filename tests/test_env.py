@@ -507,3 +507,14 @@ def test_coarse_steps_end_in_a_named_failure_in_both_envs_never_an_exception(dt)
             if term or trunc:
                 assert (k, info["failure"]) == vector_end[i]
                 break
+
+
+def test_observation_batch_is_vehicle_major_and_clips_only_the_rows_out_of_bounds():
+    from rventry_env.envs.common import observation_batch
+
+    low, high = np.array([-1.0, -2.0, 0.0], np.float32), np.array([1.0, 2.0, 5.0], np.float32)
+    features = [np.array([0.5, 3.0, -0.5]), np.array([1.0, 0.0, -3.0]), np.array([4.0, 4.0, 9.0])]
+    obs, clipped = observation_batch(features, low, high)
+    assert obs.dtype == np.float32 and obs.shape == (3, 3) and obs.flags.c_contiguous
+    np.testing.assert_array_equal(obs, [[0.5, 1.0, 4.0], [1.0, 0.0, 4.0], [-0.5, -2.0, 5.0]])
+    np.testing.assert_array_equal(clipped, [False, True, True])

@@ -59,7 +59,7 @@ def test_lqr_linearization_matches_finite_differences(lqr):
 def test_lqr_flies_the_nominal_case_to_success_within_the_cost_budget(lqr):
     b = rollout(lqr, 1)
     assert b.is_success[0] and b.miss_km[0] < 0.1 and b.vertical_error_deg[0] < 2.0
-    assert b.cost[0] <= 1.5 * load_reference().cost  # issue 5's nominal J/J* target
+    assert b.cost[0] <= 1.5 * load_reference().cost  # the benchmark's nominal J/J* target
 
 
 @pytest.mark.slow

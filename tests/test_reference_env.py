@@ -1,4 +1,4 @@
-"""The environment against the shipped collocation reference (issue 4, checks 2 and 3)."""
+"""The environment against the shipped collocation reference: the replay lands, and the reward is the cost."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def test_tight_replay_of_the_reference_controls_lands_within_100_m(replay):
 
 @pytest.mark.slow
 def test_env_reward_along_the_tight_replay_is_minus_j_star_with_no_terminal_penalty(replay):
-    """Issue 4, check 3: the environment's reward terms, evaluated on the replay, sum to -J*."""
+    """The environment's reward terms, evaluated on the replay, sum to -J*."""
     ref, task, model = load_reference(), EntryTask(), EntryModel()
     t, x = replay.t, replay.x
     u = ref.control(0.5 * (t[1:] + t[:-1]))  # each segment holds its midpoint rates

@@ -250,7 +250,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
 
     def _observe(self):
         raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, NUMPY)
-        return common.clip_observation(np.stack(raw, axis=-1).astype(np.float32), self._obs_low, self._obs_high)
+        return common.observation_batch(raw, self._obs_low, self._obs_high)
 
     def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
         f = self._forces
@@ -258,15 +258,15 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         lat, lon = common.latitude_longitude(a1, NUMPY)
         n = self.num_envs
         infos = {
-            "r_ecef_m": np.stack(r_e, axis=-1),
-            "v_ecef_mps": np.stack(v_e, axis=-1),
+            "r_ecef_m": common.stack_columns(r_e, float),
+            "v_ecef_mps": common.stack_columns(v_e, float),
             "latitude_deg": lat * common.RAD2DEG,
             "longitude_deg": lon * common.RAD2DEG,
             "altitude_m": self._x[0] - self._radius,
             "speed_mps": self._x[5].copy(),
             "dynamic_pressure_pa": np.array(f.dynamic_pressure, dtype=float),
             "load_factor_g": f.aero_accel / self._g0,
-            "sensed_accel_b": np.stack(np.broadcast_arrays(*f.aero_b), axis=-1).astype(np.float64),
+            "sensed_accel_b": common.stack_columns(np.broadcast_arrays(*f.aero_b), float),
             "cost": self._cost.copy(),
             "time_s": self._t.copy(),
             "action_clipped": np.asarray(action_clipped, bool),
