@@ -1,1 +1,1 @@
-"""Learning agents for RvEntry-v0: the stable-baselines3 PPO baseline and its plumbing."""
+"""Learning agents for RvEntry-v0: the stable-baselines3 PPO baseline, the DAgger student of the re-planning law, and their plumbing."""

@@ -20,6 +20,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     ppo.add_argument("--config", help="TOML config (default rventry_agents/ppo.toml)")
     ppo.add_argument("--no-progress", action="store_true", help="no progress bar")
     ppo.set_defaults(func=_run_ppo)
+    dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
+    dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
+    dag.add_argument("--workers", type=positive_int, default=2, help="local processes flying the expert (default 2)")
+    dag.add_argument("--out", default="runs/dagger", help="output directory (default runs/dagger)")
+    dag.add_argument("--config", help="TOML config (default rventry_agents/dagger.toml)")
+    dag.add_argument("--resume", action="store_true", help="take the rounds already finished in --out, go on from there")
+    dag.add_argument("--no-progress", action="store_true", help="no progress bar")
+    dag.set_defaults(func=_run_dagger)
     ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
     ship.add_argument("run_dir", help="the --out directory of a finished `rventry train ppo`")
     ship.add_argument("--dest", help="destination (default: the packaged policy, rventry_agents/data/ppo)")
@@ -31,6 +39,15 @@ def _run_ppo(args) -> int:
 
     out = train_ppo(args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress)
     print(f"wrote {out}/model.zip (best on the task metric), learning_curve.png, metadata.json")
+    return 0
+
+
+def _run_dagger(args) -> int:
+    from rventry_agents.dagger import train_dagger
+
+    out = train_dagger(args.config, args.out, workers=args.workers, seed=args.seed, progress_bar=not args.no_progress,
+                       resume=args.resume)
+    print(f"wrote {out}/student.pt (best on the task metric), rounds.json, learning_curve.png, metadata.json")
     return 0
 
 

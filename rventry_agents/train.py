@@ -32,12 +32,13 @@ from rventry_env.util.files import save_figure, write_json
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
 
 
-def load_config(path: str | Path | dict | None = None) -> dict:
-    """The training configuration: a TOML file (default ``rventry_agents/ppo.toml``) or an already-loaded dict."""
+def read_config(path: str | Path | dict | None, default: Path, sections: tuple[str, ...]) -> tuple[dict, str]:
+    """A training configuration: a TOML file (``default`` when None) or an already-loaded dict,
+    with every one of ``sections``; returns it and where it came from, for messages."""
     if isinstance(path, dict):
         cfg, where = path, "config"
     else:
-        where = Path(path) if path is not None else DEFAULT_CONFIG
+        where = Path(path) if path is not None else default
         if where.is_dir():
             raise IsADirectoryError(f"the training config {where} is a directory; give a TOML file")
         if not where.is_file():
@@ -47,10 +48,15 @@ def load_config(path: str | Path | dict | None = None) -> dict:
                 cfg = tomllib.load(f)
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise ValueError(f"{where} is not valid TOML: {exc}") from None
-    for section in ("env", "normalize", "ppo", "policy", "train"):
+    for section in sections:
         if section not in cfg:
             raise ValueError(f"{where}: missing section [{section}]")
-    return cfg
+    return cfg, str(where)
+
+
+def load_config(path: str | Path | dict | None = None) -> dict:
+    """The training configuration: a TOML file (default ``rventry_agents/ppo.toml``) or an already-loaded dict."""
+    return read_config(path, DEFAULT_CONFIG, ("env", "normalize", "ppo", "policy", "train"))[0]
 
 
 def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:

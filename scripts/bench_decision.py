@@ -32,7 +32,7 @@ from rventry_env.evaluation.rollout import rollout
 from rventry_env.util.args import positive_int
 from rventry_env.util.files import check_writable, write_json
 
-LAWS = ("learned", "lqr", "lqr-est", "mpc")
+LAWS = ("learned", "dagger", "lqr", "lqr-est", "mpc")
 
 
 class TimedLaw:

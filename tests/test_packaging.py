@@ -42,6 +42,12 @@ policy = SB3Policy(SHIPPED_PPO)
 assert policy.obs_mean is not None or policy.normalize_path is not None
 for name in ("learning_curve.png", "metadata.json", "evaluations.json"):
     assert (SHIPPED_PPO / name).is_file(), name
+from rventry_agents.dagger import SHIPPED_DAGGER, load_config as load_dagger_config, load_shipped
+assert SHIPPED_DAGGER.resolve().is_relative_to(target)
+load_dagger_config()
+load_shipped()
+for name in ("learning_curve.png", "metadata.json", "rounds.json"):
+    assert (SHIPPED_DAGGER / name).is_file(), name
 print("loaded everything")
 """
 

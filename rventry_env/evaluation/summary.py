@@ -42,7 +42,7 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
         k: {f"p{p}": _f(np.percentile(values[k].astype(float), p)) for p in PERCENTILES} for k in METRICS
     }
     failures, counts = np.unique(batch.failure.astype(str), return_counts=True)
-    out["endings"] = {("impact" if f == "" else f): int(c) for f, c in zip(failures, counts)}
+    out["endings"] = {("impact" if f == "" else str(f)): int(c) for f, c in zip(failures, counts)}
     out["success_thresholds"] = dataclasses.asdict(task.success)
     out["replanning"] = replanning_summary(batch.law_stats)
     return out

@@ -1,0 +1,141 @@
+"""The DAgger machinery of the learned guidance policy, with TV-LQR as a cheap expert."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")
+
+from rventry_agents.dagger import load_config, load_saved, train_dagger
+from rventry_agents.imitation import (
+    INPUTS,
+    N_FEATURES,
+    DAggerLaw,
+    LearnedGuidance,
+    angle_targets,
+    deadbeat_rates,  # fmt: skip
+    fit,
+    make_network,
+)
+from rventry_env.envs.task import EntryTask
+from rventry_env.evaluation.agents import load_agent
+from rventry_env.evaluation.rollout import rollout
+
+SMALL = """
+[student]
+hidden = [16, 16]
+[expert]
+agent = "lqr"
+[data]
+dispersion = "standard"
+train_seed = 2_000_000
+[[rounds]]
+episodes = 2
+beta = 1.0
+[[rounds]]
+episodes = 1
+beta = 0.5
+[fit]
+epochs = 3
+batch_size = 512
+learning_rate = 1e-3
+seed = 0
+[select]
+episodes = 3
+seed = 100_000
+dispersion = "standard"
+"""
+
+
+def test_with_beta_one_the_expert_flies_and_every_step_is_labelled():
+    expert = load_agent("lqr")
+    law = DAggerLaw(load_agent("lqr"), None, beta=1.0, seed=0)
+    mixed = rollout(law, seeds=[7], dispersion="standard")
+    alone = rollout(expert, seeds=[7], dispersion="standard")
+    np.testing.assert_array_equal(mixed.miss_km, alone.miss_km)  # the mixture is the expert itself
+    x, y = np.concatenate(law.x), np.concatenate(law.y)
+    assert x.shape == (mixed.lengths[0], N_FEATURES) and y.shape == (mixed.lengths[0], 2)
+    assert np.isfinite(x).all() and np.abs(y).max() <= 1.0
+
+
+def test_the_student_needs_the_accelerometer():
+    student = LearnedGuidance(make_network((8,)))
+    student.reset(1)
+    with pytest.raises(ValueError, match="sensed acceleration"):
+        student(np.zeros((1, 26), np.float32), np.zeros(1), np.zeros((1, 12)))
+
+
+def _expert_data(n: int, seed: int):
+    """Recorded features and expert rates whose commanded angles depend on the inputs alone."""
+    task = EntryTask()
+    p = task.problem
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-1.0, 1.0, size=(n, N_FEATURES)).astype(np.float32)
+    alpha_c = p.alpha_max * (0.5 + 0.3 * np.tanh(x[:, 0] + x[:, 1]))
+    sigma_c = 2.0 * np.tanh(x[:, 2] - x[:, 3])
+    alpha = alpha_c - rng.uniform(-0.5, 0.5, n) * p.u_alpha_max * task.dt
+    sigma = sigma_c - rng.uniform(-0.5, 0.5, n) * p.u_sigma_max * task.dt
+    x[:, 11] = 2.0 * alpha / p.alpha_max - 1.0
+    x[:, 12], x[:, 13] = np.sin(sigma), np.cos(sigma)
+    y = np.stack([(alpha_c - alpha) / (p.u_alpha_max * task.dt), (sigma_c - sigma) / (p.u_sigma_max * task.dt)], 1)
+    state = np.zeros((n, 12))
+    state[:, 10], state[:, 11] = alpha, sigma
+    return task, x, y.astype(np.float32), state
+
+
+def test_commanded_angles_and_the_deadbeat_tracker_invert_each_other():
+    task, x, y, state = _expert_data(500, 1)
+    np.testing.assert_allclose(deadbeat_rates(angle_targets(x, y, task).astype(float), state, task), y, atol=2e-5)
+
+
+def test_regression_fits_the_expert_commands():
+    task, x, y, state = _expert_data(6000, 0)
+    net = make_network((64, 64))
+    losses = fit(net, x, y, epochs=30, batch_size=256, lr=3e-3, seed=0)
+    assert losses[-1] < 0.05 * losses[0]  # in units of the commands' spread
+    student = LearnedGuidance(net)
+    import torch
+
+    with torch.no_grad():
+        commands = net.commands(torch.from_numpy(np.ascontiguousarray(x[:, INPUTS]))).numpy().astype(float)
+    rates = deadbeat_rates(commands, state, task)
+    assert student.task == task
+    assert np.sqrt(np.mean((rates - y) ** 2)) < 0.1 * y.std()
+
+
+@pytest.mark.slow
+def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL)
+    out = train_dagger(cfg, tmp_path / "run", workers=1, progress_bar=False)
+    rounds = json.loads((out / "rounds.json").read_text())
+    assert [r["samples"] for r in rounds] == sorted(r["samples"] for r in rounds)  # data aggregates
+    alone = rollout(load_agent("lqr"), seeds=[2_000_000, 2_000_001], dispersion="standard")
+    assert rounds[0]["flown_success_rate"] == float(np.mean(alone.is_success))  # round 0: the expert alone
+    assert (out / "learning_curve.png").stat().st_size > 5_000
+    a = rollout(load_agent(str(out)), seeds=[3, 4], dispersion="standard")
+    b = rollout(load_saved(str(out)), seeds=[3, 4], dispersion="standard")
+    np.testing.assert_array_equal(a.miss_km, b.miss_km)
+    # a longer config resumes: the finished rounds are kept as they are, one more is flown
+    cfg.write_text(SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\n[fit]"))
+    train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)
+    more = json.loads((out / "rounds.json").read_text())
+    assert more[:2] == rounds and len(more) == 3 and more[2]["samples"] > rounds[1]["samples"]
+    cfg.write_text(SMALL.replace("episodes = 1\nbeta = 0.5", "episodes = 1\nbeta = 0.25"))
+    with pytest.raises(ValueError, match="cannot resume"):
+        train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)
+
+
+def test_bad_configs_and_paths_are_named(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SMALL.replace("episodes = 2\nbeta = 1.0", "episodes = 2\nbeta = 0.5"))
+    with pytest.raises(ValueError, match="first round"):
+        load_config(bad)
+    bad.write_text(SMALL.replace("episodes = 1\nbeta = 0.5", "episodes = 0\nbeta = 0.5"))
+    with pytest.raises(ValueError, match="round 1"):
+        load_config(bad)
+    with pytest.raises(ValueError, match="not a DAgger run directory"):
+        load_saved(str(tmp_path))
