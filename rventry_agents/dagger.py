@@ -137,7 +137,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                    "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
                    "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
             rounds.append(rec)
-            atomic_write(out / f"student_round_{k}.pt", network_bytes(student))
+            blob = network_bytes(student)
+            atomic_write(out / f"student_round_{k}.pt", blob)
             write_json(out / "rounds.json", rounds)  # progress survives an interrupted run
             bar.console.print(
                 f"round {k}: {rec['samples']} samples, flown success {flown_success:.2f}, fit loss "
@@ -146,9 +147,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             )  # fmt: skip
             key = (metric["success_rate"], -metric["miss_km_mean"])
             if best_key is None or key > best_key:
-                best_key, best = key, (k, network_bytes(student))
+                best_key, best = key, (k, blob)
                 _write_selected(out, best, hidden)
-    _write_selected(out, best, hidden)
     write_json(out / "rounds.json", rounds)
     write_json(out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
@@ -185,13 +185,9 @@ def plot_rounds(rounds: list[dict], path: Path) -> None:
 
 def load_student(run_dir) -> LearnedGuidance:
     """The selected student of a finished run, as a guidance law."""
-    import torch
-
     run_dir = Path(run_dir)
     meta = json.loads((run_dir / "student.json").read_text())
-    net = make_network(tuple(meta["hidden"]))
-    net.load_state_dict(torch.load(run_dir / "student.pt", weights_only=True))
-    return LearnedGuidance(net)
+    return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"])))
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:

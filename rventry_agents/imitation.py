@@ -24,7 +24,6 @@ the network is plain torch.
 from __future__ import annotations
 
 import io
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -134,7 +133,10 @@ class LearnedGuidance:
         self.tracker.reset(n_episodes)
 
     def __call__(self, obs, time_s, state, sensed_accel_b=None):
-        f = self.tracker(obs, time_s, state, sensed_accel_b)
+        return self.act(self.tracker(obs, time_s, state, sensed_accel_b), state)
+
+    def act(self, f: np.ndarray, state) -> np.ndarray:
+        """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state``."""
         with self._torch.no_grad():
             commands = self.network.commands(self._torch.from_numpy(np.ascontiguousarray(f[:, INPUTS]))).numpy()
         return deadbeat_rates(commands.astype(float), np.asarray(state, float), self.task)
@@ -154,21 +156,15 @@ class DAggerLaw:
 
     def reset(self, n: int) -> None:
         self.expert.reset(n)
-        if self.student is not None:
-            self.student.reset(n)
-        else:
-            self.tracker.reset(n)
+        self.tracker.reset(n)  # the student's own, when there is one
 
     def __call__(self, obs, time_s, state, sensed_accel_b=None):
         a_exp = np.asarray(self.expert(obs, time_s, state, sensed_accel_b=sensed_accel_b), np.float32)
-        if self.student is None:
-            f = self.tracker(obs, time_s, state, sensed_accel_b)
-            act = a_exp
-        else:
-            act = self.student(obs, time_s, state, sensed_accel_b)
-            f = features(obs, self.tracker.estimator)
+        f = self.tracker(obs, time_s, state, sensed_accel_b)
+        act = a_exp
+        if self.student is not None:
             use = self.rng.random(len(obs)) < self.beta
-            act = np.where(use[:, None], a_exp, act)
+            act = np.where(use[:, None], a_exp, self.student.act(f, state))
         self.x.append(f)
         self.y.append(a_exp)
         return act
@@ -234,31 +230,18 @@ def collect_episode(job: CollectJob) -> dict:
     }
 
 
-def _worker_init() -> None:
-    os.environ["OMP_NUM_THREADS"] = "1"
-    os.environ["OPENBLAS_NUM_THREADS"] = "1"
-
-
 def collect(jobs: list[CollectJob], workers: int, progress=None) -> list[dict]:
-    """Fly the jobs on a local process pool (``spawn``); results in job order."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    """Fly the jobs, on a local process pool when ``workers`` > 1; results in job order."""
+    from rventry_env.evaluation.parallel import map_local
 
-    if workers <= 1:
-        out = []
-        for j in jobs:
-            out.append(collect_episode(j))
-            if progress:
-                progress(1)
-        return out
-    results = [None] * len(jobs)
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init) as pool:
-        futures = {pool.submit(collect_episode, j): i for i, j in enumerate(jobs)}
-        for fut in as_completed(futures):
-            results[futures[fut]] = fut.result()
-            if progress:
-                progress(1)
+    results: list = [None] * len(jobs)
+
+    def done(i, result):
+        results[i] = result
+        if progress:
+            progress(1)
+
+    map_local(collect_episode, [(j,) for j in jobs], workers, done)
     return results
 
 

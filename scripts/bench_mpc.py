@@ -21,16 +21,14 @@ Success rates do not: the solver's budget is an iteration count.
 from __future__ import annotations
 
 import argparse
-import multiprocessing
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, replace
 
 import numpy as np
 
 from rventry_env.envs.task import EntryTask
-from rventry_env.evaluation.parallel import EvaluationJob, _single_thread_worker, concatenate, run_task
+from rventry_env.evaluation.parallel import EvaluationJob, concatenate, map_local, run_task
 from rventry_env.evaluation.summary import summarize
 from rventry_env.guidance.replanning import ReplanningSettings
 from rventry_env.util.args import non_negative_int, positive_int
@@ -69,17 +67,19 @@ def run_all(jobs: dict, workers: int, progress_label: str) -> dict:
     """Run {name: (job, seeds)} as one-episode tasks on one pool; returns {name: batch}."""
     from rich.progress import Progress
 
-    tasks = [(name, job, [s]) for name, (job, seeds) in jobs.items() for s in seeds]
-    out: dict = {name: [None] * len(seeds) for name, (_, seeds) in jobs.items()}
-    position = {name: {s: i for i, s in enumerate(seeds)} for name, (_, seeds) in jobs.items()}
-    ctx = multiprocessing.get_context("spawn")
-    with Progress() as bar, ProcessPoolExecutor(workers, mp_context=ctx, initializer=_single_thread_worker) as pool:
+    tasks = [(name, job, s) for name, (job, seeds) in jobs.items() for s in seeds]
+    results: list = [None] * len(tasks)
+    with Progress() as bar:
         job_bar = bar.add_task(progress_label, total=len(tasks))
-        futures = {pool.submit(run_task, job, seeds): (name, seeds[0]) for name, job, seeds in tasks}
-        for f in as_completed(futures):
-            name, seed = futures[f]
-            out[name][position[name][seed]] = f.result()
+
+        def done(i, batch):
+            results[i] = batch
             bar.advance(job_bar)
+
+        map_local(run_task, [(job, [s]) for _, job, s in tasks], workers, done)
+    out: dict = {name: [] for name in jobs}
+    for (name, _, _), batch in zip(tasks, results):
+        out[name].append(batch)  # tasks are in seed order within each name
     return {name: concatenate(batches) for name, batches in out.items()}
 
 

@@ -134,3 +134,18 @@ def test_ph_refinement_rejects_bad_input():
         refine_ph(mesh, np.ones(3), tol=1e-6)
     with pytest.raises(ValueError, match="positive"):
         refine_ph(mesh, np.ones(2), tol=0.0)
+
+
+def test_end_clustered_mesh_equal_or_halving_end_block():
+    from rventry_env.reference.pipeline import end_clustered_mesh
+
+    equal = np.diff(np.asarray(end_clustered_mesh(10, 4, 0.1, 3, 5).breaks))
+    np.testing.assert_allclose(equal[:10], 0.09)
+    np.testing.assert_allclose(equal[10:], 0.1 / 3)
+    m = end_clustered_mesh(10, 4, 0.1, 4, 5, shrink=0.5)
+    widths = np.diff(np.asarray(m.breaks))
+    assert m.breaks[-1] == 1.0 and len(widths) == 14
+    np.testing.assert_allclose(widths[10:], 0.1 * np.array([8, 4, 2, 1]) / 15)  # each half the one before
+    np.testing.assert_allclose(widths[:10], 0.09)
+    with pytest.raises(ValueError, match="shrink"):
+        end_clustered_mesh(10, 4, 0.1, 4, 5, shrink=0.0)

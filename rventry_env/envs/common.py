@@ -43,16 +43,21 @@ class EntryEnvSetup:
         )
 
 
+def _feature_major(columns, dtype) -> np.ndarray:
+    """The arrays ``columns`` (each (n,)) as the rows of one (len(columns), n) array: contiguous writes."""
+    rows = np.empty((len(columns), np.shape(columns[0])[0]), dtype=dtype)
+    for i, c in enumerate(columns):
+        rows[i] = c
+    return rows
+
+
 def stack_columns(columns, dtype=float) -> np.ndarray:
     """The arrays ``columns`` (each (n,)) as the columns of one C-ordered (n, len(columns)) array.
 
     Written row by row into the transposed layout, then transposed in one blocked copy:
     2.5x faster than ``np.stack(columns, axis=-1)`` at n = 8192, where the strided writes dominate.
     """
-    out = np.empty((len(columns), np.shape(columns[0])[0]), dtype=dtype)
-    for i, c in enumerate(columns):
-        out[i] = c
-    return np.ascontiguousarray(out.T)
+    return np.ascontiguousarray(_feature_major(columns, dtype).T)
 
 
 def observation_batch(features, low: np.ndarray, high: np.ndarray):
@@ -62,9 +67,7 @@ def observation_batch(features, low: np.ndarray, high: np.ndarray):
     Bounds are checked on the feature-major layout, where each feature's test is contiguous
     (7x faster at n = 8192 than on the vehicle-major one), and transposed once at the end.
     """
-    rows = np.empty((len(features), np.shape(features[0])[0]), dtype=np.float32)
-    for i, c in enumerate(features):
-        rows[i] = c
+    rows = _feature_major(features, np.float32)
     lo, hi = low[:, None], high[:, None]
     clipped = ((rows < lo) | (rows > hi)).any(axis=0)
     if clipped.any():

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -80,6 +80,25 @@ def _single_thread_worker() -> None:
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 
+def map_local(fn: Callable, calls: list[tuple], workers: int, done: Callable[[int, Any], None]) -> None:
+    """Run ``fn(*calls[i])`` for every i: in this process when ``workers`` is 1 (or there is one
+    call), else on a pool of up to ``workers`` spawned processes with one BLAS thread each.
+    ``done(i, result)`` is called as each finishes, in this process."""
+    if workers == 1 or len(calls) <= 1:
+        for i, c in enumerate(calls):
+            done(i, fn(*c))
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=ctx,
+                             initializer=_single_thread_worker) as pool:  # fmt: skip
+        futures = {pool.submit(fn, *c): i for i, c in enumerate(calls)}
+        for f in as_completed(futures):
+            done(futures[f], f.result())
+
+
 def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: str | None = None,
              progress: Callable[[int], None] | None = None) -> EpisodeBatch:  # fmt: skip
     """Fly one episode per seed; returns them in seed order, however they were spread.
@@ -105,19 +124,8 @@ def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: st
 
     if cluster is not None:
         _on_cluster(job, tasks, cluster, done)
-    elif workers == 1 or len(tasks) == 1:
-        for i, t in enumerate(tasks):
-            done(i, run_task(job, t))
     else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=ctx,
-                                 initializer=_single_thread_worker) as pool:  # fmt: skip
-            futures = {pool.submit(run_task, job, t): i for i, t in enumerate(tasks)}
-            for f in as_completed(futures):
-                done(futures[f], f.result())
+        map_local(run_task, [(job, t) for t in tasks], workers, done)
     return concatenate(results)
 
 
@@ -174,4 +182,4 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["EvaluationJob", "evaluate", "run_task", "concatenate", "split", "default_workers"]
+__all__ = ["EvaluationJob", "evaluate", "map_local", "run_task", "concatenate", "split", "default_workers"]

@@ -96,15 +96,11 @@ def replanning_mesh(s: ReplanningSettings):
     which the flown vehicle then did too.
     """
     from rventry_env.reference.collocation import Mesh
+    from rventry_env.reference.pipeline import end_clustered_mesh
 
     if s.end_fraction == 0:
         return Mesh.uniform(s.mesh_intervals, s.mesh_degree)
-    split = 1.0 - s.end_fraction
-    widths = 0.5 ** np.arange(s.end_intervals)
-    ends = split + s.end_fraction * np.cumsum(widths) / widths.sum()
-    breaks = np.concatenate([np.linspace(0.0, split, s.mesh_intervals + 1), ends])
-    breaks[-1] = 1.0
-    return Mesh(breaks, np.array([s.mesh_degree] * s.mesh_intervals + [s.end_degree] * s.end_intervals))
+    return end_clustered_mesh(s.mesh_intervals, s.mesh_degree, s.end_fraction, s.end_intervals, s.end_degree, 0.5)
 
 
 class _Shifted:

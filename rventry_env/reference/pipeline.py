@@ -21,9 +21,12 @@ from rventry_env.reference.entry_problem import DEG, EntryProblemConfig, entry_p
 
 
 def end_clustered_mesh(
-    n_intervals: int, degree: int, end_fraction: float, end_intervals: int, end_degree: int
+    n_intervals: int, degree: int, end_fraction: float, end_intervals: int, end_degree: int, shrink: float = 1.0
 ) -> Mesh:
     """Uniform intervals plus a finer block over the last ``end_fraction`` of the time.
+
+    With ``shrink`` < 1 the end block's intervals shrink geometrically toward the end, each
+    ``shrink`` times the one before (1: equal intervals).
 
     The entry problem ends with a pull-up-to-vertical dive at the load limit and
     the angle of attack driven to zero at its rate bound, all within the last
@@ -34,10 +37,16 @@ def end_clustered_mesh(
         raise ValueError(f"end_fraction must lie in (0, 1), got {end_fraction}")
     if n_intervals < 1 or end_intervals < 1:
         raise ValueError("need at least one interval in each block")
+    if not 0.0 < shrink <= 1.0:
+        raise ValueError(f"shrink must lie in (0, 1], got {shrink}")
     split = 1.0 - end_fraction
-    breaks = np.concatenate(
-        [np.linspace(0.0, split, n_intervals + 1), np.linspace(split, 1.0, end_intervals + 1)[1:]]
-    )
+    if shrink == 1.0:
+        ends = np.linspace(split, 1.0, end_intervals + 1)[1:]
+    else:
+        widths = shrink ** np.arange(end_intervals)
+        ends = split + end_fraction * np.cumsum(widths) / widths.sum()
+        ends[-1] = 1.0
+    breaks = np.concatenate([np.linspace(0.0, split, n_intervals + 1), ends])
     return Mesh(breaks, np.array([degree] * n_intervals + [end_degree] * end_intervals))
 
 
