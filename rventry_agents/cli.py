@@ -13,13 +13,21 @@ from rventry_env.util.args import positive_int, seed
 def register(sub: argparse._SubParsersAction) -> None:
     train = sub.add_parser("train", help="train a learning agent on RvEntry-v0")
     algos = train.add_subparsers(dest="algo", metavar="ALGO", required=True)
-    ppo = algos.add_parser("ppo", help="stable-baselines3 PPO on the numpy-batched vector env")
-    ppo.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
-    ppo.add_argument("--seed", type=seed, help="random seed (default: the config's)")
-    ppo.add_argument("--out", default="runs/ppo", help="output directory (default runs/ppo)")
-    ppo.add_argument("--config", help="TOML config (default rventry_agents/ppo.toml)")
-    ppo.add_argument("--no-progress", action="store_true", help="no progress bar")
-    ppo.set_defaults(func=_run_ppo)
+    for name, algorithm, what in (
+        ("ppo", "ppo", "stable-baselines3 PPO (default config: the PPO residual on the classical law)"),
+        ("recurrent-ppo", "recurrent_ppo", "sb3-contrib RecurrentPPO, an LSTM policy (default config: the plain baseline)"),
+        ("sac", "sac", "stable-baselines3 SAC (default config: the plain baseline)"),
+    ):  # fmt: skip
+        from rventry_agents.train import DEFAULT_CONFIGS
+
+        default = DEFAULT_CONFIGS[algorithm].relative_to(DEFAULT_CONFIGS["ppo"].parent.parent)
+        cmd = algos.add_parser(name, help=f"{what}, on the numpy-batched vector env")
+        cmd.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
+        cmd.add_argument("--seed", type=seed, help="random seed (default: the config's)")
+        cmd.add_argument("--out", default=f"runs/{algorithm}", help=f"output directory (default runs/{algorithm})")
+        cmd.add_argument("--config", help=f"TOML config (default {default})")
+        cmd.add_argument("--no-progress", action="store_true", help="no progress bar")
+        cmd.set_defaults(func=_run_sb3, algorithm=algorithm)
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
     dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
     dag.add_argument("--workers", type=positive_int, default=2, help="local processes flying the expert (default 2)")
@@ -29,15 +37,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     dag.add_argument("--no-progress", action="store_true", help="no progress bar")
     dag.set_defaults(func=_run_dagger)
     ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
-    ship.add_argument("run_dir", help="the --out directory of a finished `rventry train ppo`")
+    ship.add_argument("run_dir", help="the --out directory of a finished `rventry train ppo | recurrent-ppo | sac`")
     ship.add_argument("--dest", help="destination (default: the packaged policy, rventry_agents/data/ppo)")
     ship.set_defaults(func=_ship)
 
 
-def _run_ppo(args) -> int:
-    from rventry_agents.train import train_ppo
+def _run_sb3(args) -> int:
+    from rventry_agents.train import train_sb3
 
-    out = train_ppo(args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress)
+    out = train_sb3(args.algorithm, args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress)
     print(f"wrote {out}/model.zip (best on the task metric), learning_curve.png, metadata.json")
     return 0
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import shlex
 import sys
 import time
@@ -25,6 +26,7 @@ import numpy as np
 
 from rventry_agents.imitation import (
     CollectJob,
+    Horizon,
     LearnedGuidance,
     collect,
     fit,
@@ -73,9 +75,11 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     out = Path(out)
     check_writable(folders=(out,))
     hidden = tuple(int(h) for h in cfg["student"]["hidden"])
+    task = EntryTask()
+    horizon = horizon_from(cfg["student"], task)
+    LearnedGuidance(make_network((1,)), task=task, horizon=horizon)  # a bad horizon fails now
     fit_cfg = cfg["fit"]
     fit_seed = int(fit_cfg["seed"] if seed is None else seed)
-    task = EntryTask()
     expert_cfg = dict(cfg.get("expert", {}))
     expert = str(expert_cfg.pop("agent", "mpc"))
     expert_settings = tuple(sorted(expert_cfg.items()))
@@ -103,8 +107,11 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                     raise ValueError(f"cannot resume {out}: its round {k} flew {done[k]['episodes']} episodes at beta "
                                      f"{done[k]['beta']}, the config says {n} at {beta}")  # fmt: skip
                 with np.load(out / f"data_round_{k}.npz") as d:
+                    if "angles" not in d:
+                        raise ValueError(f"cannot resume {out}: its round {k} was recorded with another kind of label "
+                                         "(the expert's rates); start a new run")  # fmt: skip
                     xs.append(d["x"])
-                    ys.append(d["y"])
+                    ys.append(d["angles"])
                 rounds.append(done[k])
                 next_seed += n
                 bar.console.print(f"round {k}: taken from {out}")
@@ -116,14 +123,14 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                 continue
             blob = None if student is None else network_bytes(student)
             jobs = [CollectJob(next_seed + i, cfg["data"]["dispersion"], beta if blob else 1.0, blob, hidden, task,
-                               expert, expert_settings) for i in range(n)]  # fmt: skip
+                               expert, expert_settings, horizon) for i in range(n)]  # fmt: skip
             next_seed += n
             tid = bar.add_task(f"round {k}: {n} episodes, beta {beta}", total=n)
             res = collect(jobs, workers, progress=lambda d, tid=tid: bar.advance(tid, d))
             x = np.concatenate([r["x"] for r in res])
-            y = np.concatenate([r["y"] for r in res])
+            y = np.concatenate([r["angles"] for r in res])
             buf = io.BytesIO()
-            np.savez_compressed(buf, x=x, y=y)
+            np.savez_compressed(buf, x=x, angles=y)
             atomic_write(out / f"data_round_{k}.npz", buf.getvalue())
             xs.append(x)
             ys.append(y)
@@ -132,7 +139,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             losses = fit(student, np.concatenate(xs), np.concatenate(ys), int(fit_cfg["epochs"]),
                          int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), fit_seed,
                          float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
-            metric = select_metric(LearnedGuidance(student), cfg, task)
+            metric = select_metric(LearnedGuidance(student, task=task, horizon=horizon), cfg, task)
             rec = {"round": k, "episodes": n, "beta": beta, "samples": int(sum(len(a) for a in xs)),
                    "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
                    "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
@@ -148,7 +155,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             key = (metric["success_rate"], -metric["miss_km_mean"])
             if best_key is None or key > best_key:
                 best_key, best = key, (k, blob)
-                _write_selected(out, best, hidden)
+                _write_selected(out, best, hidden, horizon)
     write_json(out / "rounds.json", rounds)
     write_json(out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
@@ -159,10 +166,22 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     return out
 
 
-def _write_selected(out: Path, best: tuple, hidden: tuple) -> None:
+def horizon_from(student_cfg: dict, task: EntryTask) -> Horizon:
+    """The labels' and the tracker's horizon from a [student] section (or a student.json); one
+    step when it names none (the students trained before the horizon existed)."""
+    keys = {"lookahead_s": "max_s", "lookahead_min_s": "min_s", "lookahead_descent_mps": "descent_mps"}
+    given = {keys[k]: float(v) for k, v in student_cfg.items() if k in keys}
+    if "max_s" in given:
+        given.setdefault("min_s", given["max_s"])
+    return Horizon(**given) if given else Horizon(task.dt, task.dt)
+
+
+def _write_selected(out: Path, best: tuple, hidden: tuple, horizon: Horizon) -> None:
     atomic_write(out / "student.pt", best[1])
     write_json(out / "student.json", {"hidden": list(hidden), "inputs": "observation features without alpha, sigma, "
                "the lift shares and the load factor; 10 ln k_D, 10 ln k_LD", "outputs": "alpha and bank commands",
+               "lookahead_s": horizon.max_s, "lookahead_min_s": horizon.min_s,
+               "lookahead_descent_mps": horizon.descent_mps if math.isfinite(horizon.descent_mps) else None,
                "selected_round": best[0]})  # fmt: skip
 
 
@@ -187,7 +206,10 @@ def load_student(run_dir) -> LearnedGuidance:
     """The selected student of a finished run, as a guidance law."""
     run_dir = Path(run_dir)
     meta = json.loads((run_dir / "student.json").read_text())
-    return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"])))
+    # a student saved without a horizon was trained with one-step labels and a deadbeat tracker
+    horizon = horizon_from({k: v for k, v in meta.items() if k.startswith("lookahead") and v is not None}, EntryTask())
+    return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"])),
+                           horizon=horizon)  # fmt: skip
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:

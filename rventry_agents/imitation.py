@@ -9,6 +9,17 @@ The student is a small network that maps what a vehicle measures to the angles i
 * its output: the commanded angle of attack and bank angle (as cos and sin), which a deadbeat
   tracker turns into the environment's rates, within their bounds.
 
+The labels are the angles the expert *wants*, a horizon ahead (:class:`Horizon`): for ``mpc``
+its current plan's angles then
+(:meth:`~rventry_env.guidance.replanning.ReplanningGuidance.planned_angles`), for an expert
+without a plan the angles its rates would reach by then. The tracker closes the loop with the
+same horizon: rate = (command - current) / horizon, which flies a plan's angle profile exactly
+where it is linear over the horizon. Labels one step ahead are mostly the current angles, which
+the student does not see: both ``mpc``'s gentle TV-LQR and its plans, which start from the
+current angles, keep them there for a second or two. Labelled so, a student that had drifted
+learned to drift on. The horizon shortens near the ground, where the final pull-down drives alpha
+to zero within seconds and a slow tracker holds it high into the densest air (docs/learned.md).
+
 Commanding angles instead of rates is what made imitation work at all: a network that outputs
 rates must learn the expert's feedback on alpha and sigma from data in which they never
 deviate, and drifts (docs/learned.md).
@@ -24,7 +35,8 @@ the network is plain torch.
 from __future__ import annotations
 
 import io
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,24 +59,60 @@ def features(obs: np.ndarray, estimator: AeroScaleEstimator) -> np.ndarray:
     return np.concatenate([np.asarray(obs, np.float32), LOG_SCALE_GAIN * estimator.log_scales().astype(np.float32)], axis=1)
 
 
-def angle_targets(x: np.ndarray, rates: np.ndarray, task: EntryTask) -> np.ndarray:
-    """The expert's commanded angles (N, 3): (2 alpha_c / alpha_max - 1, cos sigma_c, sin sigma_c),
-    where alpha_c, sigma_c are the angles its rates ``rates`` (fractions of the bounds) reach in one step."""
-    p = task.problem
-    alpha = (x[:, 11].astype(float) + 1.0) * p.alpha_max / 2.0
-    sigma = np.arctan2(x[:, 12], x[:, 13]).astype(float)
-    alpha_c = alpha + rates[:, 0] * p.u_alpha_max * task.dt
-    sigma_c = sigma + rates[:, 1] * p.u_sigma_max * task.dt
-    return np.stack([2.0 * alpha_c / p.alpha_max - 1.0, np.cos(sigma_c), np.sin(sigma_c)], axis=1).astype(np.float32)
+@dataclass(frozen=True)
+class Horizon:
+    """How far ahead the labels look and how fast the tracker closes: the altitude over
+    ``descent_mps``, between ``min_s`` and ``max_s``, in whole control steps (at least one).
+    The default is one step everywhere: labels of the next step and a deadbeat tracker."""
+
+    max_s: float = 1.0
+    min_s: float = 1.0
+    descent_mps: float = math.inf
+    radius_m: float = field(default=6378137.0, repr=False)  # the planet's, for the altitude
+
+    def __post_init__(self):
+        if not (0 < self.min_s <= self.max_s < math.inf and self.descent_mps > 0):
+            raise ValueError(f"a horizon needs 0 < min_s <= max_s (finite) and descent_mps > 0, got {self!r}")
+
+    def seconds(self, state: np.ndarray, dt: float) -> np.ndarray:
+        """The horizon (N,) in seconds for vehicles in ``state`` (N, 12)."""
+        h = np.asarray(state, dtype=float)[:, 0] - self.radius_m
+        tau = np.clip(h / self.descent_mps, self.min_s, self.max_s)
+        return np.maximum(np.rint(tau / dt), 1.0) * dt
 
 
-def deadbeat_rates(commands: np.ndarray, state: np.ndarray, task: EntryTask) -> np.ndarray:
-    """Rates (fractions of the bounds, clipped to [-1, 1]) that reach the commanded angles in one step."""
+def commands_from_angles(angles: np.ndarray, task: EntryTask) -> np.ndarray:
+    """The network's outputs (N, 3) for angles (N, 2) = (alpha, sigma) in rad:
+    (2 alpha / alpha_max - 1, cos sigma, sin sigma)."""
+    a = np.asarray(angles, dtype=float)
+    return np.stack([2.0 * a[:, 0] / task.problem.alpha_max - 1.0, np.cos(a[:, 1]), np.sin(a[:, 1])], 1).astype(np.float32)
+
+
+def reached_angles(state: np.ndarray, rates: np.ndarray, task: EntryTask, ahead_s=None) -> np.ndarray:
+    """The angles (N, 2) that ``rates`` (fractions of the bounds) held for ``ahead_s`` (a number or
+    one per vehicle; default one step) reach from ``state``, ignoring the angle bounds."""
     p = task.problem
+    state = np.asarray(state, dtype=float)
+    h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
+    return np.stack([state[:, 10] + rates[:, 0] * p.u_alpha_max * h, state[:, 11] + rates[:, 1] * p.u_sigma_max * h], 1)
+
+
+def expert_angles(expert, time_s, state, rates, task: EntryTask, ahead_s=None) -> np.ndarray:
+    """The expert's label ``ahead_s`` ahead: its plan's angles when it has a plan, else the angles its rates reach."""
+    if hasattr(expert, "planned_angles"):
+        return np.asarray(expert.planned_angles(time_s, state, ahead_s), dtype=float)
+    return reached_angles(state, rates, task, ahead_s)
+
+
+def deadbeat_rates(commands: np.ndarray, state: np.ndarray, task: EntryTask, ahead_s=None) -> np.ndarray:
+    """Rates (fractions of the bounds, clipped to [-1, 1]) that reach the commanded angles in
+    ``ahead_s`` (a number or one per vehicle; default one step: deadbeat)."""
+    p = task.problem
+    h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
     alpha_c = (commands[:, 0] + 1.0) * p.alpha_max / 2.0
     sigma_c = np.arctan2(commands[:, 2], commands[:, 1])
     d_sigma = (sigma_c - state[:, 11] + np.pi) % (2.0 * np.pi) - np.pi
-    rates = np.stack([(alpha_c - state[:, 10]) / (p.u_alpha_max * task.dt), d_sigma / (p.u_sigma_max * task.dt)], axis=1)
+    rates = np.stack([(alpha_c - state[:, 10]) / (p.u_alpha_max * h), d_sigma / (p.u_sigma_max * h)], axis=1)
     return np.clip(rates, -1.0, 1.0).astype(np.float32)
 
 
@@ -117,16 +165,23 @@ def make_network(hidden: tuple[int, ...] = (256, 256)):
 
 
 class LearnedGuidance:
-    """The student as a guidance law: ``law(obs, time_s, state, sensed_accel_b) -> actions``."""
+    """The student as a guidance law: ``law(obs, time_s, state, sensed_accel_b) -> actions``.
+
+    :param horizon: the tracker's :class:`Horizon`, as trained (default: one step).
+    """
 
     uses_sensed_acceleration = True
 
-    def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None):
+    def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
+                 horizon: Horizon | None = None):  # fmt: skip
         import torch
 
         self.network = network.eval()
         self.tracker = FeatureTracker(model)
         self.task = EntryTask() if task is None else task
+        self.horizon = Horizon() if horizon is None else horizon
+        if self.horizon.min_s < self.task.dt:
+            raise ValueError(f"the horizon must be at least one control step ({self.task.dt} s), got min_s = {self.horizon.min_s}")
         self._torch = torch
 
     def reset(self, n_episodes: int) -> None:
@@ -139,17 +194,21 @@ class LearnedGuidance:
         """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state``."""
         with self._torch.no_grad():
             commands = self.network.commands(self._torch.from_numpy(np.ascontiguousarray(f[:, INPUTS]))).numpy()
-        return deadbeat_rates(commands.astype(float), np.asarray(state, float), self.task)
+        state = np.asarray(state, float)
+        return deadbeat_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.task.dt))
 
 
 class DAggerLaw:
     """Flies the expert's action with probability ``beta`` per step, else the student's; records
-    the student's features and the expert's action at every step."""
+    the student's features and the expert's label (:func:`expert_angles`) at every step."""
 
     uses_sensed_acceleration = True
 
-    def __init__(self, expert, student: LearnedGuidance | None, beta: float, seed: int, model: EntryModel | None = None):
+    def __init__(self, expert, student: LearnedGuidance | None, beta: float, seed: int, model: EntryModel | None = None,
+                 task: EntryTask | None = None, horizon: Horizon | None = None):  # fmt: skip
         self.expert, self.student, self.beta = expert, student, float(beta)
+        self.task = EntryTask() if task is None else task
+        self.horizon = Horizon() if horizon is None else horizon
         self.tracker = FeatureTracker(model) if student is None else student.tracker
         self.rng = np.random.default_rng(seed)
         self.x, self.y = [], []
@@ -166,7 +225,8 @@ class DAggerLaw:
             use = self.rng.random(len(obs)) < self.beta
             act = np.where(use[:, None], a_exp, self.student.act(f, state))
         self.x.append(f)
-        self.y.append(a_exp)
+        ahead = self.horizon.seconds(state, self.task.dt)
+        self.y.append(expert_angles(self.expert, time_s, state, a_exp, self.task, ahead).astype(np.float32))
         return act
 
 
@@ -198,6 +258,7 @@ class CollectJob:
     task: EntryTask
     expert: str = "mpc"
     expert_settings: tuple = ()  # (name, value) pairs of ReplanningSettings for the mpc expert
+    horizon: Horizon | None = None  # the labels' and the tracker's (default one step)
 
 
 _EXPERT = {}
@@ -219,12 +280,13 @@ def collect_episode(job: CollectJob) -> dict:
 
             options["settings"] = ReplanningSettings(**dict(job.expert_settings))
         _EXPERT[key] = load_agent(job.expert, job.task, **options)
-    student = None if job.student is None else LearnedGuidance(network_from_bytes(job.student, job.hidden))
-    law = DAggerLaw(_EXPERT[key], student, job.beta, seed=job.seed)
+    student = None if job.student is None else LearnedGuidance(network_from_bytes(job.student, job.hidden),
+                                                                task=job.task, horizon=job.horizon)  # fmt: skip
+    law = DAggerLaw(_EXPERT[key], student, job.beta, seed=job.seed, task=job.task, horizon=job.horizon)
     b = rollout(law, seeds=[job.seed], dispersion=job.dispersion, task=job.task)
     return {
         "x": np.concatenate(law.x).astype(np.float32),
-        "y": np.concatenate(law.y).astype(np.float32),
+        "angles": np.concatenate(law.y).astype(np.float32),
         "success": bool(b.is_success[0]),
         "miss_km": float(b.miss_km[0]),
     }
@@ -245,17 +307,17 @@ def collect(jobs: list[CollectJob], workers: int, progress=None) -> list[dict]:
     return results
 
 
-def fit(network, x: np.ndarray, y: np.ndarray, epochs: int, batch_size: int, lr: float, seed: int,
+def fit(network, x: np.ndarray, angles: np.ndarray, epochs: int, batch_size: int, lr: float, seed: int,
         weight_decay: float = 0.0, task: EntryTask | None = None) -> list[float]:  # fmt: skip
     """Regress the network's commands on the expert's, from recorded features ``x`` (N, 28) and
-    expert rates ``y`` (N, 2), by mean squared error with Adam; returns the loss per epoch
-    (in units of the commands' spread)."""
+    the expert's angles ``angles`` (N, 2), by mean squared error with Adam; returns the loss per
+    epoch (in units of the commands' spread)."""
     import torch
 
     torch.manual_seed(seed)
     task = EntryTask() if task is None else task
     xt = torch.from_numpy(np.ascontiguousarray(x[:, INPUTS]))
-    yt = torch.from_numpy(angle_targets(x, y, task))
+    yt = torch.from_numpy(commands_from_angles(angles, task))
     with torch.no_grad():
         network.mean.copy_(xt.mean(0))
         network.std.copy_(xt.std(0).clamp_min(1e-3))
@@ -289,14 +351,17 @@ __all__ = [
     "CollectJob",
     "DAggerLaw",
     "FeatureTracker",
+    "Horizon",
     "LearnedGuidance",
-    "angle_targets",
     "collect",
+    "commands_from_angles",
     "collect_episode",
     "deadbeat_rates",
+    "expert_angles",
     "features",
     "fit",
     "make_network",
     "network_bytes",
     "network_from_bytes",
+    "reached_angles",
 ]  # fmt: skip

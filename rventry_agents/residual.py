@@ -172,6 +172,10 @@ class ResidualPolicy:
     def __init__(self, predict, guidance: ResidualGuidance):
         self.predict, self.guidance = predict, guidance
 
+    def reset(self, n_episodes: int) -> None:
+        if hasattr(self.predict, "reset"):
+            self.predict.reset(n_episodes)
+
     def __call__(self, obs, time_s, state):
         obs = np.asarray(obs)
         return self.guidance.actions(obs, state, self.predict(self.guidance.schedule.augment(obs)))

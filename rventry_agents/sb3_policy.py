@@ -25,6 +25,50 @@ import numpy as np
 from rventry_env.envs.task import EntryTask
 
 SHIPPED_PPO = Path(__file__).resolve().parent / "data" / "ppo"
+SHIPPED_BASELINES = Path(__file__).resolve().parent / "data" / "baselines"
+# agent name -> the shipped plain baseline's directory under SHIPPED_BASELINES
+BASELINE_AGENTS = {"ppo-plain": "ppo", "recurrent-ppo-plain": "recurrent_ppo", "sac-plain": "sac"}
+
+
+class Predictor:
+    """``predict(observations) -> actions`` of a model, deterministic, on normalized observations.
+
+    A recurrent model (sb3-contrib ``RecurrentPPO``) carries its LSTM state from call to call,
+    one per vehicle; :meth:`reset` starts new episodes.
+    """
+
+    def __init__(self, model, normalize=None):
+        self.model, self.normalize = model, normalize
+        self.recurrent = hasattr(model.policy, "lstm_actor")
+        self.reset(0)
+
+    def reset(self, n_episodes: int) -> None:
+        self.lstm_state, self.starts = None, np.ones(int(n_episodes), bool)
+
+    def __call__(self, obs):
+        obs = obs if self.normalize is None else self.normalize(obs)
+        if not self.recurrent:
+            return self.model.predict(obs, deterministic=True)[0]
+        if len(self.starts) != len(obs):
+            self.reset(len(obs))
+        actions, self.lstm_state = self.model.predict(obs, state=self.lstm_state, episode_start=self.starts,
+                                                      deterministic=True)  # fmt: skip
+        self.starts = np.zeros(len(obs), bool)
+        return actions
+
+
+class _Direct:
+    """A direct policy: the model's action is the environment's."""
+
+    def __init__(self, predict):
+        self.predict = predict
+
+    def reset(self, n_episodes: int) -> None:
+        if hasattr(self.predict, "reset"):
+            self.predict.reset(n_episodes)
+
+    def __call__(self, obs, time_s, state):
+        return self.predict(obs)
 
 
 def make_policy(predict, mode: str, authority=None, task: EntryTask | None = None):
@@ -33,18 +77,23 @@ def make_policy(predict, mode: str, authority=None, task: EntryTask | None = Non
     :param authority: residual mode: (alpha, sigma) offsets in rad at a residual of 1.
     """
     if mode == "direct":
-        return lambda obs, time_s, state: predict(obs)
+        return _Direct(predict)
     from rventry_agents.residual import ResidualGuidance, ResidualPolicy
 
     return ResidualPolicy(predict, ResidualGuidance(authority, task))
 
 
-def _load_sb3(path: Path):
-    """Load a saved model of any stable-baselines3 algorithm with a continuous-action policy."""
+def _load_sb3(path: Path, algorithm: str | None = None):
+    """Load a saved model: of ``algorithm`` when the run names it, else of any stable-baselines3
+    (or sb3-contrib recurrent) algorithm with a continuous-action policy."""
     from stable_baselines3 import A2C, DDPG, PPO, SAC, TD3
 
+    from rventry_agents.train import algorithm_class
+
+    if algorithm is not None:
+        return algorithm_class(algorithm).load(path, device="cpu")
     errors = []
-    for algo in (PPO, SAC, TD3, A2C, DDPG):
+    for algo in (PPO, SAC, TD3, A2C, DDPG, algorithm_class("recurrent_ppo")):
         try:
             return algo.load(path, device="cpu")
         except Exception as exc:  # the zip names its policy class; a mismatch fails here
@@ -90,7 +139,7 @@ class SB3Policy:
                     f"{path} belongs to an rventry training run ({spec}) but its observation statistics "
                     f"{normalize_path.name} are missing beside it; pass the VecNormalize file explicitly"
                 )
-        self.model: BaseAlgorithm = _load_sb3(path)
+        self.model: BaseAlgorithm = _load_sb3(path, self.spec.get("algorithm"))
         self.obs_mean = self.obs_var = None
         self.clip_obs, self.epsilon = 10.0, 1e-8
         self.normalize_path = None if normalize_path is None else Path(normalize_path)
@@ -104,10 +153,11 @@ class SB3Policy:
                 self.clip_obs, self.epsilon = vn.clip_obs, vn.epsilon
         meta = path.with_name("metadata.json")
         self.metadata = json.loads(meta.read_text()) if meta.is_file() else {}
-        self._act = make_policy(self._predict, self.spec["mode"], self.spec.get("authority_rad"))
+        self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"], self.spec.get("authority_rad"))
 
-    def _predict(self, obs):
-        return self.model.predict(self.normalize(obs), deterministic=True)[0]
+    def reset(self, n_episodes: int) -> None:
+        if hasattr(self._act, "reset"):
+            self._act.reset(n_episodes)
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_mean is None:
@@ -126,9 +176,19 @@ def load_shipped(name: str = "ppo", task: EntryTask | None = None) -> SB3Policy:
     return SB3Policy(SHIPPED_PPO)
 
 
+def load_baseline(name: str, task: EntryTask | None = None) -> SB3Policy:
+    """A plain-RL baseline shipped with this package (entry points ``ppo-plain``, ...)."""
+    if name not in BASELINE_AGENTS:
+        raise ValueError(f"no baseline named {name!r}; baselines: {', '.join(BASELINE_AGENTS)}")
+    run = SHIPPED_BASELINES / BASELINE_AGENTS[name]
+    if not (run / "model.zip").is_file():
+        raise FileNotFoundError(f"the baseline {name} is not shipped: no {run / 'model.zip'}")
+    return SB3Policy(run)
+
+
 def load_saved(path: str, task: EntryTask | None = None) -> SB3Policy:
     """A saved SB3 model or run directory (entry point ``rventry.agent_files``)."""
     return SB3Policy(path)
 
 
-__all__ = ["SHIPPED_PPO", "SB3Policy", "make_policy", "load_shipped", "load_saved"]
+__all__ = ["SHIPPED_PPO", "SHIPPED_BASELINES", "BASELINE_AGENTS", "load_baseline", "Predictor", "SB3Policy", "make_policy", "load_shipped", "load_saved"]

@@ -20,12 +20,11 @@ RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.js
 def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     """Copy the selected policy of ``run_dir`` to ``dest`` (default: the packaged policy directory).
 
-    :param run_dir: a finished ``rventry train ppo`` output directory.
+    :param run_dir: a finished ``rventry train ppo | recurrent-ppo | sac`` output directory.
     :param dest: where to put it.
     """
-    from stable_baselines3 import PPO
-
     from rventry_agents.sb3_policy import SHIPPED_PPO
+    from rventry_agents.train import algorithm_class
 
     run_dir = Path(run_dir)
     dest = Path(dest) if dest is not None else SHIPPED_PPO
@@ -33,9 +32,12 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     if missing:
         raise FileNotFoundError(f"{run_dir} is not a finished training run: missing {', '.join(missing)}")
     dest.mkdir(parents=True, exist_ok=True)
-    model = PPO.load(run_dir / "model.zip", device="cpu")
-    # a fresh optimizer carries no moment buffers; the weights are untouched
-    model.policy.optimizer = model.policy.optimizer_class(model.policy.parameters(), **model.policy.optimizer_kwargs)
+    algorithm = json.loads((run_dir / "policy.json").read_text()).get("algorithm", "ppo")
+    model = algorithm_class(algorithm).load(run_dir / "model.zip", device="cpu")
+    # a fresh optimizer carries no moment buffers; the weights are untouched (SAC: actor and critic each have one)
+    for part in (model.policy, getattr(model, "actor", None), getattr(model, "critic", None)):
+        if part is not None and hasattr(part, "optimizer"):
+            part.optimizer = part.optimizer_class(part.parameters(), **part.optimizer_kwargs)
     model.save(dest / "model.zip")
     for name in RUN_FILES:
         shutil.copy2(run_dir / name, dest / name)

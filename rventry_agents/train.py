@@ -1,9 +1,11 @@
-"""Train the PPO baseline on the numpy-batched RvEntry-v0 with stable-baselines3.
+"""Train stable-baselines3 agents on the numpy-batched RvEntry-v0: PPO, RecurrentPPO (sb3-contrib), SAC.
 
-Everything that shapes the result is in one config file (``rventry_agents/ppo.toml``).
-A run writes into its output directory:
+Everything that shapes a result is in one config file: ``rventry_agents/ppo.toml`` (the PPO
+residual on the classical law), ``rventry_agents/baselines/*.toml`` (the plain baselines, from
+scratch). The algorithm's keyword arguments are the config section named after it
+(``[ppo]``, ``[recurrent_ppo]``, ``[sac]``). A run writes into its output directory:
 
-* ``policy.json``: how to fly the saved models (direct, or residual on the reference);
+* ``policy.json``: how to fly the saved models (the algorithm; direct, or residual on the reference);
 * ``model.zip`` + ``vecnormalize.pkl``: the policy selected on the *task* metric
   (success rate on a fixed dispersed evaluation set, then mean miss distance),
   not on the shaped return;
@@ -30,6 +32,10 @@ from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.util.files import save_figure, write_json
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
+BASELINES = Path(__file__).resolve().parent / "baselines"
+ALGORITHMS = ("ppo", "recurrent_ppo", "sac")
+# the config each algorithm's command reads when none is given
+DEFAULT_CONFIGS = {"ppo": DEFAULT_CONFIG, "recurrent_ppo": BASELINES / "recurrent_ppo.toml", "sac": BASELINES / "sac.toml"}
 
 
 def read_config(path: str | Path | dict | None, default: Path, sections: tuple[str, ...]) -> tuple[dict, str]:
@@ -54,9 +60,33 @@ def read_config(path: str | Path | dict | None, default: Path, sections: tuple[s
     return cfg, str(where)
 
 
-def load_config(path: str | Path | dict | None = None) -> dict:
-    """The training configuration: a TOML file (default ``rventry_agents/ppo.toml``) or an already-loaded dict."""
-    return read_config(path, DEFAULT_CONFIG, ("env", "normalize", "ppo", "policy", "train"))[0]
+def check_algorithm(algorithm: str) -> str:
+    if algorithm not in ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algorithm!r}; known: {', '.join(ALGORITHMS)}")
+    return algorithm
+
+
+def load_config(path: str | Path | dict | None = None, algorithm: str = "ppo") -> dict:
+    """The training configuration of ``algorithm``: a TOML file (default: the algorithm's, see
+    :data:`DEFAULT_CONFIGS`) or an already-loaded dict, with a section of the algorithm's keyword arguments."""
+    check_algorithm(algorithm)
+    return read_config(path, DEFAULT_CONFIGS[algorithm], ("env", "normalize", algorithm, "policy", "train"))[0]
+
+
+def algorithm_class(algorithm: str):
+    """The stable-baselines3 (or sb3-contrib) class of ``algorithm``."""
+    if check_algorithm(algorithm) == "recurrent_ppo":
+        from sb3_contrib import RecurrentPPO
+
+        return RecurrentPPO
+    import stable_baselines3
+
+    return getattr(stable_baselines3, algorithm.upper())
+
+
+def discount(cfg: dict, algorithm: str) -> float:
+    """The algorithm's discount factor (also the reward normalization's and the shaping's)."""
+    return float(cfg[algorithm].get("gamma", 0.99))
 
 
 def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:
@@ -88,7 +118,7 @@ def policy_mode(cfg: dict) -> tuple[str, list[float]]:
     return mode, authority
 
 
-def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
+def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None, algorithm: str = "ppo"):
     """The training VecEnv: batched env -> [residual] -> VecMonitor -> [range shaping] -> VecNormalize.
 
     VecMonitor sits inside the shaping, so logged episode returns are the
@@ -110,23 +140,20 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None):
     venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
     shaping = cfg.get("shaping", {})
     if float(shaping.get("range_weight", 0.0)) > 0:
-        venv = RangePotentialShaping(venv, float(shaping["range_weight"]), float(cfg["ppo"]["gamma"]))
+        venv = RangePotentialShaping(venv, float(shaping["range_weight"]), discount(cfg, algorithm))
     n = cfg["normalize"]
     return VecNormalize(
         venv, norm_obs=bool(n["norm_obs"]), norm_reward=bool(n["norm_reward"]), clip_obs=float(n["clip_obs"]),
-        clip_reward=float(n["clip_reward"]), gamma=float(cfg["ppo"]["gamma"]),
+        clip_reward=float(n["clip_reward"]), gamma=discount(cfg, algorithm),
     )  # fmt: skip
 
 
 def live_policy(model, vecnorm, cfg: dict, task: EntryTask):
     """The model being trained as a rollout policy (deterministic, normalized observations)."""
-    from rventry_agents.sb3_policy import make_policy
-
-    def predict(obs):
-        return model.predict(vecnorm.normalize_obs(obs), deterministic=True)[0]
+    from rventry_agents.sb3_policy import Predictor, make_policy
 
     mode, authority = policy_mode(cfg)
-    return make_policy(predict, mode, authority, task)
+    return make_policy(Predictor(model, vecnorm.normalize_obs), mode, authority, task)
 
 
 def task_metric_key(rec: dict) -> tuple[float, float]:
@@ -134,7 +161,7 @@ def task_metric_key(rec: dict) -> tuple[float, float]:
     return (rec["success_rate"] or 0.0, -(rec["miss_km"] if rec["miss_km"] is not None else np.inf))
 
 
-def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None):
+def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None, algorithm: str):
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     from rventry_env.evaluation.rollout import rollout
@@ -205,16 +232,43 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
 
     ckpt = CheckpointCallback(
         save_freq=max(int(t["checkpoint_every"]) // int(cfg["env"]["num_envs"]), 1),
-        save_path=str(out / "checkpoints"), name_prefix="ppo", save_vecnormalize=True,
+        save_path=str(out / "checkpoints"), name_prefix=algorithm, save_vecnormalize=True,
     )  # fmt: skip
     return TaskMetricEval(), ckpt
 
 
+def policy_kwargs(cfg: dict, algorithm: str) -> dict[str, Any]:
+    """The policy network's keyword arguments from the config's [policy] section."""
+    import torch
+
+    pol = cfg["policy"]
+    heads = {"sac": ("pi", "qf")}.get(algorithm, ("pi", "vf"))
+    kwargs: dict[str, Any] = {
+        "net_arch": {h: list(pol[f"net_arch_{h}"]) for h in heads},
+        "activation_fn": {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "elu": torch.nn.ELU}[pol["activation"]],
+    }
+    if "log_std_init" in pol:
+        kwargs["log_std_init"] = float(pol["log_std_init"])
+    if algorithm == "recurrent_ppo":
+        for key in ("lstm_hidden_size", "n_lstm_layers"):
+            kwargs[key] = int(pol[key])
+        for key in ("shared_lstm", "enable_critic_lstm"):
+            kwargs[key] = bool(pol[key])
+    return kwargs
+
+
 def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = None, seed: int | None = None,
               out: str | Path = "runs/ppo", task: EntryTask | None = None, progress_bar: bool = True) -> Path:  # fmt: skip
-    """Train PPO as the config says; returns the output directory.
+    """Train PPO as the config says (default ``rventry_agents/ppo.toml``); see :func:`train_sb3`."""
+    return train_sb3("ppo", config, timesteps, seed, out, task, progress_bar)
 
-    :param config: TOML config path (default ``rventry_agents/ppo.toml``) or a loaded config dict.
+
+def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps: int | None = None,
+              seed: int | None = None, out: str | Path = "runs/ppo", task: EntryTask | None = None,
+              progress_bar: bool = True) -> Path:  # fmt: skip
+    """Train ``algorithm`` (``ppo``, ``recurrent_ppo`` or ``sac``) as the config says; returns the output directory.
+
+    :param config: TOML config path (default: the algorithm's, :data:`DEFAULT_CONFIGS`) or a loaded config dict.
     :param timesteps: override ``[train] total_timesteps``.
     :param seed: override ``[train] seed``.
     :param out: output directory.
@@ -222,20 +276,22 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
     :param progress_bar: show SB3's progress bar.
     """
     import torch
-    from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList
 
-    cfg = load_config(config)
+    cfg = load_config(config, algorithm)
     t = cfg["train"]
     timesteps = int(timesteps if timesteps is not None else t["total_timesteps"])
     seed = int(seed if seed is not None else t["seed"])
     if timesteps < 1:
         raise ValueError(f"timesteps must be positive, got {timesteps}")
+    mode, authority = policy_mode(cfg)
+    if mode == "residual" and algorithm != "ppo":
+        raise ValueError(f"[policy] mode = 'residual' is built for ppo, not {algorithm}; use mode = 'direct'")
+    kwargs = policy_kwargs(cfg, algorithm)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    mode, authority = policy_mode(cfg)
     # how to fly any model saved under ``out`` (best, final, checkpoints)
-    write_json(out / "policy.json", {"mode": mode, "authority_rad": authority})
+    write_json(out / "policy.json", {"algorithm": algorithm, "mode": mode, "authority_rad": authority})
     torch.set_num_threads(int(t.get("torch_threads", 1)))
     task = make_task(cfg, task)
     try:
@@ -244,14 +300,8 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
         reference_cost = float(load_reference().cost)
     except Exception:  # training does not need the reference; the cost ratio does
         reference_cost = None
-    venv = make_vec_env(cfg, task)
+    venv = make_vec_env(cfg, task, algorithm=algorithm)
     venv.seed(seed)
-    p, pol = cfg["ppo"], cfg["policy"]
-    policy_kwargs: dict[str, Any] = {
-        "net_arch": {"pi": list(pol["net_arch_pi"]), "vf": list(pol["net_arch_vf"])},
-        "activation_fn": {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "elu": torch.nn.ELU}[pol["activation"]],
-        "log_std_init": float(pol["log_std_init"]),
-    }
     try:
         import tensorboard  # noqa: F401
 
@@ -264,17 +314,17 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
         from rventry_env.envs.observation import feature_index
 
         policy_cls = ZeroOnReferencePolicy
-        policy_kwargs["n_raw_features"] = feature_index("load_factor") + 1  # the raw features come first
+        kwargs["n_raw_features"] = feature_index("load_factor") + 1  # the raw features come first
     else:
-        policy_cls = "MlpPolicy"
-    model = PPO(policy_cls, venv, seed=seed, device="cpu", tensorboard_log=tb, policy_kwargs=policy_kwargs, verbose=0,
-                **{k: v for k, v in p.items()})  # fmt: skip
-    if mode == "residual" and bool(pol.get("zero_init_residual", False)):
+        policy_cls = "MlpLstmPolicy" if algorithm == "recurrent_ppo" else "MlpPolicy"
+    model = algorithm_class(algorithm)(policy_cls, venv, seed=seed, device="cpu", tensorboard_log=tb,
+                                       policy_kwargs=kwargs, verbose=0, **dict(cfg[algorithm]))  # fmt: skip
+    if mode == "residual" and bool(cfg["policy"].get("zero_init_residual", False)):
         # start exactly on the reference: a residual of 0.02 alone moves the impact by ~265 km
         with torch.no_grad():
             model.policy.action_net.weight.zero_()
             model.policy.action_net.bias.zero_()
-    evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost)
+    evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost, algorithm)
     start = time.time()
     model.learn(timesteps, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar)
     evaluator.evaluate()  # the final iterate competes for "best" too
@@ -284,6 +334,7 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
     best = max(evaluator.history, key=task_metric_key)
     meta = {
         "command": " ".join(shlex.quote(a) for a in sys.argv),
+        "algorithm": algorithm,
         "seed": seed,
         "timesteps": timesteps,
         "wall_time_s": wall,

@@ -112,6 +112,88 @@ def test_any_saved_sb3_algorithm_loads(tmp_path):
     assert batch.miss_km.shape == (2,)
 
 
+def _baseline_smoke_config(algorithm: str) -> dict:
+    """A plain baseline's shipped config, shrunk to a smoke test."""
+    from rventry_agents.train import BASELINES, load_config
+
+    cfg = load_config(BASELINES / f"{algorithm}.toml", algorithm)
+    cfg["env"].update(num_envs=8, max_episode_steps=60)
+    if algorithm == "sac":
+        cfg["sac"].update(learning_starts=200, buffer_size=10_000, batch_size=64)
+    else:
+        cfg[algorithm].update(n_steps=64, batch_size=256, n_epochs=2)
+    cfg["train"].update(eval_every=1024, eval_episodes=4, checkpoint_every=1024, torch_threads=1)
+    return cfg
+
+
+@pytest.mark.parametrize("algorithm", ["ppo", "recurrent_ppo", "sac"])
+def test_plain_baseline_configs_fly_directly_from_scratch(algorithm):
+    """Each plain baseline is its algorithm alone: direct rate actions, no residual, no shaping, the
+    environment's own reward, and at least 10M steps."""
+    from rventry_agents.train import BASELINES, load_config
+
+    cfg = load_config(BASELINES / f"{algorithm}.toml", algorithm)
+    assert cfg["policy"]["mode"] == "direct" and "reward" not in cfg
+    assert cfg["shaping"]["range_weight"] == 0.0
+    assert cfg["train"]["total_timesteps"] >= 10_000_000
+    assert cfg["train"]["eval_seed"] != 0  # selection never uses the evaluation's seeds
+
+
+def test_a_config_without_the_algorithms_section_or_with_a_residual_off_ppo_is_refused(tmp_path):
+    from rventry_agents.train import load_config, train_sb3
+
+    with pytest.raises(ValueError, match=r"missing section \[sac\]"):
+        load_config(load_config(), "sac")
+    with pytest.raises(ValueError, match="unknown algorithm 'dqn'"):
+        load_config(None, "dqn")
+    cfg = _baseline_smoke_config("sac")
+    cfg["policy"].update(mode="residual", alpha_authority_deg=1.0, sigma_authority_deg=5.0)
+    with pytest.raises(ValueError, match="residual' is built for ppo, not sac"):
+        train_sb3("sac", cfg, timesteps=64, out=tmp_path / "run", progress_bar=False)
+    assert not (tmp_path / "run").exists()  # refused before anything is written
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algorithm", ["ppo", "recurrent_ppo", "sac"])
+def test_plain_baseline_trains_saves_reloads_and_evaluates_deterministically(tmp_path, algorithm):
+    from rventry_agents.ship import ship
+    from rventry_agents.train import train_sb3
+
+    out = train_sb3(algorithm, _baseline_smoke_config(algorithm), timesteps=2048, seed=3, out=tmp_path / "run",
+                    task=SMOKE_TASK, progress_bar=False)  # fmt: skip
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["algorithm"] == algorithm and meta["timesteps"] == 2048
+    assert json.loads((out / "policy.json").read_text())["algorithm"] == algorithm
+    assert list((out / "checkpoints").glob(f"{algorithm}_*_steps.zip"))
+    policy = SB3Policy(out)
+    assert type(policy.model).__name__ == {"ppo": "PPO", "recurrent_ppo": "RecurrentPPO", "sac": "SAC"}[algorithm]
+    assert policy.spec["mode"] == "direct" and policy.obs_mean is not None  # running observation statistics
+    a = rollout(policy, 3, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
+    b = rollout(SB3Policy(out), 3, seed=5, task=SMOKE_TASK, dispersion="standard", max_episode_steps=40)
+    np.testing.assert_array_equal(a.miss_km, b.miss_km)
+    c = rollout(SB3Policy(ship(out, tmp_path / "shipped")), 3, seed=5, task=SMOKE_TASK, dispersion="standard",
+                max_episode_steps=40)  # fmt: skip
+    np.testing.assert_array_equal(a.miss_km, c.miss_km)
+
+
+@pytest.mark.slow
+def test_a_recurrent_policy_carries_its_memory_per_vehicle_and_reset_clears_it():
+    from sb3_contrib import RecurrentPPO
+
+    from rventry_agents.sb3_policy import Predictor
+    from rventry_env.envs.rv_entry import RvEntryEnv
+
+    model = RecurrentPPO("MlpLstmPolicy", RvEntryEnv(), n_steps=8, batch_size=8, device="cpu", seed=0,
+                         policy_kwargs={"log_std_init": -1.0})  # fmt: skip
+    obs = np.tile(RvEntryEnv().reset(seed=0)[0], (2, 1))
+    predict = Predictor(model)
+    first = predict(obs)
+    second = predict(obs)
+    assert not np.allclose(first, second)  # the same observation, a different memory
+    predict.reset(2)
+    np.testing.assert_array_equal(predict(obs), first)
+
+
 @pytest.mark.slow
 def test_shipped_policy_is_present_and_deterministic_for_a_seed():
     assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()

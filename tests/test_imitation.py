@@ -14,11 +14,14 @@ from rventry_agents.imitation import (
     INPUTS,
     N_FEATURES,
     DAggerLaw,
+    Horizon,
     LearnedGuidance,
-    angle_targets,
-    deadbeat_rates,  # fmt: skip
+    commands_from_angles,
+    deadbeat_rates,
+    expert_angles,
     fit,
     make_network,
+    reached_angles,
 )
 from rventry_env.envs.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
@@ -53,12 +56,42 @@ dispersion = "standard"
 def test_with_beta_one_the_expert_flies_and_every_step_is_labelled():
     expert = load_agent("lqr")
     law = DAggerLaw(load_agent("lqr"), None, beta=1.0, seed=0)
-    mixed = rollout(law, seeds=[7], dispersion="standard")
+    mixed = rollout(law, seeds=[7], dispersion="standard", record_history=True)
     alone = rollout(expert, seeds=[7], dispersion="standard")
     np.testing.assert_array_equal(mixed.miss_km, alone.miss_km)  # the mixture is the expert itself
     x, y = np.concatenate(law.x), np.concatenate(law.y)
-    assert x.shape == (mixed.lengths[0], N_FEATURES) and y.shape == (mixed.lengths[0], 2)
-    assert np.isfinite(x).all() and np.abs(y).max() <= 1.0
+    n = mixed.lengths[0]
+    assert x.shape == (n, N_FEATURES) and y.shape == (n, 2) and np.isfinite(x).all()
+    # an expert without a plan is labelled with the angles its rates reach: the next step's (the
+    # last step ends at the impact, within the step)
+    flown = mixed.history_x[1:n, 0, 10:12]
+    inside = (flown[:, 0] > 1e-6) & (flown[:, 0] < EntryTask().problem.alpha_max - 1e-6)  # alpha not at a bound
+    np.testing.assert_allclose(y[:-1][inside], flown[inside], atol=1e-6)
+
+
+@pytest.mark.slow
+def test_the_replanning_expert_labels_with_its_plans_angles_one_step_ahead():
+    """Flying itself, mpc reaches (nearly) its plan's angles in one step; labelling a student that has drifted,
+    it gives the plan's angles, not its gentle tracker's next step from the drifted ones."""
+    from rventry_env.guidance.replanning import ReplanningGuidance, ReplanningSettings
+
+    expert = ReplanningGuidance(settings=ReplanningSettings(mesh_intervals=10, replan_s=60.0))
+    law = DAggerLaw(expert, None, beta=1.0, seed=0)
+    b = rollout(law, seeds=[7], dispersion="standard", record_history=True)
+    y, n = np.concatenate(law.y), b.lengths[0]
+    # on a dispersed flight its tracker adds small corrections to the plan's angles
+    assert np.degrees(np.abs(y[:-1] - b.history_x[1:n, 0, 10:12])).max() < 0.5
+    state = b.history_x[n - 20, :, :].copy()  # within the last plan, which the expert still holds
+    t = b.history_t[n - 20]
+    on_plan = expert.planned_angles(t, state)
+    state[:, 10:12] += np.radians([3.0, 20.0])  # a student 3 deg and 20 deg off
+    np.testing.assert_array_equal(expert.planned_angles(t, state), on_plan)
+    # a horizon of 3 s is the plan 3 steps on; one per vehicle works alike
+    np.testing.assert_array_equal(expert.planned_angles(t, state, 3.0), expert.planned_angles(t + 2.0, state))
+    np.testing.assert_array_equal(expert.planned_angles(t, state, np.array([3.0])), expert.planned_angles(t, state, 3.0))
+    rates = expert.rates(t, state, expert.estimator.log_scales()) / expert.u_max
+    drifted = reached_angles(state, rates, EntryTask())
+    assert np.degrees(np.abs(drifted - on_plan)).max() > 2.0  # the tracker's next step keeps most of the drift
 
 
 def test_the_student_needs_the_accelerometer():
@@ -69,7 +102,7 @@ def test_the_student_needs_the_accelerometer():
 
 
 def _expert_data(n: int, seed: int):
-    """Recorded features and expert rates whose commanded angles depend on the inputs alone."""
+    """Recorded features, expert angles that depend on the inputs alone, the rates that reach them, and the states."""
     task = EntryTask()
     p = task.problem
     rng = np.random.default_rng(seed)
@@ -83,18 +116,26 @@ def _expert_data(n: int, seed: int):
     y = np.stack([(alpha_c - alpha) / (p.u_alpha_max * task.dt), (sigma_c - sigma) / (p.u_sigma_max * task.dt)], 1)
     state = np.zeros((n, 12))
     state[:, 10], state[:, 11] = alpha, sigma
-    return task, x, y.astype(np.float32), state
+    return task, x, np.stack([alpha_c, sigma_c], 1), y.astype(np.float32), state
 
 
 def test_commanded_angles_and_the_deadbeat_tracker_invert_each_other():
-    task, x, y, state = _expert_data(500, 1)
-    np.testing.assert_allclose(deadbeat_rates(angle_targets(x, y, task).astype(float), state, task), y, atol=2e-5)
+    task, x, angles, y, state = _expert_data(500, 1)
+    np.testing.assert_allclose(reached_angles(state, y, task), angles, atol=1e-6)
+    np.testing.assert_allclose(deadbeat_rates(commands_from_angles(angles, task).astype(float), state, task), y, atol=2e-5)
+    np.testing.assert_allclose(expert_angles(object(), np.zeros(500), state, y, task), angles, atol=1e-6)  # no plan
+    # with a horizon: the label is where the rates lead by then, and the tracker closes on it at that pace
+    ahead = reached_angles(state, y, task, 4.0)
+    np.testing.assert_allclose(deadbeat_rates(commands_from_angles(ahead, task).astype(float), state, task, 4.0), y,
+                               atol=2e-5)  # fmt: skip
+    with pytest.raises(ValueError, match="the horizon must be at least one control step"):
+        LearnedGuidance(make_network((4,)), task=task, horizon=Horizon(0.5, 0.5))
 
 
 def test_regression_fits_the_expert_commands():
-    task, x, y, state = _expert_data(6000, 0)
+    task, x, angles, y, state = _expert_data(6000, 0)
     net = make_network((64, 64))
-    losses = fit(net, x, y, epochs=30, batch_size=256, lr=3e-3, seed=0)
+    losses = fit(net, x, angles, epochs=30, batch_size=256, lr=3e-3, seed=0)
     assert losses[-1] < 0.05 * losses[0]  # in units of the commands' spread
     student = LearnedGuidance(net)
     import torch
@@ -139,3 +180,13 @@ def test_bad_configs_and_paths_are_named(tmp_path):
         load_config(bad)
     with pytest.raises(ValueError, match="not a DAgger run directory"):
         load_saved(str(tmp_path))
+
+
+def test_the_horizon_shortens_near_the_ground_in_whole_steps():
+    h = Horizon(max_s=4.0, min_s=2.0, descent_mps=2500.0)
+    state = np.zeros((4, 12))
+    state[:, 0] = h.radius_m + np.array([40e3, 10e3, 7e3, 1e3])
+    np.testing.assert_array_equal(h.seconds(state, 1.0), [4.0, 4.0, 3.0, 2.0])
+    np.testing.assert_array_equal(Horizon().seconds(state, 1.0), [1.0] * 4)  # the default: one step, deadbeat
+    with pytest.raises(ValueError, match="0 < min_s <= max_s"):
+        Horizon(max_s=2.0, min_s=3.0)

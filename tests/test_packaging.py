@@ -48,6 +48,12 @@ load_dagger_config()
 load_shipped()
 for name in ("learning_curve.png", "metadata.json", "rounds.json"):
     assert (SHIPPED_DAGGER / name).is_file(), name
+from rventry_agents.sb3_policy import SHIPPED_BASELINES, load_baseline
+from rventry_agents.train import ALGORITHMS, BASELINES
+for algorithm in ALGORITHMS:
+    load_config(BASELINES / f"{algorithm}.toml", algorithm)
+assert load_baseline("ppo-plain").spec["mode"] == "direct"
+assert (SHIPPED_BASELINES / "ppo" / "learning_curve.png").is_file()
 print("loaded everything")
 """
 

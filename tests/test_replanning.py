@@ -133,9 +133,28 @@ def test_local_processes_and_a_dask_cluster_give_identical_episodes():
     assert here.seeds.tolist() == seeds
 
 
+@pytest.mark.slow
+def test_final_replanning_replans_every_final_replan_s_near_the_end_and_still_lands(law):
+    base = rollout(law, 1)
+    final = ReplanningSettings(mesh_intervals=10, mesh_degree=4, replan_s=60.0, final_replan_s=10.0,
+                               final_window_s=120.0, freeze_s=5.0)  # fmt: skip
+    b = rollout(ReplanningGuidance(settings=final), 1)
+    assert b.is_success[0] and b.miss_km[0] < 0.5 and b.vertical_error_deg[0] < 2.0
+    extra = b.law_stats[0]["replans"] - base.law_stats[0]["replans"]
+    # about 11 plans in the last 120 s (every 10 s, to 5 s before impact) instead of about 2
+    assert 7 <= extra <= 11, extra
+
+
 def test_settings_are_checked():
     with pytest.raises(ValueError, match="replan_s must be positive"):
         ReplanningSettings(replan_s=0.0)
+    with pytest.raises(ValueError, match=r"final_replan_s must be None or in \(0, replan_s = 30.0\]"):
+        ReplanningSettings(final_replan_s=45.0)
+    with pytest.raises(ValueError, match="final_window_s must be a finite number"):
+        ReplanningSettings(final_window_s=float("nan"))
+    s = ReplanningSettings(final_replan_s=5.0, final_window_s=100.0)
+    assert (s.replan_interval(500.0), s.replan_interval(100.0), s.replan_interval(3.0)) == (30.0, 5.0, 5.0)
+    assert ReplanningSettings().replan_interval(3.0) == 30.0  # off by default
     with pytest.raises(ValueError, match="q_margin must lie in"):
         ReplanningSettings(q_margin=0.6)
     with pytest.raises(ValueError, match="mesh_degree must be a positive integer"):

@@ -147,8 +147,9 @@ def _evaluate(args) -> int:
 
 
 # the columns of `rventry compare`: (agent, label); the first is the learned agent given by --agent
-COMPARED = (("lqr", "TV-LQR"), ("lqr-est", "TV-LQR + estimation"), ("mpc", "re-planning (mpc)"),
-            ("reference", "reference (open loop)"))  # fmt: skip
+# (the learning agents' columns appear when their package is installed: the library never imports it)
+COMPARED = (("dagger", "DAgger student"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
+            ("lqr-est", "TV-LQR + estimation"), ("mpc", "re-planning (mpc)"), ("reference", "reference (open loop)"))  # fmt: skip
 
 
 def _compare(args) -> int:
@@ -162,8 +163,11 @@ def _compare(args) -> int:
     dispersion = dispersion_name(args)
     check_writable(args.json, folders=(args.plots,))
     t0 = time.time()
+    from rventry_env.evaluation.agents import agent_names
+
     label = _label(args.agent)
-    agents = ((args.agent, label), *COMPARED)
+    known = set(agent_names())
+    agents = ((args.agent, label), *((a, n) for a, n in COMPARED if a in known and a != args.agent))
     episodes = {name: (args.mpc_episodes if agent == "mpc" else args.episodes) for agent, name in agents}
     plan = [(case, agent, name, 1 if case == "nominal" else episodes[name], "none" if case == "nominal" else dispersion)
             for case in ("nominal", "dispersed") for agent, name in agents]  # fmt: skip

@@ -29,6 +29,11 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   plan, and is counted.
 * **Freeze.** No new plan within ``freeze_s`` of the planned impact: the last plan is
   tracked into the ground.
+* **Final re-planning** (off by default). With ``final_replan_s`` set, the interval shortens
+  to it once the planned time to go is under ``final_window_s``. The law itself does not need
+  it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
+  as a teacher it gives a student that has drifted off the plan a correction from where it
+  is, rather than TV-LQR's pull back toward a path it can no longer reach.
 
 The law sees only the navigation state and the sensed acceleration.
 """
@@ -67,6 +72,8 @@ class ReplanningSettings:
     nlp_tolerance: float = 1e-6
     q_weight: float = 1e-5
     r_weight: float = 100.0
+    final_replan_s: float | None = None
+    final_window_s: float = 120.0
 
     def __post_init__(self):
         positive = ("replan_s", "soft_penalty", "max_wall_s", "nlp_tolerance", "r_weight")
@@ -84,6 +91,18 @@ class ReplanningSettings:
                 raise ValueError(f"{name} must lie in [0, {hi}), got {v!r}")
         if not (self.freeze_s >= 0 and self.q_weight >= 0):
             raise ValueError("freeze_s and q_weight must be >= 0")
+        if self.final_replan_s is not None and not (
+                isinstance(self.final_replan_s, (int, float)) and math.isfinite(self.final_replan_s)
+                and 0 < self.final_replan_s <= self.replan_s):  # fmt: skip
+            raise ValueError(f"final_replan_s must be None or in (0, replan_s = {self.replan_s}], got {self.final_replan_s!r}")
+        if not (isinstance(self.final_window_s, (int, float)) and math.isfinite(self.final_window_s) and self.final_window_s >= 0):
+            raise ValueError(f"final_window_s must be a finite number of seconds >= 0, got {self.final_window_s!r}")
+
+    def replan_interval(self, time_to_go: float) -> float:
+        """Seconds to the next plan, given the current plan's time to go."""
+        if self.final_replan_s is not None and time_to_go <= self.final_window_s:
+            return float(self.final_replan_s)
+        return float(self.replan_s)
 
 
 def replanning_mesh(s: ReplanningSettings):
@@ -269,7 +288,7 @@ class ReplanningGuidance:
         self.n = int(n_episodes)
         self.estimator.reset(self.n)
         self.tracks: list[_Track | None] = [None] * self.n
-        self.next_replan = np.zeros(self.n)
+        self.last_replan = np.full(self.n, -np.inf)
         self.logs = [_EpisodeLog() for _ in range(self.n)]
 
     # ------------------------------------------------------------------ planning
@@ -300,7 +319,7 @@ class ReplanningGuidance:
             log.failures.append((round(t, 3), sol.status))
             if old is None:  # nothing to keep: fly the nominal plan, the estimate fed forward
                 self.tracks[i] = self._track(t, self.nominal, np.zeros(2))
-        self.next_replan[i] = t + self.settings.replan_s
+        self.last_replan[i] = t
 
     # ------------------------------------------------------------------ the law
     def rates(self, time_s, state, theta) -> np.ndarray:
@@ -315,6 +334,26 @@ class ReplanningGuidance:
                     - tr.theta_gains[k] @ (theta[i] - tr.theta))  # fmt: skip
         return u
 
+    def planned_angles(self, time_s, state, ahead_s=None) -> np.ndarray:
+        """(alpha, sigma) in rad that each episode's current plan holds ``ahead_s`` (a number or one
+        per episode; default one control step) ahead, its final angles past its end, the current
+        angles without a plan.
+
+        A teacher's label for a student that commands angles: where the law is taking the angles.
+        A plan starts from the current angles, and the rate bounds and the rates' cost keep it near
+        them for a second or two, so a few seconds ahead is what the law wants, not where it is.
+        """
+        time_s = np.asarray(time_s, dtype=float)
+        out = np.array(state, dtype=float)[:, 10:12]
+        ahead = np.broadcast_to(self.task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float), time_s.shape)
+        steps = np.maximum(np.rint(ahead / self.task.dt).astype(int), 1)
+        for i, tr in enumerate(self.tracks):
+            if tr is None:
+                continue
+            k = int(round((time_s[i] - tr.t_start) / self.task.dt)) + int(steps[i])
+            out[i] = tr.x_ref[min(max(k, 0), tr.x_ref.shape[0] - 1), 10:12]
+        return out
+
     def __call__(self, obs, time_s, state, sensed_accel_b=None):
         if sensed_accel_b is None:
             raise ValueError("mpc needs the sensed acceleration (info['sensed_accel_b'])")
@@ -326,7 +365,9 @@ class ReplanningGuidance:
         theta = self.estimator.log_scales()
         for i in range(self.n):
             tr = self.tracks[i]
-            due = tr is None or (time_s[i] >= self.next_replan[i] and tr.t_end - time_s[i] > self.settings.freeze_s)
+            to_go = tr.t_end - time_s[i] if tr is not None else np.inf
+            due = tr is None or (time_s[i] - self.last_replan[i] >= self.settings.replan_interval(to_go)
+                                 and to_go > self.settings.freeze_s)  # fmt: skip
             if due:
                 self._replan(i, float(time_s[i]), state[i], theta[i])
         return np.clip(self.rates(time_s, state, theta) / self.u_max, -1.0, 1.0).astype(np.float32)
