@@ -77,7 +77,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     hidden = tuple(int(h) for h in cfg["student"]["hidden"])
     task = EntryTask()
     horizon = horizon_from(cfg["student"], task)
-    LearnedGuidance(make_network((1,)), task=task, horizon=horizon)  # a bad horizon fails now
+    horizon.check_step(task.dt)  # a bad horizon fails now, not in a worker
     fit_cfg = cfg["fit"]
     fit_seed = int(fit_cfg["seed"] if seed is None else seed)
     expert_cfg = dict(cfg.get("expert", {}))
@@ -167,10 +167,11 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
 
 
 def horizon_from(student_cfg: dict, task: EntryTask) -> Horizon:
-    """The labels' and the tracker's horizon from a [student] section (or a student.json); one
-    step when it names none (the students trained before the horizon existed)."""
+    """The labels' and the tracker's horizon from a [student] section (or a student.json, where an
+    unbounded descent rate is null); one step when it names none (the students trained before the
+    horizon existed, with one-step labels and a deadbeat tracker)."""
     keys = {"lookahead_s": "max_s", "lookahead_min_s": "min_s", "lookahead_descent_mps": "descent_mps"}
-    given = {keys[k]: float(v) for k, v in student_cfg.items() if k in keys}
+    given = {keys[k]: float(v) for k, v in student_cfg.items() if k in keys and v is not None}
     if "max_s" in given:
         given.setdefault("min_s", given["max_s"])
     return Horizon(**given) if given else Horizon(task.dt, task.dt)
@@ -206,10 +207,8 @@ def load_student(run_dir) -> LearnedGuidance:
     """The selected student of a finished run, as a guidance law."""
     run_dir = Path(run_dir)
     meta = json.loads((run_dir / "student.json").read_text())
-    # a student saved without a horizon was trained with one-step labels and a deadbeat tracker
-    horizon = horizon_from({k: v for k, v in meta.items() if k.startswith("lookahead") and v is not None}, EntryTask())
     return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"])),
-                           horizon=horizon)  # fmt: skip
+                           horizon=horizon_from(meta, EntryTask()))  # fmt: skip
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:

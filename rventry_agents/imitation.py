@@ -6,8 +6,8 @@ The student is a small network that maps what a vehicle measures to the angles i
   alpha, sigma or what follows from them: the lift shares and the load factor), and the online
   estimate of the aerodynamic scales (ln k_D, ln k_LD) from the sensed acceleration, by the same
   :class:`~rventry_env.guidance.estimation.AeroScaleEstimator` the classical laws use;
-* its output: the commanded angle of attack and bank angle (as cos and sin), which a deadbeat
-  tracker turns into the environment's rates, within their bounds.
+* its output: the commanded angle of attack and bank angle (as cos and sin), which a tracker
+  (:func:`tracking_rates`) turns into the environment's rates, within their bounds.
 
 The labels are the angles the expert *wants*, a horizon ahead (:class:`Horizon`): for ``mpc``
 its current plan's angles then
@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import io
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -68,15 +68,19 @@ class Horizon:
     max_s: float = 1.0
     min_s: float = 1.0
     descent_mps: float = math.inf
-    radius_m: float = field(default=6378137.0, repr=False)  # the planet's, for the altitude
 
     def __post_init__(self):
         if not (0 < self.min_s <= self.max_s < math.inf and self.descent_mps > 0):
             raise ValueError(f"a horizon needs 0 < min_s <= max_s (finite) and descent_mps > 0, got {self!r}")
 
-    def seconds(self, state: np.ndarray, dt: float) -> np.ndarray:
-        """The horizon (N,) in seconds for vehicles in ``state`` (N, 12)."""
-        h = np.asarray(state, dtype=float)[:, 0] - self.radius_m
+    def check_step(self, dt: float) -> None:
+        """Raise unless the horizon is at least one control step ``dt`` everywhere."""
+        if self.min_s < dt:
+            raise ValueError(f"the horizon must be at least one control step ({dt} s), got min_s = {self.min_s}")
+
+    def seconds(self, state: np.ndarray, radius_m: float, dt: float) -> np.ndarray:
+        """The horizon (N,) in seconds for vehicles in ``state`` (N, 12) above a planet of ``radius_m``."""
+        h = np.asarray(state, dtype=float)[:, 0] - radius_m
         tau = np.clip(h / self.descent_mps, self.min_s, self.max_s)
         return np.maximum(np.rint(tau / dt), 1.0) * dt
 
@@ -104,9 +108,9 @@ def expert_angles(expert, time_s, state, rates, task: EntryTask, ahead_s=None) -
     return reached_angles(state, rates, task, ahead_s)
 
 
-def deadbeat_rates(commands: np.ndarray, state: np.ndarray, task: EntryTask, ahead_s=None) -> np.ndarray:
+def tracking_rates(commands: np.ndarray, state: np.ndarray, task: EntryTask, ahead_s=None) -> np.ndarray:
     """Rates (fractions of the bounds, clipped to [-1, 1]) that reach the commanded angles in
-    ``ahead_s`` (a number or one per vehicle; default one step: deadbeat)."""
+    ``ahead_s`` (a number or one per vehicle; default one step, a deadbeat tracker)."""
     p = task.problem
     h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
     alpha_c = (commands[:, 0] + 1.0) * p.alpha_max / 2.0
@@ -176,12 +180,13 @@ class LearnedGuidance:
                  horizon: Horizon | None = None):  # fmt: skip
         import torch
 
+        model = EntryModel() if model is None else model
         self.network = network.eval()
         self.tracker = FeatureTracker(model)
+        self.radius = model.planet.radius
         self.task = EntryTask() if task is None else task
         self.horizon = Horizon() if horizon is None else horizon
-        if self.horizon.min_s < self.task.dt:
-            raise ValueError(f"the horizon must be at least one control step ({self.task.dt} s), got min_s = {self.horizon.min_s}")
+        self.horizon.check_step(self.task.dt)
         self._torch = torch
 
     def reset(self, n_episodes: int) -> None:
@@ -195,7 +200,7 @@ class LearnedGuidance:
         with self._torch.no_grad():
             commands = self.network.commands(self._torch.from_numpy(np.ascontiguousarray(f[:, INPUTS]))).numpy()
         state = np.asarray(state, float)
-        return deadbeat_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.task.dt))
+        return tracking_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.radius, self.task.dt))
 
 
 class DAggerLaw:
@@ -206,9 +211,11 @@ class DAggerLaw:
 
     def __init__(self, expert, student: LearnedGuidance | None, beta: float, seed: int, model: EntryModel | None = None,
                  task: EntryTask | None = None, horizon: Horizon | None = None):  # fmt: skip
+        model = EntryModel() if model is None else model
         self.expert, self.student, self.beta = expert, student, float(beta)
         self.task = EntryTask() if task is None else task
         self.horizon = Horizon() if horizon is None else horizon
+        self.radius = model.planet.radius
         self.tracker = FeatureTracker(model) if student is None else student.tracker
         self.rng = np.random.default_rng(seed)
         self.x, self.y = [], []
@@ -225,7 +232,7 @@ class DAggerLaw:
             use = self.rng.random(len(obs)) < self.beta
             act = np.where(use[:, None], a_exp, self.student.act(f, state))
         self.x.append(f)
-        ahead = self.horizon.seconds(state, self.task.dt)
+        ahead = self.horizon.seconds(state, self.radius, self.task.dt)
         self.y.append(expert_angles(self.expert, time_s, state, a_exp, self.task, ahead).astype(np.float32))
         return act
 
@@ -356,7 +363,6 @@ __all__ = [
     "collect",
     "commands_from_angles",
     "collect_episode",
-    "deadbeat_rates",
     "expert_angles",
     "features",
     "fit",
@@ -364,4 +370,5 @@ __all__ = [
     "network_bytes",
     "network_from_bytes",
     "reached_angles",
+    "tracking_rates",
 ]  # fmt: skip

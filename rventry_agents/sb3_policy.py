@@ -191,4 +191,14 @@ def load_saved(path: str, task: EntryTask | None = None) -> SB3Policy:
     return SB3Policy(path)
 
 
-__all__ = ["SHIPPED_PPO", "SHIPPED_BASELINES", "BASELINE_AGENTS", "load_baseline", "Predictor", "SB3Policy", "make_policy", "load_shipped", "load_saved"]
+__all__ = [
+    "BASELINE_AGENTS",
+    "SHIPPED_BASELINES",
+    "SHIPPED_PPO",
+    "Predictor",
+    "SB3Policy",
+    "load_baseline",
+    "load_saved",
+    "load_shipped",
+    "make_policy",
+]

@@ -17,7 +17,7 @@ from rventry_agents.imitation import (
     Horizon,
     LearnedGuidance,
     commands_from_angles,
-    deadbeat_rates,
+    tracking_rates,
     expert_angles,
     fit,
     make_network,
@@ -122,11 +122,11 @@ def _expert_data(n: int, seed: int):
 def test_commanded_angles_and_the_deadbeat_tracker_invert_each_other():
     task, x, angles, y, state = _expert_data(500, 1)
     np.testing.assert_allclose(reached_angles(state, y, task), angles, atol=1e-6)
-    np.testing.assert_allclose(deadbeat_rates(commands_from_angles(angles, task).astype(float), state, task), y, atol=2e-5)
+    np.testing.assert_allclose(tracking_rates(commands_from_angles(angles, task).astype(float), state, task), y, atol=2e-5)
     np.testing.assert_allclose(expert_angles(object(), np.zeros(500), state, y, task), angles, atol=1e-6)  # no plan
     # with a horizon: the label is where the rates lead by then, and the tracker closes on it at that pace
     ahead = reached_angles(state, y, task, 4.0)
-    np.testing.assert_allclose(deadbeat_rates(commands_from_angles(ahead, task).astype(float), state, task, 4.0), y,
+    np.testing.assert_allclose(tracking_rates(commands_from_angles(ahead, task).astype(float), state, task, 4.0), y,
                                atol=2e-5)  # fmt: skip
     with pytest.raises(ValueError, match="the horizon must be at least one control step"):
         LearnedGuidance(make_network((4,)), task=task, horizon=Horizon(0.5, 0.5))
@@ -142,7 +142,7 @@ def test_regression_fits_the_expert_commands():
 
     with torch.no_grad():
         commands = net.commands(torch.from_numpy(np.ascontiguousarray(x[:, INPUTS]))).numpy().astype(float)
-    rates = deadbeat_rates(commands, state, task)
+    rates = tracking_rates(commands, state, task)
     assert student.task == task
     assert np.sqrt(np.mean((rates - y) ** 2)) < 0.1 * y.std()
 
@@ -184,9 +184,10 @@ def test_bad_configs_and_paths_are_named(tmp_path):
 
 def test_the_horizon_shortens_near_the_ground_in_whole_steps():
     h = Horizon(max_s=4.0, min_s=2.0, descent_mps=2500.0)
+    radius = 6378137.0
     state = np.zeros((4, 12))
-    state[:, 0] = h.radius_m + np.array([40e3, 10e3, 7e3, 1e3])
-    np.testing.assert_array_equal(h.seconds(state, 1.0), [4.0, 4.0, 3.0, 2.0])
-    np.testing.assert_array_equal(Horizon().seconds(state, 1.0), [1.0] * 4)  # the default: one step, deadbeat
+    state[:, 0] = radius + np.array([40e3, 10e3, 7e3, 1e3])
+    np.testing.assert_array_equal(h.seconds(state, radius, 1.0), [4.0, 4.0, 3.0, 2.0])
+    np.testing.assert_array_equal(Horizon().seconds(state, radius, 1.0), [1.0] * 4)  # the default: one step, deadbeat
     with pytest.raises(ValueError, match="0 < min_s <= max_s"):
         Horizon(max_s=2.0, min_s=3.0)

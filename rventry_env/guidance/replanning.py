@@ -247,6 +247,10 @@ class _Track:
     def t_end(self) -> float:
         return self.t_start + self.solution.tf
 
+    def step(self, time_s: float, dt: float) -> int:
+        """The index of the control step at episode time ``time_s`` along this plan's samples."""
+        return int(round((time_s - self.t_start) / dt))
+
 
 @dataclass
 class _EpisodeLog:
@@ -329,7 +333,7 @@ class ReplanningGuidance:
         for i, tr in enumerate(self.tracks):
             if tr is None or time_s[i] >= tr.t_end:
                 continue
-            k = min(int(round((time_s[i] - tr.t_start) / dt)), tr.u_ref.shape[0] - 1)
+            k = min(tr.step(time_s[i], dt), tr.u_ref.shape[0] - 1)
             u[i] = (tr.u_ref[k] - tr.gains[k] @ (state[i] - tr.x_ref[k])
                     - tr.theta_gains[k] @ (theta[i] - tr.theta))  # fmt: skip
         return u
@@ -350,7 +354,7 @@ class ReplanningGuidance:
         for i, tr in enumerate(self.tracks):
             if tr is None:
                 continue
-            k = int(round((time_s[i] - tr.t_start) / self.task.dt)) + int(steps[i])
+            k = tr.step(time_s[i], self.task.dt) + int(steps[i])
             out[i] = tr.x_ref[min(max(k, 0), tr.x_ref.shape[0] - 1), 10:12]
         return out
 
