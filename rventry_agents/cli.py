@@ -26,6 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         cmd.add_argument("--seed", type=seed, help="random seed (default: the config's)")
         cmd.add_argument("--out", default=f"runs/{algorithm}", help=f"output directory (default runs/{algorithm})")
         cmd.add_argument("--config", help=f"TOML config (default {default})")
+        cmd.add_argument("--resume", action="store_true",
+                         help="go on with the interrupted run in --out from its latest evaluation")
         cmd.add_argument("--no-progress", action="store_true", help="no progress bar")
         cmd.set_defaults(func=_run_sb3, algorithm=algorithm)
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
@@ -45,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run_sb3(args) -> int:
     from rventry_agents.train import train_sb3
 
-    out = train_sb3(args.algorithm, args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress)
+    out = train_sb3(args.algorithm, args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress,
+                    resume=args.resume)
     print(f"wrote {out}/model.zip (best on the task metric), learning_curve.png, metadata.json")
     return 0
 

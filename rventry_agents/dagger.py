@@ -6,8 +6,10 @@ A run writes into its output directory:
 * ``data_round_K.npz``: the features and expert labels flown in round K (so a refit needs
   no new flights);
 * ``student_round_K.pt``: the network fitted after round K;
-* ``student.pt`` and ``student.json``: the network selected on the task metric, and how to
-  build it;
+* ``student_final.pt`` and ``final.json``: with ``[final] members`` > 1, an ensemble refitted
+  on all the rounds' data after the last round, and its selection figures;
+* ``student.pt`` and ``student.json``: the network selected on the task metric (a round's, or the
+  final ensemble when it does better), and how to build it;
 * ``rounds.json`` and ``learning_curve.png``: each round's data, fit and selection figures;
 * ``metadata.json``: the exact command, seed, wall time, config and the selected round.
 """
@@ -35,6 +37,7 @@ from rventry_agents.imitation import (
     network_from_bytes,  # fmt: skip
 )
 from rventry_env.envs.task import EntryTask
+from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.util.files import atomic_write, check_writable, save_figure, write_json
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
@@ -49,6 +52,10 @@ def load_config(path=None) -> dict:
     for i, r in enumerate(cfg["rounds"]):
         if not (isinstance(r.get("episodes"), int) and r["episodes"] >= 1 and 0.0 <= float(r.get("beta", -1)) <= 1.0):
             raise ValueError(f"{where}: round {i} needs episodes >= 1 and beta in [0, 1], got {r}")
+    for section in ("student", "final"):
+        members = cfg.get(section, {}).get("members", 1)
+        if not (isinstance(members, int) and members >= 1):
+            raise ValueError(f"{where}: [{section}] members must be a whole number >= 1, got {members!r}")
     if cfg["rounds"][0]["beta"] != 1.0:
         raise ValueError(f"{where}: the first round has no student yet, so its beta must be 1")
     return cfg
@@ -75,8 +82,10 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     out = Path(out)
     check_writable(folders=(out,))
     hidden = tuple(int(h) for h in cfg["student"]["hidden"])
+    members = int(cfg["student"].get("members", 1))
     task = EntryTask()
-    horizon = horizon_from(cfg["student"], task)
+    law = student_law(cfg["student"], task)
+    horizon, relief = law["horizon"], law["load_relief_margin"]
     horizon.check_step(task.dt)  # a bad horizon fails now, not in a worker
     fit_cfg = cfg["fit"]
     fit_seed = int(fit_cfg["seed"] if seed is None else seed)
@@ -116,14 +125,13 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                 next_seed += n
                 bar.console.print(f"round {k}: taken from {out}")
                 if k == len(done) - 1:  # the student to go on with, and the best so far
-                    student = network_from_bytes((out / f"student_round_{k}.pt").read_bytes(), hidden)
-                    sel = json.loads((out / "student.json").read_text())["selected_round"]
-                    best = (sel, (out / "student.pt").read_bytes())
-                    best_key = (done[sel]["select_success_rate"], -done[sel]["select_miss_km_mean"])
+                    student = network_from_bytes((out / f"student_round_{k}.pt").read_bytes(), hidden, members)
+                    sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
+                    best, best_key = (sel, (out / f"student_round_{sel}.pt").read_bytes()), _select_key(done[sel])
                 continue
             blob = None if student is None else network_bytes(student)
             jobs = [CollectJob(next_seed + i, cfg["data"]["dispersion"], beta if blob else 1.0, blob, hidden, task,
-                               expert, expert_settings, horizon) for i in range(n)]  # fmt: skip
+                               expert, expert_settings, horizon, relief, members) for i in range(n)]  # fmt: skip
             next_seed += n
             tid = bar.add_task(f"round {k}: {n} episodes, beta {beta}", total=n)
             res = collect(jobs, workers, progress=lambda d, tid=tid: bar.advance(tid, d))
@@ -135,11 +143,11 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             xs.append(x)
             ys.append(y)
             flown_success = float(np.mean([r["success"] for r in res]))
-            student = make_network(hidden)
+            student = make_network(hidden, members)
             losses = fit(student, np.concatenate(xs), np.concatenate(ys), int(fit_cfg["epochs"]),
                          int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), fit_seed,
                          float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
-            metric = select_metric(LearnedGuidance(student, task=task, horizon=horizon), cfg, task)
+            metric = select_metric(LearnedGuidance(student, task=task, **law), cfg, task)
             rec = {"round": k, "episodes": n, "beta": beta, "samples": int(sum(len(a) for a in xs)),
                    "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
                    "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
@@ -152,38 +160,72 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                 f"{losses[-1]:.4f}; student alone on the selection set: success {metric['success_rate']:.2f}, "
                 f"miss p50 {metric['miss_km_p50']:.2f} km, violations {metric['violation_rate']:.2f}"
             )  # fmt: skip
-            key = (metric["success_rate"], -metric["miss_km_mean"])
+            key = _select_key(rec)
             if best_key is None or key > best_key:
                 best_key, best = key, (k, blob)
-                _write_selected(out, best, hidden, horizon)
+                _write_selected(out, best, hidden, members, law)
     write_json(out / "rounds.json", rounds)
+    final = None
+    n_final = int(cfg.get("final", {}).get("members", 1))
+    if n_final > 1:  # an ensemble refitted on all the rounds' data, kept if it beats the best round
+        done_final = json.loads((out / "final.json").read_text()) if resume and (out / "final.json").is_file() else None
+        if done_final is not None and done_final["members"] == n_final and done_final["samples"] == rounds[-1]["samples"]:
+            final = done_final
+            print(f"final ensemble: taken from {out}")
+        else:
+            ensemble = make_network(hidden, n_final)
+            losses = fit(ensemble, np.concatenate(xs), np.concatenate(ys), int(fit_cfg["epochs"]),
+                         int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), fit_seed,
+                         float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
+            metric = select_metric(LearnedGuidance(ensemble, task=task, **law), cfg, task)
+            final = {"members": n_final, "samples": rounds[-1]["samples"], "fit_loss_last": losses[-1],
+                     "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
+            atomic_write(out / "student_final.pt", network_bytes(ensemble))
+            write_json(out / "final.json", final)
+            print(f"final ensemble of {n_final}: student alone on the selection set: success "
+                  f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
+        if _select_key(final) > best_key:
+            best = ("final", (out / "student_final.pt").read_bytes())
+            _write_selected(out, best, hidden, n_final, law)
     write_json(out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
         "seed": fit_seed, "workers": workers, "wall_s": time.time() - t0, "config": cfg,
-        "selected_round": best[0], "selected": rounds[best[0]],
+        "selected_round": best[0], "selected": final if best[0] == "final" else rounds[best[0]],
     })  # fmt: skip
     plot_rounds(rounds, out / "learning_curve.png")
     return out
 
 
-def horizon_from(student_cfg: dict, task: EntryTask) -> Horizon:
-    """The labels' and the tracker's horizon from a [student] section (or a student.json, where an
-    unbounded descent rate is null); one step when it names none (the students trained before the
-    horizon existed, with one-step labels and a deadbeat tracker)."""
+def _select_key(rec: dict) -> tuple[float, float]:
+    """How a round's (or the final ensemble's) record ranks: selection success, then the smaller mean miss."""
+    return rec["select_success_rate"], -rec["select_miss_km_mean"]
+
+
+def student_law(student_cfg: dict, task: EntryTask) -> dict:
+    """The student's law options (:class:`LearnedGuidance` keywords) from a [student] section or
+    a student.json (where an unbounded descent rate and no load relief are null):
+
+    * ``horizon``, the labels' and the tracker's; one step when none is named (the students
+      trained before the horizon existed, with one-step labels and a deadbeat tracker);
+    * ``load_relief_margin``, None when none is named (no load relief)."""
     keys = {"lookahead_s": "max_s", "lookahead_min_s": "min_s", "lookahead_descent_mps": "descent_mps"}
     given = {keys[k]: float(v) for k, v in student_cfg.items() if k in keys and v is not None}
     if "max_s" in given:
         given.setdefault("min_s", given["max_s"])
-    return Horizon(**given) if given else Horizon(task.dt, task.dt)
+    margin = student_cfg.get("load_relief_margin")
+    if margin is not None:
+        margin = LoadRelief(task=task, margin=float(margin)).margin  # a bad margin fails here, not in a worker
+    return {"horizon": Horizon(**given) if given else Horizon(task.dt, task.dt), "load_relief_margin": margin}
 
 
-def _write_selected(out: Path, best: tuple, hidden: tuple, horizon: Horizon) -> None:
+def _write_selected(out: Path, best: tuple, hidden: tuple, members: int, law: dict) -> None:
+    horizon = law["horizon"]
     atomic_write(out / "student.pt", best[1])
-    write_json(out / "student.json", {"hidden": list(hidden), "inputs": "observation features without alpha, sigma, "
-               "the lift shares and the load factor; 10 ln k_D, 10 ln k_LD", "outputs": "alpha and bank commands",
+    write_json(out / "student.json", {"hidden": list(hidden), "members": members, "inputs": "observation features "
+               "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD", "outputs": "alpha and bank commands",
                "lookahead_s": horizon.max_s, "lookahead_min_s": horizon.min_s,
                "lookahead_descent_mps": horizon.descent_mps if math.isfinite(horizon.descent_mps) else None,
-               "selected_round": best[0]})  # fmt: skip
+               "load_relief_margin": law["load_relief_margin"], "selected_round": best[0]})  # fmt: skip
 
 
 def plot_rounds(rounds: list[dict], path: Path) -> None:
@@ -207,8 +249,10 @@ def load_student(run_dir) -> LearnedGuidance:
     """The selected student of a finished run, as a guidance law."""
     run_dir = Path(run_dir)
     meta = json.loads((run_dir / "student.json").read_text())
-    return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"])),
-                           horizon=horizon_from(meta, EntryTask()))  # fmt: skip
+    task = EntryTask()
+    return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]),
+                                              int(meta.get("members", 1))),
+                           task=task, **student_law(meta, task))  # fmt: skip
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:

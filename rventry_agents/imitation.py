@@ -42,6 +42,7 @@ import numpy as np
 
 from rventry_env.envs.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator
+from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.physics import EntryModel
 
 N_OBS = 26
@@ -138,11 +139,15 @@ class FeatureTracker:
         return features(obs, self.estimator)
 
 
-def make_network(hidden: tuple[int, ...] = (256, 256)):
+def make_network(hidden: tuple[int, ...] = (256, 256), members: int = 1):
     """An MLP from the inputs to the commanded angles, standardized on both sides (buffers set
-    from the data)."""
+    from the data); with ``members`` > 1, an ensemble of such MLPs whose commands are the mean of
+    theirs (each fitted with its own seed: :func:`fit`)."""
     import torch
     from torch import nn
+
+    if int(members) < 1:
+        raise ValueError(f"a student needs at least one member network, got members = {members!r}")
 
     class Student(nn.Module):
         def __init__(self):
@@ -165,19 +170,32 @@ def make_network(hidden: tuple[int, ...] = (256, 256)):
         def commands(self, x):
             return self.forward(x) * self.out_scale + self.out_mean
 
-    return Student()
+    class Ensemble(nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.members = nn.ModuleList(Student() for _ in range(int(members)))
+
+        def commands(self, x):
+            return torch.stack([m.commands(x) for m in self.members]).mean(0)
+
+    return Student() if int(members) == 1 else Ensemble()
 
 
 class LearnedGuidance:
     """The student as a guidance law: ``law(obs, time_s, state, sensed_accel_b) -> actions``.
 
     :param horizon: the tracker's :class:`Horizon`, as trained (default: one step).
+    :param load_relief_margin: when given, the tracker's rates pass through
+        :class:`~rventry_env.guidance.load_relief.LoadRelief` with this margin, which caps the
+        alpha rate where the load factor predicted one step ahead would pass ``a_max (1 - margin)``;
+        :attr:`relief` then reports the capped steps, and :meth:`episode_stats` each episode's
+        count of them (``load_relief_steps``).
     """
 
     uses_sensed_acceleration = True
 
     def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
-                 horizon: Horizon | None = None):  # fmt: skip
+                 horizon: Horizon | None = None, load_relief_margin: float | None = None):  # fmt: skip
         import torch
 
         model = EntryModel() if model is None else model
@@ -187,20 +205,42 @@ class LearnedGuidance:
         self.task = EntryTask() if task is None else task
         self.horizon = Horizon() if horizon is None else horizon
         self.horizon.check_step(self.task.dt)
+        self.load_relief_margin = load_relief_margin
+        self.relief = None if load_relief_margin is None else LoadRelief(model, self.task, load_relief_margin)
+        self._time = np.zeros(0)  # each vehicle's time at the last call
         self._torch = torch
 
     def reset(self, n_episodes: int) -> None:
         self.tracker.reset(n_episodes)
+        self._time = np.full(n_episodes, np.nan)
+        if self.relief is not None:
+            self.relief.reset(n_episodes)
 
     def __call__(self, obs, time_s, state, sensed_accel_b=None):
-        return self.act(self.tracker(obs, time_s, state, sensed_accel_b), state)
+        return self.act(self.tracker(obs, time_s, state, sensed_accel_b), state, sensed_accel_b, time_s)
 
-    def act(self, f: np.ndarray, state) -> np.ndarray:
-        """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state``."""
+    def act(self, f: np.ndarray, state, sensed_accel_b, time_s=None) -> np.ndarray:
+        """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state`` that sense
+        ``sensed_accel_b`` (N, 3); ``time_s`` (N,), when given, tells the frozen copies of ended
+        episodes (time standing still) from flying ones for the load relief's count."""
         with self._torch.no_grad():
             commands = self.network.commands(self._torch.from_numpy(np.ascontiguousarray(f[:, INPUTS]))).numpy()
         state = np.asarray(state, float)
-        return tracking_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.radius, self.task.dt))
+        rates = tracking_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.radius, self.task.dt))
+        if self.relief is not None:
+            flying = None
+            if time_s is not None:
+                time_s = np.asarray(time_s, dtype=float)
+                if self._time.shape != time_s.shape:
+                    self._time = np.full(time_s.shape, np.nan)
+                flying, self._time = time_s != self._time, time_s.copy()
+            rates = self.relief(rates, state, sensed_accel_b, count=flying).astype(np.float32)
+        return rates
+
+    def episode_stats(self) -> list[dict]:
+        """Per episode since :meth:`reset`: ``load_relief_steps``, the steps the load relief capped
+        (none without load relief)."""
+        return [] if self.relief is None else [{"load_relief_steps": int(k)} for k in self.relief.steps]
 
 
 class DAggerLaw:
@@ -230,7 +270,7 @@ class DAggerLaw:
         act = a_exp
         if self.student is not None:
             use = self.rng.random(len(obs)) < self.beta
-            act = np.where(use[:, None], a_exp, self.student.act(f, state))
+            act = np.where(use[:, None], a_exp, self.student.act(f, state, sensed_accel_b))
         self.x.append(f)
         ahead = self.horizon.seconds(state, self.radius, self.task.dt)
         self.y.append(expert_angles(self.expert, time_s, state, a_exp, self.task, ahead).astype(np.float32))
@@ -245,10 +285,10 @@ def network_bytes(network) -> bytes:
     return buf.getvalue()
 
 
-def network_from_bytes(data: bytes, hidden: tuple[int, ...]):
+def network_from_bytes(data: bytes, hidden: tuple[int, ...], members: int = 1):
     import torch
 
-    net = make_network(hidden)
+    net = make_network(hidden, members)
     net.load_state_dict(torch.load(io.BytesIO(data), weights_only=True))
     return net
 
@@ -266,6 +306,8 @@ class CollectJob:
     expert: str = "mpc"
     expert_settings: tuple = ()  # (name, value) pairs of ReplanningSettings for the mpc expert
     horizon: Horizon | None = None  # the labels' and the tracker's (default one step)
+    load_relief_margin: float | None = None  # the student's load relief (default none)
+    members: int = 1  # the student's member networks
 
 
 _EXPERT = {}
@@ -287,8 +329,9 @@ def collect_episode(job: CollectJob) -> dict:
 
             options["settings"] = ReplanningSettings(**dict(job.expert_settings))
         _EXPERT[key] = load_agent(job.expert, job.task, **options)
-    student = None if job.student is None else LearnedGuidance(network_from_bytes(job.student, job.hidden),
-                                                                task=job.task, horizon=job.horizon)  # fmt: skip
+    student = None if job.student is None else LearnedGuidance(network_from_bytes(job.student, job.hidden, job.members),
+                                                                task=job.task, horizon=job.horizon,
+                                                                load_relief_margin=job.load_relief_margin)  # fmt: skip
     law = DAggerLaw(_EXPERT[key], student, job.beta, seed=job.seed, task=job.task, horizon=job.horizon)
     b = rollout(law, seeds=[job.seed], dispersion=job.dispersion, task=job.task)
     return {
@@ -318,8 +361,15 @@ def fit(network, x: np.ndarray, angles: np.ndarray, epochs: int, batch_size: int
         weight_decay: float = 0.0, task: EntryTask | None = None) -> list[float]:  # fmt: skip
     """Regress the network's commands on the expert's, from recorded features ``x`` (N, 28) and
     the expert's angles ``angles`` (N, 2), by mean squared error with Adam; returns the loss per
-    epoch (in units of the commands' spread)."""
+    epoch (in units of the commands' spread). An ensemble's members are fitted one by one, member
+    k with seed ``seed + k``, and the losses are their mean."""
     import torch
+
+    if hasattr(network, "members"):
+        per_member = [fit(m, x, angles, epochs, batch_size, lr, seed + k, weight_decay, task)
+                      for k, m in enumerate(network.members)]  # fmt: skip
+        network.eval()
+        return [float(v) for v in np.mean(per_member, axis=0)]
 
     torch.manual_seed(seed)
     task = EntryTask() if task is None else task

@@ -11,6 +11,9 @@ scratch). The algorithm's keyword arguments are the config section named after i
   not on the shaped return;
 * ``final_model.zip`` + ``final_vecnormalize.pkl``: the last iterate;
 * ``checkpoints/``: periodic snapshots with their normalization statistics;
+* ``resume/``: the state after the latest evaluation (model, normalization statistics, SAC's
+  replay buffer, the evaluation history's place), from which ``resume=True`` goes on;
+* ``config.json``: the config the run started with (a resumed run must use the same);
 * ``tb/``: TensorBoard logs (needs the ``train`` extra: ``pip install -e .[train]``);
 * ``evaluations.json`` and ``learning_curve.png``: the evaluation history;
 * ``metadata.json``: the exact command, seed, wall time, config and best evaluation.
@@ -161,7 +164,8 @@ def task_metric_key(rec: dict) -> tuple[float, float]:
     return (rec["success_rate"] or 0.0, -(rec["miss_km"] if rec["miss_km"] is not None else np.inf))
 
 
-def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None, algorithm: str):
+def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None, algorithm: str,
+                    resumed: dict | None = None):  # fmt: skip
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     from rventry_env.evaluation.rollout import rollout
@@ -178,6 +182,14 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
             self.next_eval = int(t["eval_every"])
             self.history: list[dict] = []
             self.best_key = (-1.0, -np.inf)
+            self.wall_before = 0.0  # the wall time of the run's earlier segments, when resumed
+            self.resumes: list[int] = []  # the step counts the run was resumed at
+            if resumed is not None:
+                self.resumes = [*resumed.get("resumes", []), int(resumed["timesteps"])]
+                self.history = list(resumed["history"])
+                self.best_key = max(map(task_metric_key, self.history))
+                self.next_eval = int(resumed["timesteps"]) + int(t["eval_every"])
+                self.wall_before = float(resumed["wall_s"])
 
         def _on_step(self) -> bool:
             if self.num_timesteps < self.next_eval:
@@ -195,7 +207,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
             s = summarize(batch, reference_cost or 1.0, task)
             rec = {
                 "timesteps": int(self.num_timesteps),
-                "wall_s": time.time() - self.t0,
+                "wall_s": self.wall_before + time.time() - self.t0,
                 "success_rate": s["success_rate"],
                 "miss_km": s["miss_km"],
                 "median_miss_km": s["percentiles"]["miss_km"]["p50"],
@@ -218,6 +230,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
                 vecnorm.save(str(out / "vecnormalize.pkl"))
                 rec["best"] = True
             write_json(out / "evaluations.json", self.history)
+            save_resume_point(self.model, out, rec["timesteps"], rec["wall_s"], self.resumes)
             print(
                 f"[eval @ {rec['timesteps']:,}] success {rec['success_rate']:.2f} miss {rec['miss_km']:.1f} km "
                 f"(median {rec['median_miss_km']:.1f}) vertical {rec['vertical_error_deg']:.1f} deg "
@@ -228,13 +241,55 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
 
         def _on_training_start(self) -> None:
             self.t0 = time.time()
-            self.evaluate()  # the untrained policy competes too: the residual starts as the classical law
+            if resumed is None:
+                self.evaluate()  # the untrained policy competes too: the residual starts as the classical law
 
     ckpt = CheckpointCallback(
         save_freq=max(int(t["checkpoint_every"]) // int(cfg["env"]["num_envs"]), 1),
         save_path=str(out / "checkpoints"), name_prefix=algorithm, save_vecnormalize=True,
     )  # fmt: skip
     return TaskMetricEval(), ckpt
+
+
+def save_resume_point(model, out: Path, timesteps: int, wall_s: float, resumes: list[int]) -> None:
+    """Write ``out/resume/`` whole: the model, its normalization statistics, an off-policy
+    algorithm's replay buffer, and the step count and wall time they belong to."""
+    import shutil
+
+    tmp, final = out / "resume.tmp", out / "resume"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    model.save(tmp / "model.zip")
+    model.get_vec_normalize_env().save(str(tmp / "vecnormalize.pkl"))
+    if hasattr(model, "replay_buffer") and model.replay_buffer is not None:
+        model.save_replay_buffer(tmp / "replay_buffer.pkl")
+    write_json(tmp / "state.json", {"timesteps": int(timesteps), "wall_s": float(wall_s), "resumes": resumes})
+    old = out / "resume.old"
+    shutil.rmtree(old, ignore_errors=True)
+    if final.exists():
+        final.rename(old)
+    tmp.rename(final)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def read_resume_point(out: Path, algorithm: str, cfg: dict) -> dict:
+    """What a resumed run starts from (see :func:`save_resume_point`), checked against the run's
+    algorithm and config; raises ValueError naming what does not match."""
+    import json
+
+    state = out / "resume" / "state.json"
+    if not state.is_file():
+        raise ValueError(f"cannot resume {out}: it has no resume/ point (a run writes one at each evaluation)")
+    started = json.loads((out / "policy.json").read_text()).get("algorithm") if (out / "policy.json").is_file() else None
+    if started != algorithm:
+        raise ValueError(f"cannot resume {out}: it is a {started} run, not {algorithm}")
+    recorded = json.loads((out / "config.json").read_text()) if (out / "config.json").is_file() else None
+    if recorded != json.loads(json.dumps(cfg)):
+        diff = sorted(k for k in set(cfg) | set(recorded or {}) if (recorded or {}).get(k) != json.loads(json.dumps(cfg.get(k))))
+        raise ValueError(f"cannot resume {out}: the config differs from the one it started with (sections {diff})")
+    point = json.loads(state.read_text())
+    history = [r for r in json.loads((out / "evaluations.json").read_text()) if r["timesteps"] <= point["timesteps"]]
+    return {**point, "history": history, "dir": out / "resume"}
 
 
 def policy_kwargs(cfg: dict, algorithm: str) -> dict[str, Any]:
@@ -265,8 +320,13 @@ def train_ppo(config: str | Path | dict | None = None, timesteps: int | None = N
 
 def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps: int | None = None,
               seed: int | None = None, out: str | Path = "runs/ppo", task: EntryTask | None = None,
-              progress_bar: bool = True) -> Path:  # fmt: skip
+              progress_bar: bool = True, resume: bool = False) -> Path:  # fmt: skip
     """Train ``algorithm`` (``ppo``, ``recurrent_ppo`` or ``sac``) as the config says; returns the output directory.
+
+    With ``resume``, an interrupted run in ``out`` goes on from its latest evaluation
+    (``out/resume/``) up to the total steps: its evaluation history and wall time carry over. The
+    environments and the algorithm are re-seeded with ``seed + steps done``, so a resumed run is
+    not bit-identical to one that was never stopped.
 
     :param config: TOML config path (default: the algorithm's, :data:`DEFAULT_CONFIGS`) or a loaded config dict.
     :param timesteps: override ``[train] total_timesteps``.
@@ -289,9 +349,13 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
         raise ValueError(f"[policy] mode = 'residual' is built for ppo, not {algorithm}; use mode = 'direct'")
     kwargs = policy_kwargs(cfg, algorithm)
     out = Path(out)
+    resumed = read_resume_point(out, algorithm, cfg) if resume else None
+    if resumed is not None and resumed["timesteps"] >= timesteps:
+        raise ValueError(f"cannot resume {out}: it has done {resumed['timesteps']:,} of {timesteps:,} steps already")
     out.mkdir(parents=True, exist_ok=True)
     # how to fly any model saved under ``out`` (best, final, checkpoints)
     write_json(out / "policy.json", {"algorithm": algorithm, "mode": mode, "authority_rad": authority})
+    write_json(out / "config.json", cfg)
     torch.set_num_threads(int(t.get("torch_threads", 1)))
     task = make_task(cfg, task)
     try:
@@ -301,7 +365,8 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
     except Exception:  # training does not need the reference; the cost ratio does
         reference_cost = None
     venv = make_vec_env(cfg, task, algorithm=algorithm)
-    venv.seed(seed)
+    done = 0 if resumed is None else int(resumed["timesteps"])
+    venv.seed(seed + done)
     try:
         import tensorboard  # noqa: F401
 
@@ -317,18 +382,28 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
         kwargs["n_raw_features"] = feature_index("load_factor") + 1  # the raw features come first
     else:
         policy_cls = "MlpLstmPolicy" if algorithm == "recurrent_ppo" else "MlpPolicy"
-    model = algorithm_class(algorithm)(policy_cls, venv, seed=seed, device="cpu", tensorboard_log=tb,
-                                       policy_kwargs=kwargs, verbose=0, **dict(cfg[algorithm]))  # fmt: skip
-    if mode == "residual" and bool(cfg["policy"].get("zero_init_residual", False)):
+    if resumed is not None:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        venv = VecNormalize.load(str(resumed["dir"] / "vecnormalize.pkl"), venv.venv)
+        model = algorithm_class(algorithm).load(resumed["dir"] / "model.zip", env=venv, device="cpu", tensorboard_log=tb)
+        model.set_random_seed(seed + done)
+        if (resumed["dir"] / "replay_buffer.pkl").is_file():
+            model.load_replay_buffer(resumed["dir"] / "replay_buffer.pkl")
+    else:
+        model = algorithm_class(algorithm)(policy_cls, venv, seed=seed, device="cpu", tensorboard_log=tb,
+                                           policy_kwargs=kwargs, verbose=0, **dict(cfg[algorithm]))  # fmt: skip
+    if resumed is None and mode == "residual" and bool(cfg["policy"].get("zero_init_residual", False)):
         # start exactly on the reference: a residual of 0.02 alone moves the impact by ~265 km
         with torch.no_grad():
             model.policy.action_net.weight.zero_()
             model.policy.action_net.bias.zero_()
-    evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost, algorithm)
+    evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost, algorithm, resumed)
     start = time.time()
-    model.learn(timesteps, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar)
+    model.learn(timesteps - done, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar,
+                reset_num_timesteps=resumed is None)  # fmt: skip
     evaluator.evaluate()  # the final iterate competes for "best" too
-    wall = time.time() - start
+    wall = evaluator.wall_before + time.time() - start
     model.save(out / "final_model.zip")
     venv.save(str(out / "final_vecnormalize.pkl"))
     best = max(evaluator.history, key=task_metric_key)
@@ -338,6 +413,7 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
         "seed": seed,
         "timesteps": timesteps,
         "wall_time_s": wall,
+        "resumed_at_timesteps": evaluator.resumes,
         "torch_threads": int(t.get("torch_threads", 1)),
         "config": cfg,
         "best_evaluation": best,

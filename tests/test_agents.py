@@ -174,6 +174,27 @@ def test_plain_baseline_trains_saves_reloads_and_evaluates_deterministically(tmp
     c = rollout(SB3Policy(ship(out, tmp_path / "shipped")), 3, seed=5, task=SMOKE_TASK, dispersion="standard",
                 max_episode_steps=40)  # fmt: skip
     np.testing.assert_array_equal(a.miss_km, c.miss_km)
+    assert not (tmp_path / "shipped" / "resume").exists()
+    # an interrupted run goes on from its latest evaluation, with its history and wall time
+    history = json.loads((out / "evaluations.json").read_text())
+    with pytest.raises(ValueError, match="has done 2,048 of 2,048 steps"):
+        train_sb3(algorithm, _baseline_smoke_config(algorithm), timesteps=2048, seed=3, out=out, task=SMOKE_TASK,
+                  progress_bar=False, resume=True)  # fmt: skip
+    changed = _baseline_smoke_config(algorithm)
+    changed["train"]["eval_episodes"] = 5
+    with pytest.raises(ValueError, match=r"config differs .*\['train'\]"):
+        train_sb3(algorithm, changed, timesteps=4096, seed=3, out=out, task=SMOKE_TASK, progress_bar=False, resume=True)
+    train_sb3(algorithm, _baseline_smoke_config(algorithm), timesteps=4096, seed=3, out=out, task=SMOKE_TASK,
+              progress_bar=False, resume=True)  # fmt: skip
+    more = json.loads((out / "evaluations.json").read_text())
+    assert more[: len(history)] == history and more[-1]["timesteps"] >= 4096
+    assert more[-1]["wall_s"] > history[-1]["wall_s"]
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["timesteps"] == 4096 and meta["resumed_at_timesteps"] == [history[-1]["timesteps"]]
+    assert json.loads((out / "resume" / "state.json").read_text())["timesteps"] == more[-1]["timesteps"]
+    with pytest.raises(ValueError, match="no resume/ point"):
+        train_sb3(algorithm, _baseline_smoke_config(algorithm), timesteps=4096, out=tmp_path / "fresh",
+                  task=SMOKE_TASK, progress_bar=False, resume=True)  # fmt: skip
 
 
 @pytest.mark.slow

@@ -30,6 +30,7 @@ from rventry_env.evaluation.rollout import rollout
 SMALL = """
 [student]
 hidden = [16, 16]
+load_relief_margin = 0.02
 [expert]
 agent = "lqr"
 [data]
@@ -50,6 +51,8 @@ seed = 0
 episodes = 3
 seed = 100_000
 dispersion = "standard"
+[final]
+members = 2
 """
 
 
@@ -147,6 +150,25 @@ def test_regression_fits_the_expert_commands():
     assert np.sqrt(np.mean((rates - y) ** 2)) < 0.1 * y.std()
 
 
+def test_an_ensemble_student_flies_the_mean_of_its_members_commands():
+    import torch
+
+    from rventry_agents.imitation import network_bytes, network_from_bytes
+
+    task, x, angles, y, state = _expert_data(2000, 2)
+    net = make_network((16,), members=3)
+    fit(net, x, angles, epochs=3, batch_size=256, lr=3e-3, seed=5)
+    inputs = torch.from_numpy(np.ascontiguousarray(x[:8, INPUTS]))
+    with torch.no_grad():
+        each = [m.commands(inputs) for m in net.members]
+        assert not torch.allclose(each[0], each[1])  # each member has its own seed
+        np.testing.assert_allclose(net.commands(inputs), torch.stack(each).mean(0), rtol=1e-6)
+        back = network_from_bytes(network_bytes(net), (16,), members=3)
+        np.testing.assert_array_equal(back.commands(inputs), net.commands(inputs))
+    with pytest.raises(ValueError, match="at least one member"):
+        make_network((16,), members=0)
+
+
 @pytest.mark.slow
 def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     cfg = tmp_path / "small.toml"
@@ -158,13 +180,26 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     assert rounds[0]["flown_success_rate"] == float(np.mean(alone.is_success))  # round 0: the expert alone
     assert (out / "learning_curve.png").stat().st_size > 5_000
     a = rollout(load_agent(str(out)), seeds=[3, 4], dispersion="standard")
-    b = rollout(load_saved(str(out)), seeds=[3, 4], dispersion="standard")
+    saved = load_saved(str(out))
+    b = rollout(saved, seeds=[3, 4], dispersion="standard")
     np.testing.assert_array_equal(a.miss_km, b.miss_km)
+    assert json.loads((out / "student.json").read_text())["load_relief_margin"] == 0.02
+    assert saved.relief.margin == 0.02 and [sorted(s) for s in b.law_stats] == [["load_relief_steps"]] * 2
     # a longer config resumes: the finished rounds are kept as they are, one more is flown
     cfg.write_text(SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\n[fit]"))
     train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)
     more = json.loads((out / "rounds.json").read_text())
     assert more[:2] == rounds and len(more) == 3 and more[2]["samples"] > rounds[1]["samples"]
+    final = json.loads((out / "final.json").read_text())  # the ensemble refitted on all of it
+    assert final["members"] == 2 and final["samples"] == more[2]["samples"]
+    chosen = json.loads((out / "student.json").read_text())
+    best_round = max(more, key=lambda r: (r["select_success_rate"], -r["select_miss_km_mean"]))
+    beats = (final["select_success_rate"], -final["select_miss_km_mean"]) > (
+        best_round["select_success_rate"], -best_round["select_miss_km_mean"])
+    assert chosen["selected_round"] == ("final" if beats else best_round["round"])
+    assert chosen["members"] == (2 if beats else 1)
+    train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)  # nothing left to do: all taken as it is
+    assert json.loads((out / "final.json").read_text()) == final
     cfg.write_text(SMALL.replace("episodes = 1\nbeta = 0.5", "episodes = 1\nbeta = 0.25"))
     with pytest.raises(ValueError, match="cannot resume"):
         train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)
@@ -180,6 +215,13 @@ def test_bad_configs_and_paths_are_named(tmp_path):
         load_config(bad)
     with pytest.raises(ValueError, match="not a DAgger run directory"):
         load_saved(str(tmp_path))
+    bad.write_text(SMALL.replace("hidden = [16, 16]", "hidden = [16, 16]\nmembers = 0"))
+    with pytest.raises(ValueError, match=r"\[student\] members must be a whole number >= 1"):
+        load_config(bad)
+    bad.write_text(SMALL.replace("load_relief_margin = 0.02", "load_relief_margin = 1.5"))
+    with pytest.raises(ValueError, match="load relief margin must lie in"):
+        train_dagger(bad, tmp_path / "never", workers=1, progress_bar=False)
+    assert not (tmp_path / "never" / "rounds.json").exists()
 
 
 def test_the_horizon_shortens_near_the_ground_in_whole_steps():
@@ -191,3 +233,18 @@ def test_the_horizon_shortens_near_the_ground_in_whole_steps():
     np.testing.assert_array_equal(Horizon().seconds(state, radius, 1.0), [1.0] * 4)  # the default: one step, deadbeat
     with pytest.raises(ValueError, match="0 < min_s <= max_s"):
         Horizon(max_s=2.0, min_s=3.0)
+
+
+def test_load_relief_counts_each_episode_flying_not_frozen():
+    from rventry_agents.dagger import load_shipped
+
+    shipped = load_shipped()
+    law = LearnedGuidance(shipped.network, horizon=shipped.horizon, load_relief_margin=0.01)
+    alone = rollout(law, seeds=[0], dispersion="standard")
+    pair = rollout(law, seeds=[0, 7], dispersion="standard")
+    assert pair.time_s[1] != pair.time_s[0]  # one copy waits frozen while the other flies on
+    steps = [s["load_relief_steps"] for s in pair.law_stats]
+    assert alone.law_stats[0]["load_relief_steps"] == steps[0] > 0
+    assert np.all(pair.max_load_factor_g <= 12.0)
+    bare = rollout(LearnedGuidance(shipped.network, horizon=shipped.horizon), seeds=[0], dispersion="standard")
+    assert bare.law_stats == [] and bare.max_load_factor_g[0] > alone.max_load_factor_g[0]

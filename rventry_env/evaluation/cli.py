@@ -236,6 +236,7 @@ def _tables(runs, names, episodes, dispersion, checks):
         ("success rate", "success_rate", "{:.2f}", "", f">= {DISPERSED_SUCCESS_TARGET:.2f}"),
         ("episodes", "episodes", "{:d}", "", ""),
         ("re-solve time p50 / p99 (s)", "replanning", "", "", ""),
+        ("load relief: capped steps (episodes)", "load_relief", "", "", ""),
     )
     tables = []
     counts = sorted(set(episodes.values()), reverse=True)
@@ -256,6 +257,9 @@ def _tables(runs, names, episodes, dispersion, checks):
                 v = s.get(key)
                 if key == "replanning":
                     cells.append("-" if not v else f"{v['solve_time_s']['p50']:.2f} / {v['solve_time_s']['p99']:.2f}")
+                    continue
+                if key == "load_relief":
+                    cells.append("-" if not v else f"{v['capped_steps']} ({v['episodes_capped']})")
                     continue
                 if key == "episodes":
                     cells.append(str(v))
@@ -282,6 +286,8 @@ def _print_summary(agent: str, s: dict) -> None:
         f"{agent}: {s['episodes']} episode(s): success {s['success_rate']:.2f}, miss {s['miss_km']:.3g} km, "
         f"vertical {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
         f"J/J* {s['cost_ratio']:.3f}, endings {s['endings']}"
+        + (f", load relief capped {r['capped_steps']} step(s) in {r['episodes_capped']} episode(s)"
+           if (r := s.get("load_relief")) else "")
     )
 
 

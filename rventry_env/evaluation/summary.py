@@ -45,7 +45,17 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     out["endings"] = {("impact" if f == "" else str(f)): int(c) for f, c in zip(failures, counts)}
     out["success_thresholds"] = dataclasses.asdict(task.success)
     out["replanning"] = replanning_summary(batch.law_stats)
+    out["load_relief"] = load_relief_summary(batch.law_stats)
     return out
+
+
+def load_relief_summary(stats: list[dict]) -> dict | None:
+    """For a law with load relief: how many steps it capped the alpha rate, and in how many episodes."""
+    if not stats or "load_relief_steps" not in stats[0]:
+        return None
+    steps = np.array([s["load_relief_steps"] for s in stats])
+    return {"capped_steps": int(steps.sum()), "episodes_capped": int(np.count_nonzero(steps)),
+            "capped_steps_per_episode_max": int(steps.max())}  # fmt: skip
 
 
 def replanning_summary(stats: list[dict]) -> dict | None:

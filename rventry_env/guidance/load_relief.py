@@ -1,0 +1,103 @@
+"""Load relief: a predictive cap on the angle-of-attack rate that keeps the load factor in bound.
+
+Near the ground the load factor is steep in alpha: at 5 km and Mach 5 one degree of alpha is
+about 2 g. A law that tracks a plan riding the 12 g bound a fraction of a degree late overruns
+it. :class:`LoadRelief` sits after any law's rates and, for each vehicle, predicts the load
+factor one control step ahead with the rates the law asks for:
+
+* the model's own forces and equations of motion (:func:`~rventry_env.physics.entry.entry_forces`,
+  :func:`~rventry_env.physics.entry.entry_rhs`), one explicit step of the control interval;
+* calibrated by what the accelerometer senses now: the prediction is scaled by the ratio of the
+  sensed load factor to the model's at the current state, which absorbs the density and
+  aerodynamic errors a dispersed vehicle flies with.
+
+Where the prediction exceeds ``a_max (1 - margin)``, the alpha rate is lowered, by bisection,
+to the highest rate whose predicted load meets that limit (down to the full down-rate when none
+does). The bank rate is untouched: the load factor does not depend on it. A cap on the *rate*,
+one step ahead, acts only in the seconds where the bound is about to be crossed; a cap that
+starts early takes away the lift the final pull-down turns the velocity vertical with
+(docs/learned.md).
+
+It sees only what a vehicle measures: the navigation state and the sensed acceleration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rventry_env.envs.task import EntryTask
+from rventry_env.physics import EntryModel
+from rventry_env.physics.entry import entry_forces, entry_rhs
+
+
+class LoadRelief:
+    """Caps the alpha rate of a batch of vehicles so that the predicted load factor stays at or
+    below ``a_max (1 - margin)``.
+
+    :param margin: fraction of the bound kept free (0 <= margin < 1).
+    :param iterations: bisection steps on the alpha rate (2 / 2**iterations of its bound).
+
+    After each call, :attr:`active` (N,) says which vehicles were capped, and :attr:`steps`
+    (N,) counts the capped steps of each vehicle since :meth:`reset`.
+    """
+
+    def __init__(self, model: EntryModel | None = None, task: EntryTask | None = None, margin: float = 0.01,
+                 iterations: int = 14):  # fmt: skip
+        if not (0.0 <= margin < 1.0):
+            raise ValueError(f"load relief margin must lie in [0, 1), got {margin!r}")
+        if int(iterations) < 1:
+            raise ValueError(f"load relief needs at least one bisection iteration, got {iterations!r}")
+        self.model = EntryModel() if model is None else model
+        self.task = EntryTask() if task is None else task
+        self.margin = float(margin)
+        self.iterations = int(iterations)
+        self.limit_g = self.task.problem.a_max_g * (1.0 - self.margin)
+        self.active = np.zeros(0, dtype=bool)
+        self.steps = np.zeros(0, dtype=np.int64)
+
+    def reset(self, n: int) -> None:
+        self.active = np.zeros(n, dtype=bool)
+        self.steps = np.zeros(n, dtype=np.int64)
+
+    def _loads(self, x: np.ndarray, u_alpha: np.ndarray, u_sigma: np.ndarray):
+        """The model's load factor (g) now and one control step ahead with the given rates (rad/s)."""
+        g0 = self.model.planet.g0
+        cols = tuple(x.T)
+        f = entry_forces(cols, self.model)
+        dx = np.stack(entry_rhs(cols, (u_alpha, u_sigma), self.model, forces=f), axis=1)
+        ahead = entry_forces(tuple((x + self.task.dt * dx).T), self.model)
+        return np.asarray(f.aero_accel) / g0, np.asarray(ahead.aero_accel) / g0
+
+    def __call__(self, rates, state, sensed_accel_b, count=None) -> np.ndarray:
+        """The rates (N, 2), fractions of their bounds, with the alpha rate capped where needed.
+        ``count`` (N,) bool: which vehicles' capped steps :attr:`steps` counts (default all; a
+        caller leaves out the frozen copies of ended episodes)."""
+        if sensed_accel_b is None:
+            raise ValueError("load relief needs the sensed acceleration (info['sensed_accel_b'])")
+        rates = np.array(rates, dtype=float)
+        x = np.asarray(state, dtype=float)
+        sensed = np.asarray(sensed_accel_b, dtype=float)
+        if rates.shape != (len(x), 2) or x.shape[1:] != (12,) or sensed.shape != (len(x), 3):
+            raise ValueError(f"load relief needs rates (N, 2), state (N, 12) and sensed acceleration (N, 3), got "
+                             f"{rates.shape}, {x.shape} and {sensed.shape}")  # fmt: skip
+        if len(self.steps) != len(x):
+            self.reset(len(x))
+        p = self.task.problem
+        n_now, n_ahead = self._loads(x, rates[:, 0] * p.u_alpha_max, rates[:, 1] * p.u_sigma_max)
+        calib = np.linalg.norm(sensed, axis=1) / self.model.planet.g0 / np.maximum(n_now, 1e-9)
+        over = calib * n_ahead > self.limit_g
+        self.active = over
+        if np.any(over):
+            self.steps += over if count is None else over & np.asarray(count, dtype=bool)
+            xs, u_sigma, k = x[over], rates[over, 1] * p.u_sigma_max, calib[over]
+            lo = np.full(len(xs), -1.0)  # the full down-rate: taken when no rate meets the limit
+            hi = rates[over, 0]
+            for _ in range(self.iterations):
+                mid = 0.5 * (lo + hi)
+                ok = k * self._loads(xs, mid * p.u_alpha_max, u_sigma)[1] <= self.limit_g
+                lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+            rates[over, 0] = lo
+        return rates
+
+
+__all__ = ["LoadRelief"]

@@ -1,0 +1,84 @@
+"""Load relief: its one-step prediction against the env's own integrator, on the optimum's final pull-down."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rventry_env.core.backend import NUMPY
+from rventry_env.envs.propagation import Propagator
+from rventry_env.envs.task import EntryTask
+from rventry_env.guidance.load_relief import LoadRelief
+from rventry_env.physics import EntryModel
+from rventry_env.physics.entry import entry_forces
+from rventry_env.physics.model import scaled_model
+from rventry_env.reference.data_file import load_reference
+
+
+def _pull_down():
+    """States of the optimum in the seconds its load factor climbs from 6 to 12 g."""
+    ref = load_reference()
+    return ref.x[(ref.t > ref.t[-1] - 15.0) & (ref.t < ref.t[-1] - 9.5)]
+
+
+def _flown_peak(x, rates, truth: EntryModel, task: EntryTask):
+    """The peak load factor (g) over one control step, by the env's RK4 substeps on the true model."""
+    p = task.problem
+    out = Propagator(task, NUMPY).step(tuple(x.T), entry_forces(tuple(x.T), truth), rates[:, 0] * p.u_alpha_max,
+                                       rates[:, 1] * p.u_sigma_max, truth)  # fmt: skip
+    return np.asarray(out.max_load_g)
+
+
+@pytest.mark.parametrize("density", [1.0, 1.08, 0.92])
+def test_capped_rates_keep_the_flown_load_in_bound_on_a_dispersed_vehicle(density):
+    task, nominal = EntryTask(), EntryModel()
+    truth = scaled_model(nominal, density=density)
+    x = _pull_down()
+    sensed = np.stack(entry_forces(tuple(x.T), truth).aero_b, axis=1)
+    below = np.asarray(entry_forces(tuple(x.T), truth).aero_accel) / nominal.planet.g0 < 11.5
+    assert below.sum() >= 5
+    x, sensed = x[below], sensed[below]
+    up = np.tile([1.0, 0.3], (len(x), 1))  # alpha up at full rate, some bank rate
+    relief = LoadRelief(nominal, task, margin=0.01)
+    capped = relief(up, x, sensed)
+    assert (_flown_peak(x, up, truth, task) > 12.0).sum() >= len(x) - 1  # uncapped, the bound goes
+    assert relief.active.sum() >= len(x) - 1 and np.all(capped[relief.active, 0] < 1.0)
+    np.testing.assert_array_equal(capped[:, 1], up[:, 1])  # the bank rate is not the relief's
+    assert _flown_peak(x, capped, truth, task).max() <= 12.0  # a_max, with the margin's 1 % spent on the prediction
+    np.testing.assert_array_equal(relief.steps, relief.active.astype(int))
+
+
+def test_the_sensed_acceleration_is_what_calibrates_the_prediction():
+    task, nominal = EntryTask(), EntryModel()
+    truth = scaled_model(nominal, density=1.08)
+    x = _pull_down()[:4]
+    up = np.tile([1.0, 0.0], (len(x), 1))
+    blind = np.stack(entry_forces(tuple(x.T), nominal).aero_b, axis=1)  # what the nominal model would sense
+    capped = LoadRelief(nominal, task, margin=0.01)(up, x, blind)
+    assert _flown_peak(x, capped, truth, task).max() > 12.3  # 8 % more air than the model: over the bound
+
+
+def test_no_cap_where_the_load_stays_low_and_a_counted_step_mask():
+    task = EntryTask()
+    x = load_reference().x[:5]  # the start: near 1 g
+    sensed = np.stack(entry_forces(tuple(x.T), EntryModel()).aero_b, axis=1)
+    rates = np.tile([1.0, -1.0], (5, 1))
+    relief = LoadRelief(task=task)
+    np.testing.assert_array_equal(relief(rates, x, sensed), rates)
+    assert not relief.active.any()
+    late = _pull_down()[:3]
+    late_sensed = np.stack(entry_forces(tuple(late.T), EntryModel()).aero_b, axis=1)
+    relief(np.tile([1.0, 0.0], (3, 1)), late, late_sensed, count=np.array([True, False, True]))
+    np.testing.assert_array_equal(relief.steps, [1, 0, 1])  # frozen copies (count False) are not counted
+
+
+def test_bad_inputs_are_named():
+    with pytest.raises(ValueError, match="margin must lie in"):
+        LoadRelief(margin=1.0)
+    with pytest.raises(ValueError, match="at least one bisection"):
+        LoadRelief(iterations=0)
+    relief = LoadRelief()
+    with pytest.raises(ValueError, match="sensed acceleration"):
+        relief(np.zeros((1, 2)), np.zeros((1, 12)), None)
+    with pytest.raises(ValueError, match=r"rates \(N, 2\), state \(N, 12\)"):
+        relief(np.zeros((2, 2)), load_reference().x[:1], np.zeros((1, 3)))
