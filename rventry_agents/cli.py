@@ -39,8 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     dag.add_argument("--no-progress", action="store_true", help="no progress bar")
     dag.set_defaults(func=_run_dagger)
     ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
-    ship.add_argument("run_dir", help="the --out directory of a finished `rventry train ppo | recurrent-ppo | sac`")
-    ship.add_argument("--dest", help="destination (default: the packaged policy, rventry_agents/data/ppo)")
+    ship.add_argument("run_dir",
+                      help="the --out directory of a finished `rventry train ppo | recurrent-ppo | sac | dagger`")
+    ship.add_argument("--dest", help="destination (default: a DAgger run's student to the learned policy, "
+                                     "rventry_agents/data/dagger; an SB3 run to the PPO residual, rventry_agents/data/ppo)")
     ship.set_defaults(func=_ship)
 
 

@@ -8,8 +8,10 @@ A run writes into its output directory:
 * ``student_round_K.pt``: the network fitted after round K;
 * ``student_final.pt`` and ``final.json``: with ``[final] members`` > 1, an ensemble refitted
   on all the rounds' data after the last round, and its selection figures;
+* ``flight.json``: with ``[flight] tracking``, the selected network flown on the selection set
+  with each candidate tracker horizon, and the one chosen;
 * ``student.pt`` and ``student.json``: the network selected on the task metric (a round's, or the
-  final ensemble when it does better), and how to build it;
+  final ensemble when it does better), and how to build and fly it;
 * ``rounds.json`` and ``learning_curve.png``: each round's data, fit and selection figures;
 * ``metadata.json``: the exact command, seed, wall time, config and the selected round.
 """
@@ -58,7 +60,22 @@ def load_config(path=None) -> dict:
             raise ValueError(f"{where}: [{section}] members must be a whole number >= 1, got {members!r}")
     if cfg["rounds"][0]["beta"] != 1.0:
         raise ValueError(f"{where}: the first round has no student yet, so its beta must be 1")
+    try:
+        flight_trackers(cfg)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
     return cfg
+
+
+def flight_trackers(cfg: dict) -> list[Horizon]:
+    """The candidate tracker horizons of ``[flight]``: ``tracking`` pairs [max_s, min_s], with the
+    altitude over ``tracking_descent_mps`` between them (none: no choice after training)."""
+    flight = cfg.get("flight", {})
+    pairs = flight.get("tracking", [])
+    descent = float(flight.get("tracking_descent_mps", math.inf))
+    if not isinstance(pairs, list) or not all(isinstance(p, list) and len(p) == 2 for p in pairs):
+        raise ValueError(f"[flight] tracking takes a list of [max_s, min_s] pairs, got {pairs!r}")
+    return [Horizon(float(hi), float(lo), descent) for hi, lo in pairs]
 
 
 def select_metric(student, cfg: dict, task: EntryTask) -> dict:
@@ -86,7 +103,9 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     task = EntryTask()
     law = student_law(cfg["student"], task)
     horizon, relief = law["horizon"], law["load_relief_margin"]
-    horizon.check_step(task.dt)  # a bad horizon fails now, not in a worker
+    trackers = flight_trackers(cfg)
+    for h in (horizon, *trackers):
+        h.check_step(task.dt)  # a bad horizon fails now, not in a worker
     fit_cfg = cfg["fit"]
     fit_seed = int(fit_cfg["seed"] if seed is None else seed)
     expert_cfg = dict(cfg.get("expert", {}))
@@ -127,7 +146,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                 if k == len(done) - 1:  # the student to go on with, and the best so far
                     student = network_from_bytes((out / f"student_round_{k}.pt").read_bytes(), hidden, members)
                     sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
-                    best, best_key = (sel, (out / f"student_round_{sel}.pt").read_bytes()), _select_key(done[sel])
+                    best = (sel, (out / f"student_round_{sel}.pt").read_bytes(), members)
+                    best_key = _select_key(done[sel])
                 continue
             blob = None if student is None else network_bytes(student)
             jobs = [CollectJob(next_seed + i, cfg["data"]["dispersion"], beta if blob else 1.0, blob, hidden, task,
@@ -162,8 +182,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             )  # fmt: skip
             key = _select_key(rec)
             if best_key is None or key > best_key:
-                best_key, best = key, (k, blob)
-                _write_selected(out, best, hidden, members, law)
+                best_key, best = key, (k, blob, members)
+                _write_selected(out, best, hidden, law)
     write_json(out / "rounds.json", rounds)
     final = None
     n_final = int(cfg.get("final", {}).get("members", 1))
@@ -171,6 +191,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
         done_final = json.loads((out / "final.json").read_text()) if resume and (out / "final.json").is_file() else None
         if done_final is not None and done_final["members"] == n_final and done_final["samples"] == rounds[-1]["samples"]:
             final = done_final
+            t0 = min(t0, time.time() - final["wall_s"])  # its fit counts in the run's wall time
             print(f"final ensemble: taken from {out}")
         else:
             ensemble = make_network(hidden, n_final)
@@ -185,12 +206,23 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             print(f"final ensemble of {n_final}: student alone on the selection set: success "
                   f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
         if _select_key(final) > best_key:
-            best = ("final", (out / "student_final.pt").read_bytes())
-            _write_selected(out, best, hidden, n_final, law)
+            best = ("final", (out / "student_final.pt").read_bytes(), n_final)
+            _write_selected(out, best, hidden, law)
+    selected = final if best[0] == "final" else rounds[best[0]]
+    if trackers:  # the selected network's tracker: the trained horizon unless a candidate does better
+        scan = choose_tracker(network_from_bytes(best[1], hidden, best[2]), [horizon, *trackers], relief, cfg, task)
+        write_json(out / "flight.json", {"student": best[0], "candidates": scan})
+        i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
+        _write_selected(out, best, hidden, law, tracker=None if i == 0 else trackers[i - 1])
+        chosen = scan[i]
+        selected = {**selected, "tracking": chosen}
+        print(f"tracker: horizon {chosen['tracking_s']:g} s, down to {chosen['tracking_min_s']:g} s near the ground; "
+              f"selection success {chosen['select_success_rate']:.2f}, miss mean {chosen['select_miss_km_mean']:.3f} "
+              f"km, vertical error p50 {chosen['select_vertical_error_deg_p50']:.2f} deg")  # fmt: skip
     write_json(out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
         "seed": fit_seed, "workers": workers, "wall_s": time.time() - t0, "config": cfg,
-        "selected_round": best[0], "selected": final if best[0] == "final" else rounds[best[0]],
+        "selected_round": best[0], "selected": selected,
     })  # fmt: skip
     plot_rounds(rounds, out / "learning_curve.png")
     return out
@@ -201,30 +233,52 @@ def _select_key(rec: dict) -> tuple[float, float]:
     return rec["select_success_rate"], -rec["select_miss_km_mean"]
 
 
+def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: dict, task: EntryTask) -> list[dict]:
+    """The network flown alone on the selection set with each tracker horizon: one record each."""
+    scan = []
+    for h in horizons:
+        metric = select_metric(LearnedGuidance(network, task=task, horizon=h, load_relief_margin=relief), cfg, task)
+        scan.append({**_horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
+    return scan
+
+
+def _horizon_keys(h: Horizon, prefix: str) -> dict:
+    """A horizon as student.json keys (an unbounded descent rate as null)."""
+    return {f"{prefix}_s": h.max_s, f"{prefix}_min_s": h.min_s,
+            f"{prefix}_descent_mps": h.descent_mps if math.isfinite(h.descent_mps) else None}  # fmt: skip
+
+
+def _horizon_from(student_cfg: dict, prefix: str) -> Horizon | None:
+    keys = {f"{prefix}_s": "max_s", f"{prefix}_min_s": "min_s", f"{prefix}_descent_mps": "descent_mps"}
+    given = {keys[k]: float(v) for k, v in student_cfg.items() if k in keys and v is not None}
+    if "max_s" in given:
+        given.setdefault("min_s", given["max_s"])
+    return Horizon(**given) if given else None
+
+
 def student_law(student_cfg: dict, task: EntryTask) -> dict:
     """The student's law options (:class:`LearnedGuidance` keywords) from a [student] section or
     a student.json (where an unbounded descent rate and no load relief are null):
 
-    * ``horizon``, the labels' and the tracker's; one step when none is named (the students
-      trained before the horizon existed, with one-step labels and a deadbeat tracker);
+    * ``horizon``, the tracker's: ``tracking_*`` where a tracker was chosen after training
+      (``[flight]``), else the labels' ``lookahead_*``, which the rounds fly; one step when none is
+      named (the students trained before the horizon existed, with one-step labels and a deadbeat
+      tracker);
     * ``load_relief_margin``, None when none is named (no load relief)."""
-    keys = {"lookahead_s": "max_s", "lookahead_min_s": "min_s", "lookahead_descent_mps": "descent_mps"}
-    given = {keys[k]: float(v) for k, v in student_cfg.items() if k in keys and v is not None}
-    if "max_s" in given:
-        given.setdefault("min_s", given["max_s"])
+    horizon = _horizon_from(student_cfg, "tracking") or _horizon_from(student_cfg, "lookahead")
     margin = student_cfg.get("load_relief_margin")
     if margin is not None:
         margin = LoadRelief(task=task, margin=float(margin)).margin  # a bad margin fails here, not in a worker
-    return {"horizon": Horizon(**given) if given else Horizon(task.dt, task.dt), "load_relief_margin": margin}
+    return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin}
 
 
-def _write_selected(out: Path, best: tuple, hidden: tuple, members: int, law: dict) -> None:
-    horizon = law["horizon"]
+def _write_selected(out: Path, best: tuple, hidden: tuple, law: dict, tracker: Horizon | None = None) -> None:
+    """student.pt and student.json for ``best`` = (round or "final", network bytes, members), trained
+    with ``law``; ``tracker``, the tracker horizon chosen after training (None: the trained one)."""
     atomic_write(out / "student.pt", best[1])
-    write_json(out / "student.json", {"hidden": list(hidden), "members": members, "inputs": "observation features "
+    write_json(out / "student.json", {"hidden": list(hidden), "members": best[2], "inputs": "observation features "
                "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD", "outputs": "alpha and bank commands",
-               "lookahead_s": horizon.max_s, "lookahead_min_s": horizon.min_s,
-               "lookahead_descent_mps": horizon.descent_mps if math.isfinite(horizon.descent_mps) else None,
+               **_horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else _horizon_keys(tracker, "tracking")),
                "load_relief_margin": law["load_relief_margin"], "selected_round": best[0]})  # fmt: skip
 
 
@@ -263,8 +317,8 @@ def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:
     return load_student(p)
 
 
-def load_shipped(name: str = "dagger", task: EntryTask | None = None) -> LearnedGuidance:
-    """The DAgger student shipped with this package (entry point ``rventry.agents``)."""
+def load_shipped(name: str = "learned", task: EntryTask | None = None) -> LearnedGuidance:
+    """The DAgger student shipped with this package, the learned policy (entry points ``learned`` and ``ppo``)."""
     if not (SHIPPED_DAGGER / "student.pt").is_file():
         raise FileNotFoundError(f"the shipped DAgger student is missing from {SHIPPED_DAGGER}")
     return load_student(SHIPPED_DAGGER)

@@ -169,10 +169,10 @@ class SB3Policy:
         return self._act(obs, time_s, state)
 
 
-def load_shipped(name: str = "ppo", task: EntryTask | None = None) -> SB3Policy:
-    """The policy shipped with this package (entry point ``rventry.agents``)."""
+def load_shipped(name: str = "ppo-residual", task: EntryTask | None = None) -> SB3Policy:
+    """The PPO residual on TV-LQR shipped with this package (entry point ``ppo-residual``)."""
     if not (SHIPPED_PPO / "model.zip").is_file():
-        raise FileNotFoundError(f"the shipped policy is missing from {SHIPPED_PPO}")
+        raise FileNotFoundError(f"the shipped PPO residual is missing from {SHIPPED_PPO}")
     return SB3Policy(SHIPPED_PPO)
 
 

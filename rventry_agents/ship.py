@@ -1,9 +1,15 @@
 """Copy a finished training run's selected policy into the package (``rventry train ship``).
 
-Only what evaluation needs travels: the best model on the task metric (with its
-optimizer state dropped: Adam's moment buffers are two thirds of the file and no
-use for inference), its VecNormalize statistics, how to fly it (``policy.json``),
-and the run's record (metadata with the exact command, evaluations, learning curve).
+Only what evaluation needs travels, with the run's record:
+
+* a stable-baselines3 run: the best model on the task metric (with its optimizer state dropped:
+  Adam's moment buffers are two thirds of the file and no use for inference), its VecNormalize
+  statistics, how to fly it (``policy.json``), and the metadata with the exact command, the
+  evaluations and the learning curve; by default to the PPO residual's directory;
+* a DAgger run (``rventry train dagger``): the selected student (``student.pt`` and
+  ``student.json``), ``rounds.json``, ``final.json`` when the run refitted an ensemble,
+  ``flight.json`` when it chose a tracker, the metadata and the learning curve; by default to
+  the learned policy's directory.
 """
 
 from __future__ import annotations
@@ -12,21 +18,25 @@ import json
 import shutil
 from pathlib import Path
 
-from rventry_env.util.files import write_json
+from rventry_env.util.files import atomic_write, write_json
 
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
+DAGGER_FILES = ("student.pt", "student.json", "rounds.json", "metadata.json", "learning_curve.png")
+DAGGER_RECORDS = ("final.json", "flight.json")  # written by some runs only
 
 
 def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     """Copy the selected policy of ``run_dir`` to ``dest`` (default: the packaged policy directory).
 
-    :param run_dir: a finished ``rventry train ppo | recurrent-ppo | sac`` output directory.
+    :param run_dir: a finished ``rventry train ppo | recurrent-ppo | sac | dagger`` output directory.
     :param dest: where to put it.
     """
     from rventry_agents.sb3_policy import SHIPPED_PPO
     from rventry_agents.train import algorithm_class
 
     run_dir = Path(run_dir)
+    if (run_dir / "student.json").exists():
+        return _ship_dagger(run_dir, dest)
     dest = Path(dest) if dest is not None else SHIPPED_PPO
     missing = [f for f in ("model.zip", *RUN_FILES) if not (run_dir / f).exists()]
     if missing:
@@ -42,6 +52,28 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     for name in RUN_FILES:
         shutil.copy2(run_dir / name, dest / name)
     meta = json.loads((dest / "metadata.json").read_text())
+    meta["shipped_from"] = str(run_dir)
+    write_json(dest / "metadata.json", meta)
+    return dest
+
+
+def _ship_dagger(run_dir: Path, dest: str | Path | None) -> Path:
+    from rventry_agents.dagger import SHIPPED_DAGGER, load_student
+
+    dest = Path(dest) if dest is not None else SHIPPED_DAGGER
+    missing = [f for f in DAGGER_FILES if not (run_dir / f).exists()]
+    if missing:
+        raise FileNotFoundError(f"{run_dir} is not a finished DAgger run: missing {', '.join(missing)}")
+    load_student(run_dir)  # a student that does not load is not shipped
+    dest.mkdir(parents=True, exist_ok=True)
+    names = [*DAGGER_FILES, *(f for f in DAGGER_RECORDS if (run_dir / f).exists())]
+    for name in DAGGER_RECORDS:
+        if name not in names and (dest / name).exists():
+            (dest / name).unlink()  # a previous run's record would describe another student
+    for name in names:
+        if name != "metadata.json":
+            atomic_write(dest / name, (run_dir / name).read_bytes())
+    meta = json.loads((run_dir / "metadata.json").read_text())
     meta["shipped_from"] = str(run_dir)
     write_json(dest / "metadata.json", meta)
     return dest

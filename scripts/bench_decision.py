@@ -1,5 +1,5 @@
-"""Benchmark the cost of one guidance decision: the learned policy, TV-LQR (with and without
-estimation) and re-planning (``mpc``), for one vehicle and for a batch.
+"""Benchmark the cost of one guidance decision: the learned policy, the PPO residual, TV-LQR (with
+and without estimation) and re-planning (``mpc``), for one vehicle and for a batch.
 
 Each law flies whole episodes of the standard set through ``rollout`` (so its per-episode memory,
 its estimator and its re-plans run as in an evaluation), and every call of the law is timed.
@@ -32,7 +32,7 @@ from rventry_env.evaluation.rollout import rollout
 from rventry_env.util.args import positive_int
 from rventry_env.util.files import check_writable, write_json
 
-LAWS = ("learned", "dagger", "lqr", "lqr-est", "mpc")
+LAWS = ("learned", "ppo-residual", "lqr", "lqr-est", "mpc")
 
 
 class TimedLaw:

@@ -216,13 +216,18 @@ def test_a_recurrent_policy_carries_its_memory_per_vehicle_and_reset_clears_it()
 
 
 @pytest.mark.slow
-def test_shipped_policy_is_present_and_deterministic_for_a_seed():
-    assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
+def test_shipped_policies_are_present_and_deterministic_for_a_seed():
+    learned = load_policy("learned")
+    assert type(learned).__name__ == "LearnedGuidance" and learned.relief is not None  # the student, load-relieved
     a = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
-    b = rollout(load_policy("learned"), 4, seed=21, dispersion=Dispersion.standard())  # the same policy by its name
+    b = rollout(learned, 4, seed=21, dispersion=Dispersion.standard())  # the same policy by its other name
     for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
         np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
     assert (a.failure == "").all()  # the shipped policy reaches the ground in every one of these
+    # the PPO residual on TV-LQR, shipped before it, under its own name
+    assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
+    c = rollout(load_policy("ppo-residual"), 4, seed=21, dispersion=Dispersion.standard())
+    assert (c.failure == "").all()
 
 
 @pytest.mark.slow

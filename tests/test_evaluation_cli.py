@@ -16,7 +16,7 @@ def test_compare_on_a_few_episodes_writes_the_report_and_plots(tmp_path, capsys)
             "--plots", str(plots)]  # fmt: skip
     assert main(args) == 0
     doc = json.loads(out.read_text())
-    names = ("ppo", "DAgger student", "plain PPO", "TV-LQR", "TV-LQR + estimation", "re-planning (mpc)",
+    names = ("learned", "PPO residual", "plain PPO", "TV-LQR", "TV-LQR + estimation", "re-planning (mpc)",
              "reference (open loop)")
     assert set(doc["runs"]) == {f"{case}/{name}" for case in ("nominal", "dispersed") for name in names}
     assert doc["runs"]["dispersed/TV-LQR"]["n_episodes"] == 2 and doc["dispersion_set"] == "standard"
@@ -28,6 +28,12 @@ def test_compare_on_a_few_episodes_writes_the_report_and_plots(tmp_path, capsys)
     assert doc["runs"]["nominal/TV-LQR"]["summary"]["success_rate"] == 1.0
     for key, check in doc["targets"].items():
         assert set(check) == {"target", "measured", "met"}, key
+    # the learned policy's margin over TV-LQR without estimation, on the same episodes
+    gain = doc["targets"]["success_over_lqr"]
+    runs = doc["runs"]
+    assert gain["target"] == 0.10 and gain["measured"] == pytest.approx(
+        runs["dispersed/learned"]["summary"]["success_rate"] - runs["dispersed/TV-LQR"]["summary"]["success_rate"])
+    assert doc["targets"]["dispersed_success_rate"]["target"] == 0.95  # the standard set's
     assert sorted(p.name for p in plots.iterdir()) == ["dispersed_outcomes.png", "dispersed_trajectories.png",
                                                        "nominal_trajectories.png"]  # fmt: skip
     printed = capsys.readouterr().out

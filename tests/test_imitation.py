@@ -10,6 +10,7 @@ import pytest
 pytest.importorskip("torch")
 
 from rventry_agents.dagger import load_config, load_saved, train_dagger
+from rventry_agents.ship import ship
 from rventry_agents.imitation import (
     INPUTS,
     N_FEATURES,
@@ -53,6 +54,9 @@ seed = 100_000
 dispersion = "standard"
 [final]
 members = 2
+[flight]
+tracking = [[3.0, 2.0]]
+tracking_descent_mps = 2500.0
 """
 
 
@@ -198,8 +202,32 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
         best_round["select_success_rate"], -best_round["select_miss_km_mean"])
     assert chosen["selected_round"] == ("final" if beats else best_round["round"])
     assert chosen["members"] == (2 if beats else 1)
+    # the selected network's tracker: the trained one (one step here) unless the candidate does better
+    flight = json.loads((out / "flight.json").read_text())
+    assert flight["student"] == chosen["selected_round"]
+    trained, candidate = flight["candidates"]
+    assert (trained["tracking_s"], trained["tracking_descent_mps"]) == (1.0, None) and candidate["tracking_s"] == 3.0
+    better = (candidate["select_success_rate"], -candidate["select_miss_km_mean"]) > (
+        trained["select_success_rate"], -trained["select_miss_km_mean"])
+    assert load_saved(str(out)).horizon == (Horizon(3.0, 2.0, 2500.0) if better else Horizon(1.0, 1.0))
+    assert ("tracking_s" in chosen) == better and chosen["lookahead_s"] == 1.0
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["selected"]["tracking"] == (candidate if better else trained)
     train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)  # nothing left to do: all taken as it is
     assert json.loads((out / "final.json").read_text()) == final
+    # shipped, the selected student flies the same, with its record
+    shipped = ship(out, tmp_path / "shipped")
+    assert sorted(p.name for p in shipped.iterdir()) == ["final.json", "flight.json", "learning_curve.png",
+                                                        "metadata.json", "rounds.json", "student.json", "student.pt"]  # fmt: skip
+    c = rollout(load_saved(str(shipped)), seeds=[3, 4], dispersion="standard")
+    d = rollout(load_saved(str(out)), seeds=[3, 4], dispersion="standard")
+    np.testing.assert_array_equal(c.miss_km, d.miss_km)
+    assert json.loads((shipped / "metadata.json").read_text())["shipped_from"] == str(out)
+    with pytest.raises(FileNotFoundError, match="not a finished DAgger run: missing rounds.json"):
+        (tmp_path / "half").mkdir()
+        for name in ("student.json", "student.pt"):
+            (tmp_path / "half" / name).write_bytes((out / name).read_bytes())
+        ship(tmp_path / "half", tmp_path / "x")
     cfg.write_text(SMALL.replace("episodes = 1\nbeta = 0.5", "episodes = 1\nbeta = 0.25"))
     with pytest.raises(ValueError, match="cannot resume"):
         train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)
@@ -218,10 +246,31 @@ def test_bad_configs_and_paths_are_named(tmp_path):
     bad.write_text(SMALL.replace("hidden = [16, 16]", "hidden = [16, 16]\nmembers = 0"))
     with pytest.raises(ValueError, match=r"\[student\] members must be a whole number >= 1"):
         load_config(bad)
+    bad.write_text(SMALL.replace("tracking = [[3.0, 2.0]]", "tracking = [[3.0]]"))
+    with pytest.raises(ValueError, match=r"\[flight\] tracking takes a list of \[max_s, min_s\] pairs"):
+        load_config(bad)
+    bad.write_text(SMALL.replace("tracking = [[3.0, 2.0]]", "tracking = [[2.0, 3.0]]"))
+    with pytest.raises(ValueError, match="bad.toml: a horizon needs 0 < min_s <= max_s"):
+        load_config(bad)
+    bad.write_text(SMALL.replace("tracking = [[3.0, 2.0]]", "tracking = [[0.5, 0.5]]"))
+    with pytest.raises(ValueError, match="the horizon must be at least one control step"):
+        train_dagger(bad, tmp_path / "never", workers=1, progress_bar=False)
+    assert not (tmp_path / "never" / "rounds.json").exists()
     bad.write_text(SMALL.replace("load_relief_margin = 0.02", "load_relief_margin = 1.5"))
     with pytest.raises(ValueError, match="load relief margin must lie in"):
         train_dagger(bad, tmp_path / "never", workers=1, progress_bar=False)
     assert not (tmp_path / "never" / "rounds.json").exists()
+
+
+def test_a_chosen_tracker_flies_in_place_of_the_trained_horizon():
+    from rventry_agents.dagger import student_law
+
+    task = EntryTask()
+    trained = {"lookahead_s": 4.0, "lookahead_min_s": 2.0, "lookahead_descent_mps": 2500.0, "load_relief_margin": None}
+    assert student_law(trained, task)["horizon"] == Horizon(4.0, 2.0, 2500.0)  # the rounds' tracker: the labels'
+    chosen = {**trained, "tracking_s": 6.0, "tracking_min_s": 6.0, "tracking_descent_mps": None}
+    assert student_law(chosen, task)["horizon"] == Horizon(6.0, 6.0)
+    assert student_law({}, task)["horizon"] == Horizon(1.0, 1.0)  # students from before the horizon: one step
 
 
 def test_the_horizon_shortens_near_the_ground_in_whole_steps():

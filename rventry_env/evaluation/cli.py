@@ -15,8 +15,11 @@ from rventry_env.util.args import positive_int, seed
 from rventry_env.util.files import check_writable, write_json
 
 # the RvEntry-v0 benchmark's targets for a guidance law, printed beside the measured values
-NOMINAL_TARGETS = {"miss_km": 5.0, "vertical_error_deg": 2.0, "abs_speed_error_mps": 50.0, "cost_ratio": 1.5}
-DISPERSED_SUCCESS_TARGET = 0.90
+NOMINAL_TARGETS = {"miss_km": 1.0, "vertical_error_deg": 1.0, "abs_speed_error_mps": 50.0, "cost_ratio": 1.3}
+# success under dispersions, per set (the nominal set is held to the standard set's), and the margin in
+# success over TV-LQR without estimation, on the same episodes
+DISPERSED_SUCCESS_TARGETS = {"standard": 0.95, "wide": 0.90}
+MARGIN_OVER_LQR = 0.10
 DISPERSIONS = ("none", "standard", "wide")
 MPC_EPISODES = 20
 
@@ -43,7 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help=f"dispersed episodes for mpc, which re-plans in flight (default {MPC_EPISODES}: "
                            "about 8 s each on two cores)")  # fmt: skip
     cmp_.add_argument("--seed", type=seed, default=0, help="dispersed episode i uses seed SEED + i (default 0)")
-    cmp_.add_argument("--agent", default="ppo", help="the learned agent to compare (default: the shipped ppo)")
+    cmp_.add_argument("--agent", default="learned",
+                      help="the learned agent to compare (default: the shipped learned policy)")  # fmt: skip
     _dispersion_arguments(cmp_, default="standard")
     cmp_.add_argument("--json", default="out/compare.json", metavar="PATH", help="default out/compare.json")
     cmp_.add_argument("--plots", default="out/plots", metavar="DIR", help="default out/plots")
@@ -148,7 +152,7 @@ def _evaluate(args) -> int:
 
 # the columns of `rventry compare`: (agent, label); the first is the learned agent given by --agent
 # (the learning agents' columns appear when their package is installed: the library never imports it)
-COMPARED = (("dagger", "DAgger student"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
+COMPARED = (("ppo-residual", "PPO residual"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
             ("lqr-est", "TV-LQR + estimation"), ("mpc", "re-planning (mpc)"), ("reference", "reference (open loop)"))  # fmt: skip
 
 
@@ -186,12 +190,17 @@ def _compare(args) -> int:
             runs[(case, name)] = (batch, summary, _document(agent, n, d, args.seed, batch, summary))
             progress.remove_task(job)
     nominal, dispersed = runs[("nominal", label)][1], runs[("dispersed", label)][1]
+    success_target = DISPERSED_SUCCESS_TARGETS.get(dispersion, DISPERSED_SUCCESS_TARGETS["standard"])
     checks = {
         **{f"nominal_{k}": {"target": v, "measured": nominal[k], "met": nominal[k] is not None and abs(nominal[k]) <= v}
            for k, v in NOMINAL_TARGETS.items()},
-        "dispersed_success_rate": {"target": DISPERSED_SUCCESS_TARGET, "measured": dispersed["success_rate"],
-                                   "met": dispersed["success_rate"] >= DISPERSED_SUCCESS_TARGET},
+        "dispersed_success_rate": {"target": success_target, "measured": dispersed["success_rate"],
+                                   "met": dispersed["success_rate"] >= success_target},
     }  # fmt: skip
+    if ("dispersed", "TV-LQR") in runs and label != "TV-LQR":
+        gain = dispersed["success_rate"] - runs[("dispersed", "TV-LQR")][1]["success_rate"]
+        checks["success_over_lqr"] = {"target": MARGIN_OVER_LQR, "measured": gain,
+                                      "met": gain >= MARGIN_OVER_LQR - 1e-9}  # fmt: skip
     doc = {
         "agent": args.agent,
         "seed": args.seed,
@@ -224,16 +233,20 @@ def _tables(runs, names, episodes, dispersion, checks):
     from rich.table import Table
 
     # (label, summary key, format, nominal target, dispersed target): the benchmark's targets
+    nominal = {k: f"<= {v:g}" for k, v in NOMINAL_TARGETS.items()}
+    success = f">= {checks['dispersed_success_rate']['target']:.2f}"
+    if "success_over_lqr" in checks:
+        success += f", TV-LQR + {checks['success_over_lqr']['target']:.2f}"
     rows = (
-        ("miss (km)", "miss_km", "{:.3g}", "<= 5", ""),
-        ("vertical-impact error (deg)", "vertical_error_deg", "{:.3g}", "<= 2", ""),
-        ("|speed error| (m/s)", "abs_speed_error_mps", "{:.3g}", "<= 50", ""),
+        ("miss (km)", "miss_km", "{:.3g}", nominal["miss_km"], ""),
+        ("vertical-impact error (deg)", "vertical_error_deg", "{:.3g}", nominal["vertical_error_deg"], ""),
+        ("|speed error| (m/s)", "abs_speed_error_mps", "{:.3g}", nominal["abs_speed_error_mps"], ""),
         ("alpha(t_f) (deg)", "alpha_final_deg", "{:.3g}", "", ""),
-        ("cost J / J*", "cost_ratio", "{:.3f}", "<= 1.5", ""),
+        ("cost J / J*", "cost_ratio", "{:.3f}", nominal["cost_ratio"], ""),
         ("peak load factor (g)", "max_load_factor_g", "{:.2f}", "", ""),
         ("min dynamic pressure (kPa)", "min_dynamic_pressure_pa", "{:.2f}", "", ""),
         ("path-violation rate", "constraint_violation_rate", "{:.2f}", "", ""),
-        ("success rate", "success_rate", "{:.2f}", "", f">= {DISPERSED_SUCCESS_TARGET:.2f}"),
+        ("success rate", "success_rate", "{:.2f}", "", success),
         ("episodes", "episodes", "{:d}", "", ""),
         ("re-solve time p50 / p99 (s)", "replanning", "", "", ""),
         ("load relief: capped steps (episodes)", "load_relief", "", "", ""),
@@ -291,4 +304,5 @@ def _print_summary(agent: str, s: dict) -> None:
     )
 
 
-__all__ = ["register", "run_agent", "dispersion_name", "NOMINAL_TARGETS", "DISPERSED_SUCCESS_TARGET"]
+__all__ = ["register", "run_agent", "dispersion_name", "NOMINAL_TARGETS", "DISPERSED_SUCCESS_TARGETS",
+           "MARGIN_OVER_LQR"]
