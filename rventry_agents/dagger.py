@@ -187,6 +187,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     write_json(out / "rounds.json", rounds)
     final = None
     n_final = int(cfg.get("final", {}).get("members", 1))
+    if n_final == 1 and (out / "final.json").exists():
+        (out / "final.json").unlink()  # an earlier run's ensemble, which this run does not refit
     if n_final > 1:  # an ensemble refitted on all the rounds' data, kept if it beats the best round
         done_final = json.loads((out / "final.json").read_text()) if resume and (out / "final.json").is_file() else None
         if done_final is not None and done_final["members"] == n_final and done_final["samples"] == rounds[-1]["samples"]:
@@ -216,16 +218,26 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
         _write_selected(out, best, hidden, law, tracker=None if i == 0 else trackers[i - 1])
         chosen = scan[i]
         selected = {**selected, "tracking": chosen}
-        print(f"tracker: horizon {chosen['tracking_s']:g} s, down to {chosen['tracking_min_s']:g} s near the ground; "
-              f"selection success {chosen['select_success_rate']:.2f}, miss mean {chosen['select_miss_km_mean']:.3f} "
-              f"km, vertical error p50 {chosen['select_vertical_error_deg_p50']:.2f} deg")  # fmt: skip
+        print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
+              f"miss mean {chosen['select_miss_km_mean']:.3f} km, vertical error p50 "
+              f"{chosen['select_vertical_error_deg_p50']:.2f} deg")  # fmt: skip
+    elif (out / "flight.json").exists():
+        (out / "flight.json").unlink()  # an earlier run's choice, for a tracker this run does not fly
     write_json(out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
         "seed": fit_seed, "workers": workers, "wall_s": time.time() - t0, "config": cfg,
         "selected_round": best[0], "selected": selected,
     })  # fmt: skip
-    plot_rounds(rounds, out / "learning_curve.png")
+    after = {} if final is None else {f"ensemble of {final['members']}, all rounds' data": final}
+    if trackers:
+        after[f"selected, tracker {_tracker_words(chosen)}"] = chosen
+    plot_rounds(rounds, out / "learning_curve.png", after)
     return out
+
+
+def _tracker_words(rec: dict) -> str:
+    hi, lo = rec["tracking_s"], rec["tracking_min_s"]
+    return f"{hi:g} s" if hi == lo else f"{hi:g} s, down to {lo:g} s near the ground"
 
 
 def _select_key(rec: dict) -> tuple[float, float]:
@@ -282,7 +294,9 @@ def _write_selected(out: Path, best: tuple, hidden: tuple, law: dict, tracker: H
                "load_relief_margin": law["load_relief_margin"], "selected_round": best[0]})  # fmt: skip
 
 
-def plot_rounds(rounds: list[dict], path: Path) -> None:
+def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> None:
+    """Each round's selection and flown figures; ``after``: records made after the last round
+    (the final ensemble, the chosen tracker), drawn one step to its right."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -292,10 +306,16 @@ def plot_rounds(rounds: list[dict], path: Path) -> None:
     k = [r["round"] for r in rounds]
     ax[0].plot(k, [r["select_success_rate"] for r in rounds], "o-", label="student alone (selection set)")
     ax[0].plot(k, [r["flown_success_rate"] for r in rounds], "s--", label="flown mixture")
+    x = k[-1] + 1
+    for (label, rec), marker in zip((after or {}).items(), "D^v"):
+        ax[0].plot([x], [rec["select_success_rate"]], marker, ls="none", label=label)
+        ax[1].semilogy([x], [rec["select_miss_km_p50"]], marker, ls="none", label=label)
     ax[0].set(xlabel="DAgger round", ylabel="success rate", ylim=(-0.02, 1.02))
-    ax[0].legend()
+    ax[0].legend(fontsize="small")
     ax[1].semilogy(k, [r["select_miss_km_p50"] for r in rounds], "o-")
     ax[1].set(xlabel="DAgger round", ylabel="selection miss, median (km)")
+    if after:
+        ax[1].legend(fontsize="small")
     save_figure(fig, path)
 
 

@@ -223,7 +223,7 @@ def test_shipped_policies_are_present_and_deterministic_for_a_seed():
     b = rollout(learned, 4, seed=21, dispersion=Dispersion.standard())  # the same policy by its other name
     for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
         np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
-    assert (a.failure == "").all()  # the shipped policy reaches the ground in every one of these
+    assert (a.failure == "").all() and a.is_success.all()  # it lands every one of these
     # the PPO residual on TV-LQR, shipped before it, under its own name
     assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
     c = rollout(load_policy("ppo-residual"), 4, seed=21, dispersion=Dispersion.standard())
@@ -231,9 +231,10 @@ def test_shipped_policies_are_present_and_deterministic_for_a_seed():
 
 
 @pytest.mark.slow
-def test_evaluate_cli_writes_the_documented_schema(tmp_path):
+@pytest.mark.parametrize("agent", ["reference", "learned"])
+def test_evaluate_cli_writes_the_documented_schema(tmp_path, agent):
     out = tmp_path / "eval.json"
-    cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", "reference", "--episodes", "3",
+    cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", agent, "--episodes", "3",
            "--dispersed", "--seed", "4", "--json", str(out), "--plots", str(tmp_path / "plots")]  # fmt: skip
     subprocess.run(cmd, check=True, capture_output=True, text=True)
     doc = json.loads(out.read_text())
@@ -245,7 +246,10 @@ def test_evaluate_cli_writes_the_documented_schema(tmp_path):
         for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "cost_ratio",
                     "max_load_factor_g", "min_dynamic_pressure_pa", "constraint_violation", "success"):  # fmt: skip
             assert key in rec, key
-    assert (tmp_path / "plots" / "trajectories_reference.png").stat().st_size > 10_000
+    assert (tmp_path / "plots" / f"trajectories_{agent}.png").stat().st_size > 10_000
+    if agent == "learned":  # what its load relief did, per episode and in the summary
+        assert all(rec["load_relief_steps"] >= 0 for rec in doc["episodes"])
+        assert doc["summary"]["load_relief"]["capped_steps"] == sum(rec["load_relief_steps"] for rec in doc["episodes"])
 
 
 def test_evaluate_cli_rejects_bad_arguments(tmp_path):
