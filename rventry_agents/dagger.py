@@ -187,8 +187,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     write_json(out / "rounds.json", rounds)
     final = None
     n_final = int(cfg.get("final", {}).get("members", 1))
-    if n_final == 1 and (out / "final.json").exists():
-        (out / "final.json").unlink()  # an earlier run's ensemble, which this run does not refit
+    if n_final == 1:
+        (out / "final.json").unlink(missing_ok=True)  # an earlier run's ensemble, which this run does not refit
     if n_final > 1:  # an ensemble refitted on all the rounds' data, kept if it beats the best round
         done_final = json.loads((out / "final.json").read_text()) if resume and (out / "final.json").is_file() else None
         if done_final is not None and done_final["members"] == n_final and done_final["samples"] == rounds[-1]["samples"]:
@@ -221,8 +221,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
         print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
               f"miss mean {chosen['select_miss_km_mean']:.3f} km, vertical error p50 "
               f"{chosen['select_vertical_error_deg_p50']:.2f} deg")  # fmt: skip
-    elif (out / "flight.json").exists():
-        (out / "flight.json").unlink()  # an earlier run's choice, for a tracker this run does not fly
+    else:
+        (out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
     write_json(out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
         "seed": fit_seed, "workers": workers, "wall_s": time.time() - t0, "config": cfg,

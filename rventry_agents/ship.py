@@ -38,9 +38,7 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     if (run_dir / "student.json").exists():
         return _ship_dagger(run_dir, dest)
     dest = Path(dest) if dest is not None else SHIPPED_PPO
-    missing = [f for f in ("model.zip", *RUN_FILES) if not (run_dir / f).exists()]
-    if missing:
-        raise FileNotFoundError(f"{run_dir} is not a finished training run: missing {', '.join(missing)}")
+    _check_finished(run_dir, ("model.zip", *RUN_FILES), "training run")
     dest.mkdir(parents=True, exist_ok=True)
     algorithm = json.loads((run_dir / "policy.json").read_text()).get("algorithm", "ppo")
     model = algorithm_class(algorithm).load(run_dir / "model.zip", device="cpu")
@@ -50,30 +48,37 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
             part.optimizer = part.optimizer_class(part.parameters(), **part.optimizer_kwargs)
     model.save(dest / "model.zip")
     for name in RUN_FILES:
-        shutil.copy2(run_dir / name, dest / name)
-    meta = json.loads((dest / "metadata.json").read_text())
+        if name != "metadata.json":
+            shutil.copy2(run_dir / name, dest / name)
+    _write_metadata(run_dir, dest)
+    return dest
+
+
+def _check_finished(run_dir: Path, files: tuple[str, ...], what: str) -> None:
+    missing = [f for f in files if not (run_dir / f).exists()]
+    if missing:
+        raise FileNotFoundError(f"{run_dir} is not a finished {what}: missing {', '.join(missing)}")
+
+
+def _write_metadata(run_dir: Path, dest: Path) -> None:
+    """The run's metadata, with where it was shipped from."""
+    meta = json.loads((run_dir / "metadata.json").read_text())
     meta["shipped_from"] = str(run_dir)
     write_json(dest / "metadata.json", meta)
-    return dest
 
 
 def _ship_dagger(run_dir: Path, dest: str | Path | None) -> Path:
     from rventry_agents.dagger import SHIPPED_DAGGER, load_student
 
     dest = Path(dest) if dest is not None else SHIPPED_DAGGER
-    missing = [f for f in DAGGER_FILES if not (run_dir / f).exists()]
-    if missing:
-        raise FileNotFoundError(f"{run_dir} is not a finished DAgger run: missing {', '.join(missing)}")
+    _check_finished(run_dir, DAGGER_FILES, "DAgger run")
     load_student(run_dir)  # a student that does not load is not shipped
     dest.mkdir(parents=True, exist_ok=True)
-    names = [*DAGGER_FILES, *(f for f in DAGGER_RECORDS if (run_dir / f).exists())]
     for name in DAGGER_RECORDS:
-        if name not in names and (dest / name).exists():
-            (dest / name).unlink()  # a previous run's record would describe another student
-    for name in names:
-        if name != "metadata.json":
+        if not (run_dir / name).exists():
+            (dest / name).unlink(missing_ok=True)  # a previous run's record would describe another student
+    for name in (*DAGGER_FILES, *DAGGER_RECORDS):
+        if name != "metadata.json" and (run_dir / name).exists():
             atomic_write(dest / name, (run_dir / name).read_bytes())
-    meta = json.loads((run_dir / "metadata.json").read_text())
-    meta["shipped_from"] = str(run_dir)
-    write_json(dest / "metadata.json", meta)
+    _write_metadata(run_dir, dest)
     return dest
