@@ -8,10 +8,14 @@ A run writes into its output directory:
 * ``student_round_K.pt``: the network fitted after round K;
 * ``student_final.pt`` and ``final.json``: with ``[final] members`` > 1, an ensemble refitted
   on all the rounds' data after the last round, and its selection figures;
+* ``student_distilled.pt`` and ``distil.json``: with ``[distil]``, one network fitted to the
+  selected network's commands (an ensemble's mean) on all the rounds' states, which replaces it
+  (one network costs a third of three per decision), and its selection figures;
 * ``flight.json``: with ``[flight] tracking``, the selected network flown on the selection set
   with each candidate tracker horizon, and the one chosen;
 * ``student.pt`` and ``student.json``: the network selected on the task metric (a round's, or the
-  final ensemble when it does better), and how to build and fly it;
+  final ensemble when it does better; with ``[distil]``, the network distilled from it), and how
+  to build and fly it;
 * ``rounds.json`` and ``learning_curve.png``: each round's data, fit and selection figures;
 * ``metadata.json``: the exact command, seed, wall time, config and the selected round.
 """
@@ -58,6 +62,18 @@ def load_config(path=None) -> dict:
         members = cfg.get(section, {}).get("members", 1)
         if not (isinstance(members, int) and members >= 1):
             raise ValueError(f"{where}: [{section}] members must be a whole number >= 1, got {members!r}")
+    if "distil" in cfg:
+        d = cfg["distil"]
+        hidden = d.get("hidden")
+        if not (isinstance(hidden, list) and hidden and all(isinstance(h, int) and h >= 1 for h in hidden)):
+            raise ValueError(f"{where}: [distil] hidden takes a list of layer widths (whole numbers >= 1), got {hidden!r}")
+        for key in ("epochs", "emphasis"):
+            value = d.get(key, 1)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"{where}: [distil] {key} must be a whole number >= 1, got {value!r}")
+        below = d.get("emphasis_below_m", 0.0)
+        if not (isinstance(below, (int, float)) and below >= 0):
+            raise ValueError(f"{where}: [distil] emphasis_below_m must be an altitude >= 0 (m), got {below!r}")
     if cfg["rounds"][0]["beta"] != 1.0:
         raise ValueError(f"{where}: the first round has no student yet, so its beta must be 1")
     try:
@@ -146,7 +162,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                 if k == len(done) - 1:  # the student to go on with, and the best so far
                     student = network_from_bytes((out / f"student_round_{k}.pt").read_bytes(), hidden, members)
                     sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
-                    best = (sel, (out / f"student_round_{sel}.pt").read_bytes(), members)
+                    best = (sel, (out / f"student_round_{sel}.pt").read_bytes(), members, hidden)
                     best_key = _select_key(done[sel])
                 continue
             blob = None if student is None else network_bytes(student)
@@ -182,8 +198,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             )  # fmt: skip
             key = _select_key(rec)
             if best_key is None or key > best_key:
-                best_key, best = key, (k, blob, members)
-                _write_selected(out, best, hidden, law)
+                best_key, best = key, (k, blob, members, hidden)
+                _write_selected(out, best, law)
     write_json(out / "rounds.json", rounds)
     final = None
     n_final = int(cfg.get("final", {}).get("members", 1))
@@ -208,14 +224,26 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             print(f"final ensemble of {n_final}: student alone on the selection set: success "
                   f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
         if _select_key(final) > best_key:
-            best = ("final", (out / "student_final.pt").read_bytes(), n_final)
-            _write_selected(out, best, hidden, law)
+            best = ("final", (out / "student_final.pt").read_bytes(), n_final, hidden)
+            _write_selected(out, best, law)
     selected = final if best[0] == "final" else rounds[best[0]]
+    distilled, taken = None, False
+    if "distil" in cfg:  # one network fitted to the selected one: one network's cost per decision
+        distilled, taken = _distil(cfg, out, best, xs, rounds[-1]["samples"], law, task, fit_seed, resume)
+    if distilled is None:
+        for name in ("distil.json", "student_distilled.pt"):
+            (out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
+    else:
+        t0 -= distilled["wall_s"] if taken else 0.0  # a distillation taken as it was counts in the run's wall time
+        best = ("distilled", (out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]))
+        selected = distilled
+        _write_selected(out, best, law, distilled_from=distilled["teacher"])
     if trackers:  # the selected network's tracker: the trained horizon unless a candidate does better
-        scan = choose_tracker(network_from_bytes(best[1], hidden, best[2]), [horizon, *trackers], relief, cfg, task)
+        scan = choose_tracker(network_from_bytes(best[1], best[3], best[2]), [horizon, *trackers], relief, cfg, task)
         write_json(out / "flight.json", {"student": best[0], "candidates": scan})
         i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
-        _write_selected(out, best, hidden, law, tracker=None if i == 0 else trackers[i - 1])
+        _write_selected(out, best, law, tracker=None if i == 0 else trackers[i - 1],
+                        distilled_from=None if distilled is None else distilled["teacher"])  # fmt: skip
         chosen = scan[i]
         selected = {**selected, "tracking": chosen}
         print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
@@ -229,6 +257,8 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
         "selected_round": best[0], "selected": selected,
     })  # fmt: skip
     after = {} if final is None else {f"ensemble of {final['members']}, all rounds' data": final}
+    if distilled is not None:
+        after[f"distilled from {_student_words(distilled['teacher'], distilled['teacher_members'])}"] = distilled
     if trackers:
         after[f"selected, tracker {_tracker_words(chosen)}"] = chosen
     plot_rounds(rounds, out / "learning_curve.png", after)
@@ -284,19 +314,64 @@ def student_law(student_cfg: dict, task: EntryTask) -> dict:
     return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin}
 
 
-def _write_selected(out: Path, best: tuple, hidden: tuple, law: dict, tracker: Horizon | None = None) -> None:
-    """student.pt and student.json for ``best`` = (round or "final", network bytes, members), trained
-    with ``law``; ``tracker``, the tracker horizon chosen after training (None: the trained one)."""
+def _write_selected(out: Path, best: tuple, law: dict, tracker: Horizon | None = None,
+                    distilled_from=None) -> None:  # fmt: skip
+    """student.pt and student.json for ``best`` = (round, "final" or "distilled"; network bytes;
+    members; hidden widths), trained with ``law``; ``tracker``, the tracker horizon chosen after
+    training (None: the trained one); ``distilled_from``, the round or "final" a distilled
+    network was fitted to."""
     atomic_write(out / "student.pt", best[1])
-    write_json(out / "student.json", {"hidden": list(hidden), "members": best[2], "inputs": "observation features "
+    write_json(out / "student.json", {"hidden": list(best[3]), "members": best[2], "inputs": "observation features "
                "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD", "outputs": "alpha and bank commands",
                **_horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else _horizon_keys(tracker, "tracking")),
-               "load_relief_margin": law["load_relief_margin"], "selected_round": best[0]})  # fmt: skip
+               "load_relief_margin": law["load_relief_margin"], "selected_round": best[0],
+               **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
+
+
+def _student_words(name, members: int) -> str:
+    return f"the ensemble of {members}" if members > 1 else ("the final refit" if name == "final" else f"round {name}")
+
+
+def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: dict, task: EntryTask, seed: int,
+            resume: bool) -> tuple[dict, bool]:  # fmt: skip
+    """``[distil]``: one network of ``hidden`` widths fitted, by the [fit] settings and ``epochs``,
+    to the selected network's commands on every state the rounds visited, those below
+    ``emphasis_below_m`` counted ``emphasis`` times; written as
+    ``student_distilled.pt`` and ``distil.json`` (its own ``wall_s``). Returns the record and
+    whether it was taken as it was from an earlier run (on resume, when it matches)."""
+    from rventry_agents.imitation import fit_commands, teacher_commands
+    from rventry_env.envs.observation import ALTITUDE_SCALE, feature_index
+
+    d, fit_cfg = cfg["distil"], cfg["fit"]
+    rec = {"teacher": teacher[0], "teacher_members": teacher[2], "teacher_hidden": list(teacher[3]),
+           "hidden": [int(h) for h in d["hidden"]], "epochs": int(d.get("epochs", fit_cfg["epochs"])), "samples": samples,
+           "emphasis_below_m": float(d.get("emphasis_below_m", 0.0)), "emphasis": int(d.get("emphasis", 1))}  # fmt: skip
+    done = json.loads((out / "distil.json").read_text()) if resume and (out / "distil.json").is_file() else None
+    if done is not None and all(done.get(k) == v for k, v in rec.items()):
+        print(f"distilled network: taken from {out}")
+        return done, True
+    t0 = time.time()
+    x = np.concatenate(xs)
+    low = x[:, feature_index("altitude")] * ALTITUDE_SCALE < rec["emphasis_below_m"]
+    x = np.concatenate([x, np.repeat(x[low], rec["emphasis"] - 1, axis=0)])  # the few seconds near the ground
+    net = make_network(tuple(rec["hidden"]), 1)
+    losses = fit_commands(net, x, teacher_commands(network_from_bytes(teacher[1], teacher[3], teacher[2]), x),
+                          rec["epochs"], int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), seed,
+                          float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
+    metric = select_metric(LearnedGuidance(net, task=task, **law), cfg, task)
+    rec.update({"emphasized": int(low.sum()), "fit_loss_first": losses[0], "fit_loss_last": losses[-1], "wall_s": time.time() - t0,
+                **{f"select_{key}": v for key, v in metric.items()}})  # fmt: skip
+    atomic_write(out / "student_distilled.pt", network_bytes(net))
+    write_json(out / "distil.json", rec)
+    print(f"one network distilled from {_student_words(teacher[0], teacher[2])}: fit loss {losses[-1]:.4f}; on the "
+          f"selection set: success {metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
+    return rec, False
 
 
 def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> None:
     """Each round's selection and flown figures; ``after``: records made after the last round
-    (the final ensemble, the chosen tracker), drawn one step to its right."""
+    (the final ensemble, the distilled network, the chosen tracker), drawn side by side one step
+    to its right."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -306,8 +381,8 @@ def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> No
     k = [r["round"] for r in rounds]
     ax[0].plot(k, [r["select_success_rate"] for r in rounds], "o-", label="student alone (selection set)")
     ax[0].plot(k, [r["flown_success_rate"] for r in rounds], "s--", label="flown mixture")
-    x = k[-1] + 1
-    for (label, rec), marker in zip((after or {}).items(), "D^v"):
+    for i, ((label, rec), marker) in enumerate(zip((after or {}).items(), "D^v")):
+        x = k[-1] + 1 + 0.3 * i  # side by side, not on top of each other
         ax[0].plot([x], [rec["select_success_rate"]], marker, ls="none", label=label)
         ax[1].semilogy([x], [rec["select_miss_km_p50"]], marker, ls="none", label=label)
     ax[0].set(xlabel="DAgger round", ylabel="success rate", ylim=(-0.02, 1.02))

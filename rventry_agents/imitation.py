@@ -189,10 +189,12 @@ class LearnedGuidance:
         :class:`~rventry_env.guidance.load_relief.LoadRelief` with this margin, which caps the
         alpha rate where the load factor predicted one step ahead would pass ``a_max (1 - margin)``;
         :attr:`relief` then reports the capped steps, and :meth:`episode_stats` each episode's
-        count of them (``load_relief_steps``).
+        count of them (``load_relief_steps``), over the calls in which it was flying (the
+        ``flying`` mask a rollout gives; every call when none is given).
     """
 
     uses_sensed_acceleration = True
+    uses_flying_mask = True
 
     def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
                  horizon: Horizon | None = None, load_relief_margin: float | None = None):  # fmt: skip
@@ -207,33 +209,25 @@ class LearnedGuidance:
         self.horizon.check_step(self.task.dt)
         self.load_relief_margin = load_relief_margin
         self.relief = None if load_relief_margin is None else LoadRelief(model, self.task, load_relief_margin)
-        self._time = np.zeros(0)  # each vehicle's time at the last call
         self._torch = torch
 
     def reset(self, n_episodes: int) -> None:
         self.tracker.reset(n_episodes)
-        self._time = np.full(n_episodes, np.nan)
         if self.relief is not None:
             self.relief.reset(n_episodes)
 
-    def __call__(self, obs, time_s, state, sensed_accel_b=None):
-        return self.act(self.tracker(obs, time_s, state, sensed_accel_b), state, sensed_accel_b, time_s)
+    def __call__(self, obs, time_s, state, sensed_accel_b=None, flying=None):
+        return self.act(self.tracker(obs, time_s, state, sensed_accel_b), state, sensed_accel_b, flying)
 
-    def act(self, f: np.ndarray, state, sensed_accel_b, time_s=None) -> np.ndarray:
+    def act(self, f: np.ndarray, state, sensed_accel_b, flying=None) -> np.ndarray:
         """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state`` that sense
-        ``sensed_accel_b`` (N, 3); ``time_s`` (N,), when given, tells the frozen copies of ended
-        episodes (time standing still) from flying ones for the load relief's count."""
+        ``sensed_accel_b`` (N, 3); ``flying`` (N,) bool, when given, tells the episodes still
+        flying from the frozen copies of ended ones, which the load relief's count leaves out."""
         with self._torch.no_grad():
             commands = self.network.commands(self._torch.from_numpy(np.ascontiguousarray(f[:, INPUTS]))).numpy()
         state = np.asarray(state, float)
         rates = tracking_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.radius, self.task.dt))
         if self.relief is not None:
-            flying = None
-            if time_s is not None:
-                time_s = np.asarray(time_s, dtype=float)
-                if self._time.shape != time_s.shape:
-                    self._time = np.full(time_s.shape, np.nan)
-                flying, self._time = time_s != self._time, time_s.copy()
             rates = self.relief(rates, state, sensed_accel_b, count=flying).astype(np.float32)
         return rates
 
@@ -363,18 +357,36 @@ def fit(network, x: np.ndarray, angles: np.ndarray, epochs: int, batch_size: int
     the expert's angles ``angles`` (N, 2), by mean squared error with Adam; returns the loss per
     epoch (in units of the commands' spread). An ensemble's members are fitted one by one, member
     k with seed ``seed + k``, and the losses are their mean."""
+    task = EntryTask() if task is None else task
+    return fit_commands(network, x, commands_from_angles(angles, task), epochs, batch_size, lr, seed, weight_decay)
+
+
+def teacher_commands(teacher, x: np.ndarray, batch_size: int = 65_536) -> np.ndarray:
+    """A network's commands (N, 3) for recorded features ``x`` (N, 28), in batches."""
+    import torch
+
+    out = []
+    with torch.no_grad():
+        for i in range(0, len(x), batch_size):
+            out.append(teacher.commands(torch.from_numpy(np.ascontiguousarray(x[i : i + batch_size, INPUTS]))).numpy())
+    return np.concatenate(out).astype(np.float32)
+
+
+def fit_commands(network, x: np.ndarray, commands: np.ndarray, epochs: int, batch_size: int, lr: float, seed: int,
+                 weight_decay: float = 0.0) -> list[float]:  # fmt: skip
+    """:func:`fit` on target commands (N, 3) (:func:`commands_from_angles`, or a teacher
+    network's: :func:`teacher_commands`) instead of angles."""
     import torch
 
     if hasattr(network, "members"):
-        per_member = [fit(m, x, angles, epochs, batch_size, lr, seed + k, weight_decay, task)
+        per_member = [fit_commands(m, x, commands, epochs, batch_size, lr, seed + k, weight_decay)
                       for k, m in enumerate(network.members)]  # fmt: skip
         network.eval()
         return [float(v) for v in np.mean(per_member, axis=0)]
 
     torch.manual_seed(seed)
-    task = EntryTask() if task is None else task
     xt = torch.from_numpy(np.ascontiguousarray(x[:, INPUTS]))
-    yt = torch.from_numpy(commands_from_angles(angles, task))
+    yt = torch.from_numpy(np.ascontiguousarray(commands, dtype=np.float32))
     with torch.no_grad():
         network.mean.copy_(xt.mean(0))
         network.std.copy_(xt.std(0).clamp_min(1e-3))
@@ -416,9 +428,11 @@ __all__ = [
     "expert_angles",
     "features",
     "fit",
+    "fit_commands",
     "make_network",
     "network_bytes",
     "network_from_bytes",
     "reached_angles",
+    "teacher_commands",
     "tracking_rates",
 ]  # fmt: skip

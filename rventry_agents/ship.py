@@ -8,8 +8,8 @@ Only what evaluation needs travels, with the run's record:
   evaluations and the learning curve; by default to the PPO residual's directory;
 * a DAgger run (``rventry train dagger``): the selected student (``student.pt`` and
   ``student.json``), ``rounds.json``, ``final.json`` when the run refitted an ensemble,
-  ``flight.json`` when it chose a tracker, the metadata and the learning curve; by default to
-  the learned policy's directory.
+  ``distil.json`` when it distilled one network, ``flight.json`` when it chose a tracker, the
+  metadata and the learning curve; by default to the learned policy's directory.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from rventry_env.util.files import atomic_write, write_json
 
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
 DAGGER_FILES = ("student.pt", "student.json", "rounds.json", "metadata.json", "learning_curve.png")
-DAGGER_RECORDS = ("final.json", "flight.json")  # written by some runs only
+DAGGER_RECORDS = ("final.json", "distil.json", "flight.json")  # written by some runs only
 
 
 def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:

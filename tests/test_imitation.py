@@ -59,6 +59,8 @@ tracking = [[3.0, 2.0]]
 tracking_descent_mps = 2500.0
 """
 
+DISTIL = "[distil]\nhidden = [8]\nepochs = 2\nemphasis_below_m = 20_000.0\nemphasis = 3\n"
+
 
 def test_with_beta_one_the_expert_flies_and_every_step_is_labelled():
     expert = load_agent("lqr")
@@ -173,6 +175,27 @@ def test_an_ensemble_student_flies_the_mean_of_its_members_commands():
         make_network((16,), members=0)
 
 
+def test_one_network_distilled_from_an_ensemble_flies_its_commands():
+    import torch
+
+    from rventry_agents.imitation import fit_commands, teacher_commands
+
+    task, x, angles, y, state = _expert_data(2000, 2)
+    teacher = make_network((16,), members=3)
+    fit(teacher, x, angles, epochs=2, batch_size=256, lr=3e-3, seed=1)  # far from its labels yet
+    target = teacher_commands(teacher, x, batch_size=300)  # in batches: the same as all at once
+    with torch.no_grad():
+        np.testing.assert_allclose(target, teacher.commands(torch.from_numpy(np.ascontiguousarray(x[:, INPUTS]))).numpy(),
+                                   rtol=1e-6, atol=1e-7)  # fmt: skip
+    student = make_network((32,), members=1)
+    before = np.sqrt(np.mean((teacher_commands(student, x) - target) ** 2))
+    losses = fit_commands(student, x, target, epochs=40, batch_size=256, lr=3e-3, seed=2)
+    after = np.sqrt(np.mean((teacher_commands(student, x) - target) ** 2))
+    assert losses[-1] < 0.1 * losses[0] and after < 0.1 * before
+    labels = np.sqrt(np.mean((commands_from_angles(angles, task) - target) ** 2))
+    assert after < 0.1 * labels  # it flies its teacher's commands, not the labels'
+
+
 @pytest.mark.slow
 def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     cfg = tmp_path / "small.toml"
@@ -189,8 +212,10 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     np.testing.assert_array_equal(a.miss_km, b.miss_km)
     assert json.loads((out / "student.json").read_text())["load_relief_margin"] == 0.02
     assert saved.relief.margin == 0.02 and [sorted(s) for s in b.law_stats] == [["load_relief_steps"]] * 2
-    # a longer config resumes: the finished rounds are kept as they are, one more is flown
-    cfg.write_text(SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\n[fit]"))
+    assert not (out / "distil.json").exists()  # no [distil]: the selected network flies itself
+    # a longer config resumes: the finished rounds are kept as they are, one more is flown, and
+    # the selected network is distilled into one smaller network, which flies instead
+    cfg.write_text(SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\n[fit]") + DISTIL)
     train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)
     more = json.loads((out / "rounds.json").read_text())
     assert more[:2] == rounds and len(more) == 3 and more[2]["samples"] > rounds[1]["samples"]
@@ -200,8 +225,12 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     best_round = max(more, key=lambda r: (r["select_success_rate"], -r["select_miss_km_mean"]))
     beats = (final["select_success_rate"], -final["select_miss_km_mean"]) > (
         best_round["select_success_rate"], -best_round["select_miss_km_mean"])
-    assert chosen["selected_round"] == ("final" if beats else best_round["round"])
-    assert chosen["members"] == (2 if beats else 1)
+    distil = json.loads((out / "distil.json").read_text())
+    assert distil["teacher"] == ("final" if beats else best_round["round"])
+    assert distil["teacher_members"] == (2 if beats else 1) and distil["samples"] == more[2]["samples"]
+    assert 0 < distil["emphasized"] < distil["samples"]  # the states below 20 km, counted three times
+    assert (chosen["selected_round"], chosen["distilled_from"]) == ("distilled", distil["teacher"])
+    assert (chosen["members"], chosen["hidden"]) == (1, [8])
     # the selected network's tracker: the trained one (one step here) unless the candidate does better
     flight = json.loads((out / "flight.json").read_text())
     assert flight["student"] == chosen["selected_round"]
@@ -215,9 +244,10 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     assert meta["selected"]["tracking"] == (candidate if better else trained)
     train_dagger(cfg, out, workers=1, progress_bar=False, resume=True)  # nothing left to do: all taken as it is
     assert json.loads((out / "final.json").read_text()) == final
+    assert json.loads((out / "distil.json").read_text()) == distil
     # shipped, the selected student flies the same, with its record
     shipped = ship(out, tmp_path / "shipped")
-    assert sorted(p.name for p in shipped.iterdir()) == ["final.json", "flight.json", "learning_curve.png",
+    assert sorted(p.name for p in shipped.iterdir()) == ["distil.json", "final.json", "flight.json", "learning_curve.png",
                                                         "metadata.json", "rounds.json", "student.json", "student.pt"]  # fmt: skip
     c = rollout(load_saved(str(shipped)), seeds=[3, 4], dispersion="standard")
     d = rollout(load_saved(str(out)), seeds=[3, 4], dispersion="standard")
@@ -256,6 +286,15 @@ def test_bad_configs_and_paths_are_named(tmp_path):
     with pytest.raises(ValueError, match="the horizon must be at least one control step"):
         train_dagger(bad, tmp_path / "never", workers=1, progress_bar=False)
     assert not (tmp_path / "never" / "rounds.json").exists()
+    for good, wrong, message in (
+        ("hidden = [8]", "hidden = []", r"\[distil\] hidden takes a list of layer widths"),
+        ("epochs = 2", "epochs = 0", r"\[distil\] epochs must be a whole number >= 1, got 0"),
+        ("emphasis = 3", "emphasis = 0", r"\[distil\] emphasis must be a whole number >= 1, got 0"),
+        ("emphasis_below_m = 20_000.0", "emphasis_below_m = -1.0", r"\[distil\] emphasis_below_m must be an altitude"),
+    ):
+        bad.write_text(SMALL + DISTIL.replace(good, wrong))
+        with pytest.raises(ValueError, match=message):
+            load_config(bad)
     bad.write_text(SMALL.replace("load_relief_margin = 0.02", "load_relief_margin = 1.5"))
     with pytest.raises(ValueError, match="load relief margin must lie in"):
         train_dagger(bad, tmp_path / "never", workers=1, progress_bar=False)

@@ -10,7 +10,7 @@ from rventry_env.envs.propagation import Propagator
 from rventry_env.envs.task import EntryTask
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.physics import EntryModel
-from rventry_env.physics.entry import entry_forces
+from rventry_env.physics.entry import entry_forces, entry_rhs
 from rventry_env.physics.model import scaled_model
 from rventry_env.reference.data_file import load_reference
 
@@ -75,10 +75,35 @@ def test_no_cap_where_the_load_stays_low_and_a_counted_step_mask():
 def test_bad_inputs_are_named():
     with pytest.raises(ValueError, match="margin must lie in"):
         LoadRelief(margin=1.0)
-    with pytest.raises(ValueError, match="at least one bisection"):
+    with pytest.raises(ValueError, match="at least one halving of the rate interval"):
         LoadRelief(iterations=0)
     relief = LoadRelief()
     with pytest.raises(ValueError, match="sensed acceleration"):
         relief(np.zeros((1, 2)), np.zeros((1, 12)), None)
     with pytest.raises(ValueError, match=r"rates \(N, 2\), state \(N, 12\)"):
         relief(np.zeros((2, 2)), load_reference().x[:1], np.zeros((1, 3)))
+
+
+def test_the_capped_rate_is_the_highest_that_meets_the_limit_by_a_whole_step_of_the_model():
+    """The search moves alpha alone; checked against a whole explicit step of the equations of
+    motion at the capped rate and one resolution above it."""
+    task, model = EntryTask(), EntryModel()
+    p = task.problem
+    x = _pull_down()
+    sensed = 1.03 * np.stack(entry_forces(tuple(x.T), model).aero_b, axis=1)  # 3 % more load than the model
+    relief = LoadRelief(model, task, margin=0.01, iterations=14)
+    capped = relief(np.tile([1.0, 0.5], (len(x), 1)), x, sensed)
+    on = relief.active & (capped[:, 0] > -1.0)
+    assert on.sum() >= 5
+
+    g0 = model.planet.g0
+    calib = np.linalg.norm(sensed, axis=1) / np.asarray(entry_forces(tuple(x.T), model).aero_accel)
+
+    def predicted(rate):  # the sensed-calibrated load factor (g) after a whole step at this alpha rate
+        u = (rate * p.u_alpha_max, np.full(len(x), 0.5 * p.u_sigma_max))
+        ahead = x + task.dt * np.stack(entry_rhs(tuple(x.T), u, model), axis=1)
+        return calib * np.asarray(entry_forces(tuple(ahead.T), model).aero_accel) / g0
+
+    limit = relief.limit_g
+    assert np.all(predicted(capped[:, 0])[on] <= limit)
+    assert np.all(predicted(capped[:, 0] + 2.0 / 2**14)[on] > limit)

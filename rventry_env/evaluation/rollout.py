@@ -10,6 +10,9 @@ A policy (a guidance law) is any callable ``policy(obs, time_s, state) -> action
 A law that reads the accelerometer says so with ``uses_sensed_acceleration = True``;
 it is then called ``policy(obs, time_s, state, sensed_accel_b=...)`` with the
 sensed aerodynamic specific force (N, 3) in B components (``info["sensed_accel_b"]``).
+A law that counts events per episode says ``uses_flying_mask = True``; it is then also given
+``flying`` (N,) bool, False for the copies of episodes that have ended, which stay frozen
+and are still called until every episode has ended (their actions are not flown).
 That is everything a law is given: never the dispersion draw or the true model.
 A law with per-episode memory implements ``reset(n_episodes)``, called before the
 first step; one that reports on its episodes implements ``episode_stats()``, a list of
@@ -129,6 +132,7 @@ def rollout(
     if hasattr(policy, "reset"):
         policy.reset(n)
     sensed = getattr(policy, "uses_sensed_acceleration", False)
+    masked = getattr(policy, "uses_flying_mask", False)
     done = np.zeros(n, bool)
     keys = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
             "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
@@ -139,10 +143,10 @@ def rollout(
     time_s = np.zeros(n)
     while not done.all():
         state = venv.state
-        if sensed:
-            actions = policy(obs, time_s.copy(), state, sensed_accel_b=info["sensed_accel_b"].copy())
-        else:
-            actions = policy(obs, time_s.copy(), state)
+        law_kwargs = {"sensed_accel_b": info["sensed_accel_b"].copy()} if sensed else {}
+        if masked:
+            law_kwargs["flying"] = ~done
+        actions = policy(obs, time_s.copy(), state, **law_kwargs)
         actions = np.asarray(actions, dtype=np.float32)
         if record_history:
             hist_t.append(time_s.copy())
