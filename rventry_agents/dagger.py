@@ -22,6 +22,7 @@ A run writes into its output directory:
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import math
@@ -344,6 +345,7 @@ def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: d
 
     d, fit_cfg = cfg["distil"], cfg["fit"]
     rec = {"teacher": teacher[0], "teacher_members": teacher[2], "teacher_hidden": list(teacher[3]),
+           "teacher_sha256": hashlib.sha256(teacher[1]).hexdigest(), "seed": seed,
            "hidden": [int(h) for h in d["hidden"]], "epochs": int(d.get("epochs", fit_cfg["epochs"])), "samples": samples,
            "emphasis_below_m": float(d.get("emphasis_below_m", 0.0)), "emphasis": int(d.get("emphasis", 1))}  # fmt: skip
     done = json.loads((out / "distil.json").read_text()) if resume and (out / "distil.json").is_file() else None
