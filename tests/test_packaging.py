@@ -52,8 +52,11 @@ from rventry_agents.sb3_policy import SHIPPED_BASELINES, load_baseline
 from rventry_agents.train import ALGORITHMS, BASELINES
 for algorithm in ALGORITHMS:
     load_config(BASELINES / f"{algorithm}.toml", algorithm)
-assert load_baseline("ppo-plain").spec["mode"] == "direct"
-assert (SHIPPED_BASELINES / "ppo" / "learning_curve.png").is_file()
+from rventry_agents.sb3_policy import BASELINE_AGENTS
+for agent, folder in BASELINE_AGENTS.items():  # every plain baseline is shipped and loads from the wheel
+    assert load_baseline(agent).spec["mode"] == "direct", agent
+    assert (SHIPPED_BASELINES / folder / "learning_curve.png").is_file(), agent
+assert (SHIPPED_DAGGER / "distil.json").is_file()
 print("loaded everything")
 """
 
