@@ -231,6 +231,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     distilled, taken = None, False
     if "distil" in cfg:  # one network fitted to the selected one: one network's cost per decision
         distilled, taken = _distil(cfg, out, best, xs, rounds[-1]["samples"], law, task, fit_seed, resume)
+    teacher = None if distilled is None else distilled["teacher"]
     if distilled is None:
         for name in ("distil.json", "student_distilled.pt"):
             (out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
@@ -238,13 +239,12 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
         t0 -= distilled["wall_s"] if taken else 0.0  # a distillation taken as it was counts in the run's wall time
         best = ("distilled", (out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]))
         selected = distilled
-        _write_selected(out, best, law, distilled_from=distilled["teacher"])
+        _write_selected(out, best, law, distilled_from=teacher)
     if trackers:  # the selected network's tracker: the trained horizon unless a candidate does better
         scan = choose_tracker(network_from_bytes(best[1], best[3], best[2]), [horizon, *trackers], relief, cfg, task)
         write_json(out / "flight.json", {"student": best[0], "candidates": scan})
         i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
-        _write_selected(out, best, law, tracker=None if i == 0 else trackers[i - 1],
-                        distilled_from=None if distilled is None else distilled["teacher"])  # fmt: skip
+        _write_selected(out, best, law, tracker=None if i == 0 else trackers[i - 1], distilled_from=teacher)
         chosen = scan[i]
         selected = {**selected, "tracking": chosen}
         print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
@@ -340,7 +340,7 @@ def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: d
     ``emphasis_below_m`` counted ``emphasis`` times; written as
     ``student_distilled.pt`` and ``distil.json`` (its own ``wall_s``). Returns the record and
     whether it was taken as it was from an earlier run (on resume, when it matches)."""
-    from rventry_agents.imitation import fit_commands, teacher_commands
+    from rventry_agents.imitation import fit_commands, network_commands
     from rventry_env.envs.observation import ALTITUDE_SCALE, feature_index
 
     d, fit_cfg = cfg["distil"], cfg["fit"]
@@ -357,12 +357,12 @@ def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: d
     low = x[:, feature_index("altitude")] * ALTITUDE_SCALE < rec["emphasis_below_m"]
     x = np.concatenate([x, np.repeat(x[low], rec["emphasis"] - 1, axis=0)])  # the few seconds near the ground
     net = make_network(tuple(rec["hidden"]), 1)
-    losses = fit_commands(net, x, teacher_commands(network_from_bytes(teacher[1], teacher[3], teacher[2]), x),
+    losses = fit_commands(net, x, network_commands(network_from_bytes(teacher[1], teacher[3], teacher[2]), x),
                           rec["epochs"], int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), seed,
                           float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
     metric = select_metric(LearnedGuidance(net, task=task, **law), cfg, task)
-    rec.update({"emphasized": int(low.sum()), "fit_loss_first": losses[0], "fit_loss_last": losses[-1], "wall_s": time.time() - t0,
-                **{f"select_{key}": v for key, v in metric.items()}})  # fmt: skip
+    rec.update({"emphasized": int(low.sum()), "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
+                "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}})  # fmt: skip
     atomic_write(out / "student_distilled.pt", network_bytes(net))
     write_json(out / "distil.json", rec)
     print(f"one network distilled from {_student_words(teacher[0], teacher[2])}: fit loss {losses[-1]:.4f}; on the "

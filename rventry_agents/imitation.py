@@ -198,8 +198,6 @@ class LearnedGuidance:
 
     def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
                  horizon: Horizon | None = None, load_relief_margin: float | None = None):  # fmt: skip
-        import torch
-
         model = EntryModel() if model is None else model
         self.network = network.eval()
         self.tracker = FeatureTracker(model)
@@ -209,7 +207,6 @@ class LearnedGuidance:
         self.horizon.check_step(self.task.dt)
         self.load_relief_margin = load_relief_margin
         self.relief = None if load_relief_margin is None else LoadRelief(model, self.task, load_relief_margin)
-        self._torch = torch
 
     def reset(self, n_episodes: int) -> None:
         self.tracker.reset(n_episodes)
@@ -223,8 +220,7 @@ class LearnedGuidance:
         """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state`` that sense
         ``sensed_accel_b`` (N, 3); ``flying`` (N,) bool, when given, tells the episodes still
         flying from the frozen copies of ended ones, which the load relief's count leaves out."""
-        with self._torch.no_grad():
-            commands = self.network.commands(self._torch.from_numpy(np.ascontiguousarray(f[:, INPUTS]))).numpy()
+        commands = network_commands(self.network, f)
         state = np.asarray(state, float)
         rates = tracking_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.radius, self.task.dt))
         if self.relief is not None:
@@ -361,21 +357,22 @@ def fit(network, x: np.ndarray, angles: np.ndarray, epochs: int, batch_size: int
     return fit_commands(network, x, commands_from_angles(angles, task), epochs, batch_size, lr, seed, weight_decay)
 
 
-def teacher_commands(teacher, x: np.ndarray, batch_size: int = 65_536) -> np.ndarray:
-    """A network's commands (N, 3) for recorded features ``x`` (N, 28), in batches."""
+def network_commands(network, x: np.ndarray, batch_size: int = 65_536) -> np.ndarray:
+    """A network's (a student's, an ensemble's) commands (N, 3) for recorded features ``x``
+    (N, 28), in batches."""
     import torch
 
     out = []
     with torch.no_grad():
         for i in range(0, len(x), batch_size):
-            out.append(teacher.commands(torch.from_numpy(np.ascontiguousarray(x[i : i + batch_size, INPUTS]))).numpy())
+            out.append(network.commands(torch.from_numpy(np.ascontiguousarray(x[i : i + batch_size, INPUTS]))).numpy())
     return np.concatenate(out).astype(np.float32)
 
 
 def fit_commands(network, x: np.ndarray, commands: np.ndarray, epochs: int, batch_size: int, lr: float, seed: int,
                  weight_decay: float = 0.0) -> list[float]:  # fmt: skip
     """:func:`fit` on target commands (N, 3) (:func:`commands_from_angles`, or a teacher
-    network's: :func:`teacher_commands`) instead of angles."""
+    network's: :func:`network_commands`) instead of angles."""
     import torch
 
     if hasattr(network, "members"):
@@ -431,8 +428,8 @@ __all__ = [
     "fit_commands",
     "make_network",
     "network_bytes",
+    "network_commands",
     "network_from_bytes",
     "reached_angles",
-    "teacher_commands",
     "tracking_rates",
 ]  # fmt: skip

@@ -178,19 +178,19 @@ def test_an_ensemble_student_flies_the_mean_of_its_members_commands():
 def test_one_network_distilled_from_an_ensemble_flies_its_commands():
     import torch
 
-    from rventry_agents.imitation import fit_commands, teacher_commands
+    from rventry_agents.imitation import fit_commands, network_commands
 
     task, x, angles, y, state = _expert_data(2000, 2)
     teacher = make_network((16,), members=3)
     fit(teacher, x, angles, epochs=2, batch_size=256, lr=3e-3, seed=1)  # far from its labels yet
-    target = teacher_commands(teacher, x, batch_size=300)  # in batches: the same as all at once
+    target = network_commands(teacher, x, batch_size=300)  # in batches: the same as all at once
     with torch.no_grad():
         np.testing.assert_allclose(target, teacher.commands(torch.from_numpy(np.ascontiguousarray(x[:, INPUTS]))).numpy(),
                                    rtol=1e-6, atol=1e-7)  # fmt: skip
     student = make_network((32,), members=1)
-    before = np.sqrt(np.mean((teacher_commands(student, x) - target) ** 2))
+    before = np.sqrt(np.mean((network_commands(student, x) - target) ** 2))
     losses = fit_commands(student, x, target, epochs=40, batch_size=256, lr=3e-3, seed=2)
-    after = np.sqrt(np.mean((teacher_commands(student, x) - target) ** 2))
+    after = np.sqrt(np.mean((network_commands(student, x) - target) ** 2))
     assert losses[-1] < 0.1 * losses[0] and after < 0.1 * before
     labels = np.sqrt(np.mean((commands_from_angles(angles, task) - target) ** 2))
     assert after < 0.1 * labels  # it flies its teacher's commands, not the labels'

@@ -14,10 +14,10 @@ factor one control step ahead with the rates the law asks for:
 Where the prediction exceeds ``a_max (1 - margin)``, the alpha rate is lowered to the highest
 rate whose predicted load meets that limit (down to the full down-rate when none does). The rate
 enters the step only through alpha itself (the state's alpha derivative *is* the rate), so the
-search needs the forces at the step's end alone, and it tries 16 rates per vehicle at once, four
+search needs the forces at the step's end alone, and it tries 15 rates per vehicle at once, four
 halvings of the interval per evaluation: a batch pays four vectorized force evaluations, not one
-per halving. The bank rate is untouched: the load factor does not depend on it. A cap on the *rate*,
-one step ahead, acts only in the seconds where the bound is about to be crossed; a cap that
+per halving. The bank rate is untouched: the load factor does not depend on it. A cap on the
+*rate*, one step ahead, acts only in the seconds where the bound is about to be crossed; a cap that
 starts early takes away the lift the final pull-down turns the velocity vertical with
 (docs/learned.md).
 
@@ -53,7 +53,9 @@ class LoadRelief:
         if not (0.0 <= margin < 1.0):
             raise ValueError(f"load relief margin must lie in [0, 1), got {margin!r}")
         if int(iterations) < 1:
-            raise ValueError(f"load relief needs at least one halving of the rate interval, got iterations = {iterations!r}")
+            raise ValueError(
+                f"load relief needs at least one halving of the rate interval, got iterations = {iterations!r}"
+            )
         self.model = EntryModel() if model is None else model
         self.task = EntryTask() if task is None else task
         self.margin = float(margin)
@@ -110,11 +112,11 @@ class LoadRelief:
             while left > 0:
                 bits = min(SEARCH_BITS, left)
                 left -= bits
-                frac = np.arange(1, 2**bits) / 2**bits  # the interval's inner grid points
-                trial = lo[:, None] + (hi - lo)[:, None] * frac
-                ok = k[:, None] * self._load_at_alpha(xs, alpha0[:, None] + self.task.dt * p.u_alpha_max * trial) <= self.limit_g
-                j = np.where(ok.any(axis=1), ok.shape[1] - np.argmax(ok[:, ::-1], axis=1), 0)  # highest ok point, 0: lo
                 width = (hi - lo) / 2**bits
+                trial = lo[:, None] + width[:, None] * np.arange(1, 2**bits)  # the interval's inner grid points
+                alpha = alpha0[:, None] + self.task.dt * p.u_alpha_max * trial
+                ok = k[:, None] * self._load_at_alpha(xs, alpha) <= self.limit_g
+                j = np.where(ok.any(axis=1), ok.shape[1] - np.argmax(ok[:, ::-1], axis=1), 0)  # highest ok point, 0: lo
                 lo, hi = lo + j * width, lo + (j + 1) * width
             rates[over, 0] = lo
         return rates
