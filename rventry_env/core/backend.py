@@ -1,12 +1,20 @@
-"""Math namespaces that let one physics function serve NumPy and CasADi.
+"""Math namespaces that let one physics function serve NumPy, JAX and CasADi.
 
 Every physics function in rventry is written in plain arithmetic on *components*
 (scalars, NumPy arrays of any shape, or CasADi ``SX``/``MX`` expressions) and takes
 the few non-arithmetic operations it needs from a namespace argument ``ns``. The
 same source line then evaluates batched on NumPy arrays for the environments and
-symbolically on CasADi expressions for the collocation transcription.
+symbolically on CasADi expressions for the collocation transcription, and compiled
+(``jax.jit``, CPU or GPU) on JAX arrays.
 
-Only operations that differ between the two libraries belong here.
+Only operations that differ between the libraries belong here. The array namespaces
+(NUMPY, JAX) also carry the two control-flow forms the environment step needs, so one
+source serves eager NumPy and traced JAX:
+
+* ``while_loop(cond, body, carry)``: a Python loop for NumPy, ``lax.while_loop`` for JAX;
+* ``known(flag)``: a Python bool that is True only where ``flag`` is a concrete True
+  (NumPy: ``bool(flag)``; JAX: always False, since a traced value is never known), for
+  shortcuts that skip work but never change a result.
 """
 
 from __future__ import annotations
@@ -19,6 +27,12 @@ import numpy as np
 
 def _np_where(cond, a, b):
     return np.where(cond, a, b)
+
+
+def _py_while(cond, body, carry):
+    while cond(carry):
+        carry = body(carry)
+    return carry
 
 
 _SCALAR_TYPES = (int, float, np.float64, np.float32, np.int64, np.int32)
@@ -43,6 +57,16 @@ NUMPY = SimpleNamespace(
     fmin=np.minimum,
     where=_np_where,
     isfinite=np.isfinite,
+    interp=np.interp,
+    array=True,
+    float_dtype=np.float64,
+    int8=lambda x: np.asarray(x).astype(np.int8),
+    any=np.any,
+    all=np.all,
+    logical_not=np.logical_not,
+    zeros_int8=lambda like: np.zeros(np.shape(like), dtype=np.int8),
+    known=bool,
+    while_loop=_py_while,
 )
 
 
@@ -61,6 +85,12 @@ MATH = SimpleNamespace(
     fmin=min,
     where=lambda cond, a, b: a if cond else b,
     isfinite=math.isfinite,
+    array=False,
+    any=bool,
+    all=bool,
+    logical_not=lambda b: not b,
+    known=bool,
+    while_loop=_py_while,
 )
 
 
@@ -94,6 +124,61 @@ def casadi_ns() -> SimpleNamespace:
     return _CASADI
 
 
+def _jax_namespace(dtype) -> SimpleNamespace:
+    import jax
+    import jax.numpy as jnp
+
+    return SimpleNamespace(
+        name="jax",
+        sqrt=jnp.sqrt,
+        exp=jnp.exp,
+        log=jnp.log,
+        sin=jnp.sin,
+        cos=jnp.cos,
+        tanh=jnp.tanh,
+        arctan2=jnp.arctan2,
+        fabs=jnp.abs,
+        fmax=jnp.maximum,
+        fmin=jnp.minimum,
+        where=jnp.where,
+        isfinite=jnp.isfinite,
+        interp=jnp.interp,
+        array=True,
+        float_dtype=dtype,
+        int8=lambda x: jnp.asarray(x).astype(jnp.int8),
+        any=jnp.any,
+        all=jnp.all,
+        logical_not=jnp.logical_not,
+        zeros_int8=lambda like: jnp.zeros(jnp.shape(like), dtype=jnp.int8),
+        known=lambda flag: False,  # a traced value is never known while tracing
+        while_loop=jax.lax.while_loop,
+    )
+
+
+_JAX: dict = {}
+
+
+def jax_ns(dtype: str = "float64") -> SimpleNamespace:
+    """The JAX namespace (imported lazily: JAX is the optional ``[jax]`` extra).
+
+    :param dtype: ``"float64"`` (needs ``jax_enable_x64``, which this turns on) or ``"float32"``.
+    :raises ImportError: naming the extra when JAX is not installed.
+    """
+    if dtype not in ("float64", "float32"):
+        raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
+    if dtype not in _JAX:
+        try:
+            import jax
+        except ImportError as e:  # pragma: no cover - depends on the install
+            raise ImportError('the JAX backend needs the optional extra: pip install "rventry[jax]"') from e
+        if dtype == "float64":
+            jax.config.update("jax_enable_x64", True)
+        import jax.numpy as jnp
+
+        _JAX[dtype] = _jax_namespace(jnp.float64 if dtype == "float64" else jnp.float32)
+    return _JAX[dtype]
+
+
 def dot3(a, b):
     """a . b for 3-tuples of components."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -120,4 +205,4 @@ def sparse_dot(a, nz: tuple):
     return out
 
 
-__all__ = ["NUMPY", "MATH", "casadi_ns", "dot3", "sparse", "sparse_dot", "is_zero"]
+__all__ = ["NUMPY", "MATH", "casadi_ns", "jax_ns", "dot3", "sparse", "sparse_dot", "is_zero"]
