@@ -14,10 +14,9 @@ from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.allocator import keep_freed_memory
 from rventry_env.envs.observation import observe
-from rventry_env.envs.outcome import episode_outcome
-from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.envs.transition import Flight, advance
 from rventry_env.physics.model import EntryModel, scaled_model
 
 TERMINAL_KEYS = (
@@ -167,29 +166,19 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         if np.any(restart):  # NEXT_STEP: these copies start over and ignore their action
             self._reset_copies(np.nonzero(restart)[0])
         restart = restart | self._frozen  # copies not stepped this time
-        p = self.task.problem
-        out = self._prop.step(
-            self._x, self._forces, a[:, 0] * p.u_alpha_max, a[:, 1] * p.u_sigma_max, self._model, active=~restart
-        )
-        self._x, self._forces = out.x, out.forces
-        self._c_ae = dcm(*self._x[1:5])  # once per step, for the observation and info
-        self._t = self._t + out.elapsed
-        self._steps += ~restart
-        self._cost = self._cost + out.cost
-        self._max_load = np.maximum(self._max_load, out.max_load_g)
-        self._min_q = np.minimum(self._min_q, out.min_q)
-        reward = -(out.cost + out.path_penalty)
-        terminated = (out.status != FLYING) & ~restart
-        truncated = ~terminated & ~restart
-        if self.max_episode_steps is not None:
-            truncated &= self._steps >= self.max_episode_steps
-        else:
-            truncated[:] = False
+        tr = advance(
+            Flight(self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q),
+            (a[:, 0], a[:, 1]), self._model, self._prop, self.max_episode_steps, self._target, active=~restart,
+        )  # fmt: skip
+        out = tr.out
+        self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q = tr.flight
+        self._c_ae = tr.c_ae
+        reward, terminated, truncated = tr.reward, tr.terminated, tr.truncated
         ended = terminated | truncated
         obs, obs_clipped = self._observe()
         infos = self._info(action_clipped & ~restart, out.alpha_saturated & ~restart, obs_clipped)
-        if np.any(ended):
-            reward = reward - self._finish(infos, out.status, terminated, ended)
+        if tr.outcome is not None:
+            self._finish(infos, tr.outcome, ended)
         self._record()
         if next_step:
             self._prev_done = ended
@@ -280,12 +269,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         infos["is_success"] = np.zeros(n, dtype=bool)
         return infos
 
-    def _finish(self, infos: dict, status, terminated, ended) -> np.ndarray:
-        """Fill the end-of-episode keys for copies whose episode ended; return their terminal penalties."""
-        o = episode_outcome(
-            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self._target,
-            self._radius, NUMPY,
-        )  # fmt: skip
+    def _finish(self, infos: dict, o, ended) -> None:
+        """Fill the end-of-episode keys for copies whose episode ended, from their outcome ``o``."""
         values = {
             **o.metrics._asdict(), "max_load_factor_g": self._max_load, "min_dynamic_pressure_pa": self._min_q,
             "constraint_violation": o.constraint_violation, "terminal_penalty": o.terminal_penalty,
@@ -294,7 +279,6 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         for k, v in values.items():
             infos[k] = np.where(ended, v, infos[k])
             infos["_" + k] = ended.copy()
-        return np.where(ended, o.terminal_penalty, 0.0)
 
     def _record(self, only=None):
         if self._tracks is None:
