@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 from gymnasium import spaces
 
-from rventry_env.core import conversions as cv
+from rventry_env.core.backend import NUMPY
+from rventry_env.core.euler_parameters import dcm_column, rates_from_omega
 from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.physics.entry import N_STATE
 from rventry_env.physics.model import EntryModel
@@ -141,22 +142,40 @@ def draw_dispersion(rng: np.random.Generator, dispersion: Dispersion) -> np.ndar
 
 def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Initial states ``(..., 12)`` perturbed by draws ``d (..., 9)`` (see :class:`Dispersion`)."""
-    x = np.array(x0, dtype=float, copy=True)
-    dh, dv, dgam, dpsi, dalpha, dsigma = (d[..., i] for i in range(3, 9))
-    if np.any(dh) or np.any(dv) or np.any(dgam) or np.any(dpsi):
-        # keep the physical lift direction: the new frames come from the east-down rule,
-        # so carry the bank across as the conventional angle mu, not as sigma
-        mu = cv.conventional_bank(x, x[..., 11])
-        s = cv.spherical_from_rv_euler(x)
-        s[..., 0] += dh
-        s[..., 3] += dv
-        s[..., 4] += np.radians(dgam)
-        s[..., 5] += np.radians(dpsi)
-        x[..., :10] = cv.rv_euler_from_spherical(s)
-        x[..., 11] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., 11])
-    x[..., 10] += np.radians(dalpha)
-    x[..., 11] += np.radians(dsigma)
-    return x
+    x = np.asarray(x0, dtype=float)
+    d = np.asarray(d, dtype=float)
+    out = disperse_state(tuple(np.moveaxis(x, -1, 0)), tuple(np.moveaxis(d, -1, 0)), NUMPY)
+    return np.stack(np.broadcast_arrays(*out), axis=-1)
+
+
+def disperse_state(x: tuple, d: tuple, ns) -> tuple:
+    """The state components ``x`` perturbed by the 9 dispersion draws ``d`` (components, Dispersion order).
+
+    Altitude and speed add to r and v. The flight-path angle turns the velocity frame B
+    about the horizontal normal to the velocity, n = b1 x a1 / |b1 x a1|, and the heading
+    turns it about the local vertical a1 (azimuth clockwise seen from above). Both are
+    exact rotations of the Euler parameters, q -> cos(t/2) q + sin(t/2) Q(k) q, with
+    Q(k) q = 2 x (the rates of Eq. ``QuatRate`` at unit angular velocity k). They carry
+    the lift direction along: the bank angle relative to the vertical plane (the
+    conventional mu) is unchanged, as the vertical plane turns with B. Undefined in
+    vertical flight, like the heading itself. Plain component arithmetic, so NumPy and
+    JAX (the functional environment's reset) share it.
+    """
+    dh, dv, dgam, dpsi, dalpha, dsigma = d[3:9]
+    deg = math.pi / 180.0
+    eb = tuple(x[6:10])
+    _, u2, u3 = dcm_column(*eb, 0)  # a1 in B
+    c = ns.sqrt(u2 * u2 + u3 * u3)
+    eb = _turn(eb, (0.0, -u3 / c, u2 / c), dgam * deg, ns)
+    eb = _turn(eb, dcm_column(*eb, 0), -dpsi * deg, ns)
+    return (x[0] + dh, *x[1:5], x[5] + dv, *eb, x[10] + dalpha * deg, x[11] + dsigma * deg)
+
+
+def _turn(q: tuple, axis: tuple, angle, ns) -> tuple:
+    """Euler parameters of a frame turned by ``angle`` about the unit ``axis`` (its own components)."""
+    k = rates_from_omega(*q, *axis)
+    cos, sin = ns.cos(0.5 * angle), ns.sin(0.5 * angle)
+    return tuple(cos * qi + 2.0 * sin * ki for qi, ki in zip(q, k))
 
 
 def position_velocity_e(c_ae, c_ba, r, v):
