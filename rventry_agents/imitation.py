@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.physics import EntryModel

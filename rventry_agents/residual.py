@@ -46,7 +46,7 @@ from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
 from rventry_env.envs.observation import TIME_SCALE, feature_index, observation_box, observe
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.physics.entry import entry_forces
 from rventry_env.physics.model import EntryModel
 

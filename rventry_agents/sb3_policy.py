@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 
 SHIPPED_PPO = Path(__file__).resolve().parent / "data" / "ppo"
 SHIPPED_BASELINES = Path(__file__).resolve().parent / "data" / "baselines"

@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 from rventry_env.util.args import positive_int

@@ -78,7 +78,7 @@ def accuracy(substeps_list=(1, 2, 4)) -> list[dict]:
 
     from rventry_env.core.conversions import cartesian_from_rv_euler
     from rventry_env.envs.rv_entry import RvEntryEnv
-    from rventry_env.envs.task import EntryTask
+    from rventry_env.task import EntryTask
     from rventry_env.guidance.reference_replay import ReferencePolicy
     from rventry_env.physics import EntryModel, entry_rhs
 

@@ -24,7 +24,7 @@ from rventry_agents.imitation import (
     make_network,
     reached_angles,
 )
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 

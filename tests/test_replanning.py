@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.evaluation.parallel import EvaluationJob, evaluate
 from rventry_env.evaluation.rollout import rollout

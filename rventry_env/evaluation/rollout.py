@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.task import Dispersion, EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.physics.model import EntryModel
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 
 
 class ReferencePolicy:

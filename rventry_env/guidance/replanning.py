@@ -47,7 +47,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator, EstimatorSettings
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
 from rventry_env.physics.model import EntryModel

@@ -58,7 +58,7 @@ import math
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.physics.model import EntryModel
 
 # deviation scales: km of radius, km of horizontal position (R_e x Euler parameter),

@@ -57,7 +57,7 @@ import numpy as np
 from rventry_env.core.backend import casadi_ns
 from rventry_env.physics.entry import ENTRY_STATE_NAMES, entry_forces, entry_rhs
 from rventry_env.physics.model import EntryModel, with_aero_scales
-from rventry_env.problem import EntryProblem
+from rventry_env.task.problem import EntryProblem
 from rventry_env.reference.collocation.problem import (
     EndpointConstraint,
     Invariant,
@@ -73,7 +73,7 @@ NORM_MODES = ("projection", "paper", "none")
 class EntryProblemConfig:
     """How the collocation solver poses Example 2: the problem's constants plus solver options.
 
-    :param problem: the Example 2 constants (:class:`rventry_env.problem.EntryProblem`,
+    :param problem: the Example 2 constants (:class:`rventry_env.task.problem.EntryProblem`,
         SI units), the same object the environment reads.
     :param model: the force model (default :class:`EntryModel`).
     :param norm_mode: ``"projection"``, ``"paper"`` or ``"none"`` (module docstring).
