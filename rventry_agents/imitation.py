@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator
 from rventry_env.guidance.load_relief import LoadRelief
@@ -81,7 +82,7 @@ class Horizon:
 
     def seconds(self, state: np.ndarray, radius_m: float, dt: float) -> np.ndarray:
         """The horizon (N,) in seconds for vehicles in ``state`` (N, 12) above a planet of ``radius_m``."""
-        h = np.asarray(state, dtype=float)[:, 0] - radius_m
+        h = np.asarray(state, dtype=float)[:, IDX.r] - radius_m
         tau = np.clip(h / self.descent_mps, self.min_s, self.max_s)
         return np.maximum(np.rint(tau / dt), 1.0) * dt
 
@@ -99,7 +100,7 @@ def reached_angles(state: np.ndarray, rates: np.ndarray, task: EntryTask, ahead_
     p = task.problem
     state = np.asarray(state, dtype=float)
     h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
-    return np.stack([state[:, 10] + rates[:, 0] * p.u_alpha_max * h, state[:, 11] + rates[:, 1] * p.u_sigma_max * h], 1)
+    return np.stack([state[:, IDX.alpha] + rates[:, 0] * p.u_alpha_max * h, state[:, IDX.sigma] + rates[:, 1] * p.u_sigma_max * h], 1)
 
 
 def expert_angles(expert, time_s, state, rates, task: EntryTask, ahead_s=None) -> np.ndarray:
@@ -116,8 +117,8 @@ def tracking_rates(commands: np.ndarray, state: np.ndarray, task: EntryTask, ahe
     h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
     alpha_c = (commands[:, 0] + 1.0) * p.alpha_max / 2.0
     sigma_c = np.arctan2(commands[:, 2], commands[:, 1])
-    d_sigma = (sigma_c - state[:, 11] + np.pi) % (2.0 * np.pi) - np.pi
-    rates = np.stack([(alpha_c - state[:, 10]) / (p.u_alpha_max * h), d_sigma / (p.u_sigma_max * h)], axis=1)
+    d_sigma = (sigma_c - state[:, IDX.sigma] + np.pi) % (2.0 * np.pi) - np.pi
+    rates = np.stack([(alpha_c - state[:, IDX.alpha]) / (p.u_alpha_max * h), d_sigma / (p.u_sigma_max * h)], axis=1)
     return np.clip(rates, -1.0, 1.0).astype(np.float32)
 
 

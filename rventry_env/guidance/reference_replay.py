@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
 
 
@@ -29,5 +30,5 @@ class ReferencePolicy:
         ref = self.reference
         x0 = ref.state(np.minimum(time_s, ref.tf))
         x1 = ref.state(np.minimum(time_s + dt, ref.tf))
-        a = np.column_stack([(x1[:, 10] - x0[:, 10]) / (dt * p.u_alpha_max), (x1[:, 11] - x0[:, 11]) / (dt * p.u_sigma_max)])
+        a = np.column_stack([(x1[:, IDX.alpha] - x0[:, IDX.alpha]) / (dt * p.u_alpha_max), (x1[:, IDX.sigma] - x0[:, IDX.sigma]) / (dt * p.u_sigma_max)])
         return np.clip(a, -1.0, 1.0)

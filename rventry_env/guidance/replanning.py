@@ -47,6 +47,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator, EstimatorSettings
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
@@ -348,14 +349,14 @@ class ReplanningGuidance:
         them for a second or two, so a few seconds ahead is what the law wants, not where it is.
         """
         time_s = np.asarray(time_s, dtype=float)
-        out = np.array(state, dtype=float)[:, 10:12]
+        out = np.array(state, dtype=float)[:, IDX.angles]
         ahead = np.broadcast_to(self.task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float), time_s.shape)
         steps = np.maximum(np.rint(ahead / self.task.dt).astype(int), 1)
         for i, tr in enumerate(self.tracks):
             if tr is None:
                 continue
             k = tr.step(time_s[i], self.task.dt) + int(steps[i])
-            out[i] = tr.x_ref[min(max(k, 0), tr.x_ref.shape[0] - 1), 10:12]
+            out[i] = tr.x_ref[min(max(k, 0), tr.x_ref.shape[0] - 1), IDX.angles]
         return out
 
     def __call__(self, obs, time_s, state, sensed_accel_b=None):

@@ -58,6 +58,7 @@ import math
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
 from rventry_env.physics.model import EntryModel
 
@@ -172,7 +173,7 @@ def sample_plan(plan, dt: float):
     n = max(int(math.floor(plan.tf / dt)), 1)
     t = np.arange(n + 1) * dt
     x = np.atleast_2d(plan.state(np.minimum(t, plan.tf)))
-    return x, np.diff(x[:, 10:12], axis=0) / dt
+    return x, np.diff(x[:, IDX.angles], axis=0) / dt
 
 
 class NeighboringOptimalGuidance:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.core import conversions as cv
 
 NAMED_SETS = ("standard", "wide")
@@ -103,16 +104,16 @@ def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
     if np.any(dh) or np.any(dv) or np.any(dgam) or np.any(dpsi):
         # keep the physical lift direction: the new frames come from the east-down rule,
         # so carry the bank across as the conventional angle mu, not as sigma
-        mu = cv.conventional_bank(x, x[..., 11])
+        mu = cv.conventional_bank(x, x[..., IDX.sigma])
         s = cv.spherical_from_rv_euler(x)
         s[..., 0] += dh
         s[..., 3] += dv
         s[..., 4] += np.radians(dgam)
         s[..., 5] += np.radians(dpsi)
-        x[..., :10] = cv.rv_euler_from_spherical(s)
-        x[..., 11] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., 11])
-    x[..., 10] += np.radians(dalpha)
-    x[..., 11] += np.radians(dsigma)
+        x[..., IDX.translation] = cv.rv_euler_from_spherical(s)
+        x[..., IDX.sigma] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., IDX.sigma])
+    x[..., IDX.alpha] += np.radians(dalpha)
+    x[..., IDX.sigma] += np.radians(dsigma)
     return x
 
 
