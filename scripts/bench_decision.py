@@ -46,11 +46,11 @@ class TimedLaw:
     def __getattr__(self, name):
         return getattr(self._law, name)
 
-    def __call__(self, obs, time_s, state, **kwargs):
+    def __call__(self, measurement):
         t0 = time.perf_counter()
-        out = self._law(obs, time_s, state, **kwargs)
+        out = self._law(measurement)
         self.call_s.append(time.perf_counter() - t0)
-        self.call_batch.append(len(obs))
+        self.call_batch.append(measurement.n)
         return out
 
 

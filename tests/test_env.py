@@ -16,6 +16,7 @@ from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.rv_entry import RvEntryEnv
 from rventry_env.task import Dispersion, EntryProblem, EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.physics import EntryModel, J2Gravity, PointMassGravity, entry_rhs
 
 # alpha(0), sigma(0) pinned so these tests do not depend on the shipped reference
@@ -420,7 +421,7 @@ def test_success_bonus_is_paid_only_at_a_successful_impact():
         policy = ReferencePolicy(EntryTask())
         obs, info = env.reset(seed=0)
         while True:
-            obs, r, term, trunc, info = env.step(policy(obs[None], np.array([info["time_s"]]), None)[0])
+            obs, r, term, trunc, info = env.step(policy(Measurement.single(obs, info, env.state))[0])
             if term or trunc:
                 return r, info
 
@@ -446,7 +447,7 @@ def test_vector_env_pays_the_same_success_bonus():
     obs_v, info_v = venv.reset(seed=0)
     obs, info = env.reset(seed=0)
     while True:
-        a = policy(obs[None], np.array([info["time_s"]]), None)
+        a = policy(Measurement.single(obs, info, env.state))
         obs_v, rv, tv, _, info_v = venv.step(a)
         obs, r, term, trunc, info = env.step(a[0])
         assert rv[0] == pytest.approx(r, rel=1e-9, abs=1e-12)

@@ -13,6 +13,7 @@ from rventry_env.envs.outcome import terminal_metrics, terminal_penalty
 from rventry_env.envs.propagation import path_violation
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.rv_entry import RvEntryEnv
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 from rventry_env.guidance.reference_replay import ReferencePolicy
 from rventry_env.physics import EntryModel, entry_forces
@@ -66,7 +67,7 @@ def test_env_default_step_replays_the_reference_closely():
     obs, info = env.reset(seed=0)
     total = 0.0
     while True:
-        obs, r, term, trunc, info = env.step(policy(obs[None], np.array([info["time_s"]]), None)[0])
+        obs, r, term, trunc, info = env.step(policy(Measurement.single(obs, info, env.state))[0])
         total += r
         if term or trunc:
             break

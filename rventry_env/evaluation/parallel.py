@@ -67,7 +67,7 @@ def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
 
 def episodes_per_task(job: EvaluationJob, n: int) -> int:
     """How many episodes one task holds: the law's own ``episodes_per_task``, else all of them."""
-    return max(1, int(getattr(_law(job), "episodes_per_task", n) or n))
+    return max(1, int(_law(job).episodes_per_task or n))
 
 
 def split(seeds: list[int], size: int) -> list[list[int]]:

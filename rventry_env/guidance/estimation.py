@@ -126,6 +126,14 @@ class AeroScaleEstimator:
         self.t_last[idx] = t
         self.updates[idx] += 1
 
+    def observe(self, measurement) -> np.ndarray:
+        """Fold in a guidance law's :class:`~rventry_env.guidance.law.Measurement` (a batch of another
+        size starts the filters again); the log-scales (N, 2) after it."""
+        if self.n != measurement.n:
+            self.reset(measurement.n)
+        self.update(measurement.time_s, measurement.navigation_state, measurement.sensed_accel_b)
+        return self.log_scales()
+
     @property
     def drag_accel_scale(self) -> np.ndarray:
         """k_D (N,)."""
