@@ -43,7 +43,7 @@ from rventry_agents.imitation import (
     network_bytes,
     network_from_bytes,  # fmt: skip
 )
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.util.files import atomic_write, check_writable, save_figure, write_json
 

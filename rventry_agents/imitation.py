@@ -40,8 +40,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.physics.entry import IDX
+from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.physics import EntryModel
 
@@ -81,7 +83,7 @@ class Horizon:
 
     def seconds(self, state: np.ndarray, radius_m: float, dt: float) -> np.ndarray:
         """The horizon (N,) in seconds for vehicles in ``state`` (N, 12) above a planet of ``radius_m``."""
-        h = np.asarray(state, dtype=float)[:, 0] - radius_m
+        h = np.asarray(state, dtype=float)[:, IDX.r] - radius_m
         tau = np.clip(h / self.descent_mps, self.min_s, self.max_s)
         return np.maximum(np.rint(tau / dt), 1.0) * dt
 
@@ -99,7 +101,7 @@ def reached_angles(state: np.ndarray, rates: np.ndarray, task: EntryTask, ahead_
     p = task.problem
     state = np.asarray(state, dtype=float)
     h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
-    return np.stack([state[:, 10] + rates[:, 0] * p.u_alpha_max * h, state[:, 11] + rates[:, 1] * p.u_sigma_max * h], 1)
+    return np.stack([state[:, IDX.alpha] + rates[:, 0] * p.u_alpha_max * h, state[:, IDX.sigma] + rates[:, 1] * p.u_sigma_max * h], 1)
 
 
 def expert_angles(expert, time_s, state, rates, task: EntryTask, ahead_s=None) -> np.ndarray:
@@ -116,8 +118,8 @@ def tracking_rates(commands: np.ndarray, state: np.ndarray, task: EntryTask, ahe
     h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
     alpha_c = (commands[:, 0] + 1.0) * p.alpha_max / 2.0
     sigma_c = np.arctan2(commands[:, 2], commands[:, 1])
-    d_sigma = (sigma_c - state[:, 11] + np.pi) % (2.0 * np.pi) - np.pi
-    rates = np.stack([(alpha_c - state[:, 10]) / (p.u_alpha_max * h), d_sigma / (p.u_sigma_max * h)], axis=1)
+    d_sigma = (sigma_c - state[:, IDX.sigma] + np.pi) % (2.0 * np.pi) - np.pi
+    rates = np.stack([(alpha_c - state[:, IDX.alpha]) / (p.u_alpha_max * h), d_sigma / (p.u_sigma_max * h)], axis=1)
     return np.clip(rates, -1.0, 1.0).astype(np.float32)
 
 
@@ -130,13 +132,9 @@ class FeatureTracker:
     def reset(self, n: int) -> None:
         self.estimator.reset(n)
 
-    def __call__(self, obs, time_s, state, sensed_accel_b) -> np.ndarray:
-        if sensed_accel_b is None:
-            raise ValueError("the learned policy needs the sensed acceleration (info['sensed_accel_b'])")
-        if self.estimator.n != len(state):
-            self.estimator.reset(len(state))
-        self.estimator.update(time_s, state, sensed_accel_b)
-        return features(obs, self.estimator)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        self.estimator.observe(m)
+        return features(m.observation, self.estimator)
 
 
 def make_network(hidden: tuple[int, ...] = (256, 256), members: int = 1):
@@ -181,8 +179,8 @@ def make_network(hidden: tuple[int, ...] = (256, 256), members: int = 1):
     return Student() if int(members) == 1 else Ensemble()
 
 
-class LearnedGuidance:
-    """The student as a guidance law: ``law(obs, time_s, state, sensed_accel_b) -> actions``.
+class LearnedGuidance(Law):
+    """The student as a guidance law (:class:`~rventry_env.guidance.law.GuidanceLaw`).
 
     :param horizon: the tracker's :class:`Horizon`, as trained (default: one step).
     :param load_relief_margin: when given, the tracker's rates pass through
@@ -190,11 +188,8 @@ class LearnedGuidance:
         alpha rate where the load factor predicted one step ahead would pass ``a_max (1 - margin)``;
         :attr:`relief` then reports the capped steps, and :meth:`episode_stats` each episode's
         count of them (``load_relief_steps``), over the calls in which it was flying (the
-        ``flying`` mask a rollout gives; every call when none is given).
+        measurement's ``flying`` mask).
     """
-
-    uses_sensed_acceleration = True
-    uses_flying_mask = True
 
     def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
                  horizon: Horizon | None = None, load_relief_margin: float | None = None):  # fmt: skip
@@ -213,8 +208,8 @@ class LearnedGuidance:
         if self.relief is not None:
             self.relief.reset(n_episodes)
 
-    def __call__(self, obs, time_s, state, sensed_accel_b=None, flying=None):
-        return self.act(self.tracker(obs, time_s, state, sensed_accel_b), state, sensed_accel_b, flying)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        return self.act(self.tracker(m), m.navigation_state, m.sensed_accel_b, m.flying)
 
     def act(self, f: np.ndarray, state, sensed_accel_b, flying=None) -> np.ndarray:
         """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state`` that sense
@@ -233,11 +228,9 @@ class LearnedGuidance:
         return [] if self.relief is None else [{"load_relief_steps": int(k)} for k in self.relief.steps]
 
 
-class DAggerLaw:
+class DAggerLaw(Law):
     """Flies the expert's action with probability ``beta`` per step, else the student's; records
     the student's features and the expert's label (:func:`expert_angles`) at every step."""
-
-    uses_sensed_acceleration = True
 
     def __init__(self, expert, student: LearnedGuidance | None, beta: float, seed: int, model: EntryModel | None = None,
                  task: EntryTask | None = None, horizon: Horizon | None = None):  # fmt: skip
@@ -254,13 +247,14 @@ class DAggerLaw:
         self.expert.reset(n)
         self.tracker.reset(n)  # the student's own, when there is one
 
-    def __call__(self, obs, time_s, state, sensed_accel_b=None):
-        a_exp = np.asarray(self.expert(obs, time_s, state, sensed_accel_b=sensed_accel_b), np.float32)
-        f = self.tracker(obs, time_s, state, sensed_accel_b)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        a_exp = np.asarray(self.expert(m), np.float32)
+        f = self.tracker(m)
+        time_s, state = m.time_s, m.navigation_state
         act = a_exp
         if self.student is not None:
-            use = self.rng.random(len(obs)) < self.beta
-            act = np.where(use[:, None], a_exp, self.student.act(f, state, sensed_accel_b))
+            use = self.rng.random(m.n) < self.beta
+            act = np.where(use[:, None], a_exp, self.student.act(f, state, m.sensed_accel_b))
         self.x.append(f)
         ahead = self.horizon.seconds(state, self.radius, self.task.dt)
         self.y.append(expert_angles(self.expert, time_s, state, a_exp, self.task, ahead).astype(np.float32))

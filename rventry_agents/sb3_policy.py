@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.guidance.law import Law, Measurement
+from rventry_env.task import EntryTask
 
 SHIPPED_PPO = Path(__file__).resolve().parent / "data" / "ppo"
 SHIPPED_BASELINES = Path(__file__).resolve().parent / "data" / "baselines"
@@ -57,7 +58,7 @@ class Predictor:
         return actions
 
 
-class _Direct:
+class _Direct(Law):
     """A direct policy: the model's action is the environment's."""
 
     def __init__(self, predict):
@@ -67,8 +68,8 @@ class _Direct:
         if hasattr(self.predict, "reset"):
             self.predict.reset(n_episodes)
 
-    def __call__(self, obs, time_s, state):
-        return self.predict(obs)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        return self.predict(m.observation)
 
 
 def make_policy(predict, mode: str, authority=None, task: EntryTask | None = None):
@@ -112,7 +113,7 @@ def _normalization_for(model_zip: Path) -> Path:
     return model_zip.with_name("vecnormalize.pkl")
 
 
-class SB3Policy:
+class SB3Policy(Law):
     """A saved stable-baselines3 model (zip) with its VecNormalize statistics, acting deterministically.
 
     :param model_path: the ``.zip`` written by ``model.save``, or a run directory holding ``model.zip``.
@@ -165,8 +166,8 @@ class SB3Policy:
         z = (obs - self.obs_mean) / np.sqrt(self.obs_var + self.epsilon)
         return np.clip(z, -self.clip_obs, self.clip_obs).astype(np.float32)
 
-    def __call__(self, obs, time_s, state):
-        return self._act(obs, time_s, state)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        return self._act(m)
 
 
 def load_shipped(name: str = "ppo-residual", task: EntryTask | None = None) -> SB3Policy:

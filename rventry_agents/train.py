@@ -31,7 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import Dispersion, EntryTask
 from rventry_env.util.files import save_figure, write_json
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
@@ -93,17 +94,24 @@ def discount(cfg: dict, algorithm: str) -> float:
 
 
 def make_task(cfg: dict, base: EntryTask | None = None) -> EntryTask:
-    """The training task: the base task with the config's dt, substeps and [reward] weight overrides."""
-    from dataclasses import fields, replace
+    """The training task: the base task with the config's dt and substeps."""
+    from dataclasses import replace
 
     base = EntryTask() if base is None else base
+    return replace(base, dt=float(cfg["env"]["dt"]), substeps=int(cfg["env"]["substeps"]))
+
+
+def make_reward(cfg: dict) -> RewardWeights:
+    """The training reward: the environment's weights with the config's [reward] overrides."""
+    from dataclasses import fields, replace
+
+    base = RewardWeights()
     overrides = dict(cfg.get("reward", {}))
-    known = {f.name for f in fields(base.weights)}
+    known = {f.name for f in fields(base)}
     unknown = set(overrides) - known
     if unknown:
         raise ValueError(f"[reward] has unknown weight(s) {sorted(unknown)}; known: {sorted(known)}")
-    weights = replace(base.weights, **{k: float(v) for k, v in overrides.items()})
-    return replace(base, dt=float(cfg["env"]["dt"]), substeps=int(cfg["env"]["substeps"]), weights=weights)
+    return replace(base, **{k: float(v) for k, v in overrides.items()})
 
 
 POLICY_MODES = ("direct", "residual")
@@ -134,7 +142,7 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None, algorith
 
     e = cfg["env"]
     venv = RvEntrySB3VecEnv(
-        n_envs or int(e["num_envs"]), task=task, dispersion=Dispersion.parse(dict(e.get("dispersion", {}))),
+        n_envs or int(e["num_envs"]), task=task, reward=make_reward(cfg), dispersion=Dispersion.parse(dict(e.get("dispersion", {}))),
         max_episode_steps=int(e["max_episode_steps"]), time_limit_is_failure=bool(e["time_limit_is_failure"]),
     )  # fmt: skip
     mode, authority = policy_mode(cfg)

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.task import Dispersion, EntryTask
 from rventry_agents.sb3_policy import SHIPPED_PPO, SB3Policy
 from rventry_env.evaluation.agents import load_agent as load_policy
 from rventry_env.evaluation.rollout import rollout

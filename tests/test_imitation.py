@@ -24,7 +24,7 @@ from rventry_agents.imitation import (
     make_network,
     reached_angles,
 )
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 
@@ -103,11 +103,11 @@ def test_the_replanning_expert_labels_with_its_plans_angles_one_step_ahead():
     assert np.degrees(np.abs(drifted - on_plan)).max() > 2.0  # the tracker's next step keeps most of the drift
 
 
-def test_the_student_needs_the_accelerometer():
-    student = LearnedGuidance(make_network((8,)))
-    student.reset(1)
-    with pytest.raises(ValueError, match="sensed acceleration"):
-        student(np.zeros((1, 26), np.float32), np.zeros(1), np.zeros((1, 12)))
+def test_a_measurement_without_the_accelerometer_is_refused_by_name():
+    from rventry_env.guidance.law import Measurement
+
+    with pytest.raises(ValueError, match=r"sensed_accel_b \(1, 2\)"):
+        Measurement.of(np.zeros((1, 26)), np.zeros(1), np.zeros((1, 12)), np.zeros((1, 2)))
 
 
 def _expert_data(n: int, seed: int):

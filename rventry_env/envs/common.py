@@ -8,9 +8,8 @@ from dataclasses import replace
 import numpy as np
 from gymnasium import spaces
 
-from rventry_env.core.backend import NUMPY
-from rventry_env.core.euler_parameters import dcm_column, rates_from_omega
-from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import Dispersion, EntryTask
 from rventry_env.physics.entry import N_STATE
 from rventry_env.physics.model import EntryModel
 
@@ -18,13 +17,14 @@ from rventry_env.physics.model import EntryModel
 class EntryEnvSetup:
     """Construction shared by :class:`RvEntryEnv` and :class:`RvEntryVectorEnv`."""
 
-    def _configure(self, model, task, dt, substeps, dispersion, render_mode, ns) -> tuple[spaces.Box, spaces.Box]:
+    def _configure(self, model, task, reward, dt, substeps, dispersion, render_mode, ns) -> tuple[spaces.Box, spaces.Box]:
         """Validate and store the arguments; return the single-copy (observation, action) spaces."""
         from rventry_env.envs.observation import observation_box
         from rventry_env.envs.propagation import Propagator
 
         self.model = make_model(model)
         self.task = make_task(task, dt, substeps)
+        self.reward = make_reward(reward)
         self.dispersion = Dispersion.parse(dispersion)
         self.task.check_dispersion(self.dispersion)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -36,7 +36,7 @@ class EntryEnvSetup:
         self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
         self._nominal = self.task.problem.initial_state(self.model.planet.radius)
         self._obs_low, self._obs_high = observation_box(self.task, self._radius)
-        self._prop = Propagator(self.task, ns)
+        self._prop = Propagator(self.task, ns, self.reward)
         self._x = None
         return (
             spaces.Box(self._obs_low, self._obs_high, dtype=np.float32),
@@ -105,6 +105,13 @@ def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) ->
     return replace(task, **changes) if changes else task
 
 
+def make_reward(reward: RewardWeights | None) -> RewardWeights:
+    reward = RewardWeights() if reward is None else reward
+    if not isinstance(reward, RewardWeights):
+        raise TypeError(f"reward must be RewardWeights, got {type(reward).__name__}")
+    return reward
+
+
 def make_model(model: EntryModel | None) -> EntryModel:
     model = EntryModel() if model is None else model
     if not isinstance(model, EntryModel):
@@ -131,51 +138,6 @@ def check_state(state, radius: float) -> np.ndarray:
         if abs(n - 1) > 1e-6:
             raise ValueError(f"the initial {name} Euler parameters must have unit norm, got norm {n:.9f}")
     return x
-
-
-def draw_dispersion(rng: np.random.Generator, dispersion: Dispersion) -> np.ndarray:
-    """One draw of the 9 dispersion variables, in Dispersion field order (always 9 numbers,
-    so single and vector environments stay in step draw for draw)."""
-    half = np.array([getattr(dispersion, f) for f in Dispersion.__dataclass_fields__])
-    return rng.uniform(-1.0, 1.0, size=half.shape) * half
-
-
-def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Initial states ``(..., 12)`` perturbed by draws ``d (..., 9)`` (see :class:`Dispersion`)."""
-    x = np.asarray(x0, dtype=float)
-    d = np.asarray(d, dtype=float)
-    out = disperse_state(tuple(np.moveaxis(x, -1, 0)), tuple(np.moveaxis(d, -1, 0)), NUMPY)
-    return np.stack(np.broadcast_arrays(*out), axis=-1)
-
-
-def disperse_state(x: tuple, d: tuple, ns) -> tuple:
-    """The state components ``x`` perturbed by the 9 dispersion draws ``d`` (components, Dispersion order).
-
-    Altitude and speed add to r and v. The flight-path angle turns the velocity frame B
-    about the horizontal normal to the velocity, n = b1 x a1 / |b1 x a1|, and the heading
-    turns it about the local vertical a1 (azimuth clockwise seen from above). Both are
-    exact rotations of the Euler parameters, q -> cos(t/2) q + sin(t/2) Q(k) q, with
-    Q(k) q = 2 x (the rates of Eq. ``QuatRate`` at unit angular velocity k). They carry
-    the lift direction along: the bank angle relative to the vertical plane (the
-    conventional mu) is unchanged, as the vertical plane turns with B. Undefined in
-    vertical flight, like the heading itself. Plain component arithmetic, so NumPy and
-    JAX (the functional environment's reset) share it.
-    """
-    dh, dv, dgam, dpsi, dalpha, dsigma = d[3:9]
-    deg = math.pi / 180.0
-    eb = tuple(x[6:10])
-    _, u2, u3 = dcm_column(*eb, 0)  # a1 in B
-    c = ns.sqrt(u2 * u2 + u3 * u3)
-    eb = _turn(eb, (0.0, -u3 / c, u2 / c), dgam * deg, ns)
-    eb = _turn(eb, dcm_column(*eb, 0), -dpsi * deg, ns)
-    return (x[0] + dh, *x[1:5], x[5] + dv, *eb, x[10] + dalpha * deg, x[11] + dsigma * deg)
-
-
-def _turn(q: tuple, axis: tuple, angle, ns) -> tuple:
-    """Euler parameters of a frame turned by ``angle`` about the unit ``axis`` (its own components)."""
-    k = rates_from_omega(*q, *axis)
-    cos, sin = ns.cos(0.5 * angle), ns.sin(0.5 * angle)
-    return tuple(cos * qi + 2.0 * sin * ki for qi, ki in zip(q, k))
 
 
 def position_velocity_e(c_ae, c_ba, r, v):

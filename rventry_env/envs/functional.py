@@ -43,7 +43,8 @@ from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.observation import observation_box
 from rventry_env.envs.propagation import Propagator
-from rventry_env.envs.task import Dispersion
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import Dispersion, disperse_state
 from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
 from rventry_env.physics.model import EntryModel, numeric_leaves, scaled_model, with_numeric_leaves
 
@@ -81,10 +82,12 @@ class RvEntryFunctional(environment.Environment):
         a :class:`Dispersion` or a dict of its fields.
     :param max_episode_steps: the default params' time limit (control steps).
     :param dtype: ``"float32"`` (default: what RL wants, and GPUs) or ``"float64"``.
+    :param reward: the :class:`~rventry_env.envs.reward.RewardWeights` (default: the benchmark's).
     """
 
     def __init__(self, model=None, task=None, dt=None, substeps=None, dispersion=None,
-                 max_episode_steps: int = MAX_EPISODE_STEPS, dtype: str = "float32"):  # fmt: skip
+                 max_episode_steps: int = MAX_EPISODE_STEPS, dtype: str = "float32",
+                 reward: RewardWeights | None = None):  # fmt: skip
         super().__init__()
         if dtype not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
@@ -94,10 +97,11 @@ class RvEntryFunctional(environment.Environment):
         self.dtype = dtype
         self.model = common.make_model(model)
         self.task = common.make_task(task, dt, substeps)
+        self.reward = common.make_reward(reward)
         self.dispersion = Dispersion.parse(dispersion)
         self.task.check_dispersion(self.dispersion)
         self.max_episode_steps = int(max_episode_steps)
-        self.prop = Propagator(self.task, self.ns)
+        self.prop = Propagator(self.task, self.ns, self.reward)
         self.target = tuple(float(c) for c in self.task.problem.target_unit_vector())
         radius = self.model.planet.radius
         self.obs_low, self.obs_high = observation_box(self.task, radius)
@@ -105,7 +109,7 @@ class RvEntryFunctional(environment.Environment):
 
     # gymnax's step/reset are jitted with ``self`` static: hash and compare by configuration
     def _key(self):
-        return (type(self), self.model, self.task, self.dtype)
+        return (type(self), self.model, self.task, self.reward, self.dtype)
 
     def __hash__(self):
         return hash(self._key())
@@ -145,7 +149,7 @@ class RvEntryFunctional(environment.Environment):
     def reset_env(self, key, params: EnvParams):
         ns = self.ns
         d = jax.random.uniform(key, (9,), dtype=ns.float_dtype, minval=-1.0, maxval=1.0) * params.dispersion
-        x0 = common.disperse_state(tuple(params.nominal), tuple(d), ns)
+        x0 = disperse_state(tuple(params.nominal), tuple(d), ns)
         scales = 1.0 + d[:3]
         model = self._model(params, scales)
         flight = start_flight(x0, model, self.prop)

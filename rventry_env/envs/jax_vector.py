@@ -20,7 +20,7 @@ from gymnasium.vector import AutoresetMode
 
 from rventry_env.core.backend import NUMPY, jax_ns
 from rventry_env.core.euler_parameters import dcm
-from rventry_env.envs import MAX_EPISODE_STEPS, common
+from rventry_env.envs import common
 from rventry_env.envs.functional import DTYPES
 from rventry_env.envs.outcome import Outcome, TerminalMetrics, failure_name
 from rventry_env.envs.propagation import Propagator
@@ -39,17 +39,15 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS, model=None, task=None,
-                 dt=None, substeps=None, dispersion=None, render_mode=None,
-                 autoreset_mode=AutoresetMode.NEXT_STEP, dtype: str = "float64"):  # fmt: skip
+    def __init__(self, num_envs: int = 1, dtype: str = "float64", render_mode=None, **kwargs):
         if dtype not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
         if render_mode is not None:
             raise ValueError(f"backend='jax' does not render (render_mode={render_mode!r}); use backend='numpy'")
-        super().__init__(num_envs, max_episode_steps, model, task, dt, substeps, dispersion, None, autoreset_mode)
+        super().__init__(num_envs, **kwargs)
         self.dtype = dtype
         self._ns = jax_ns(dtype)
-        self._jprop = Propagator(self.task, self._ns)
+        self._jprop = Propagator(self.task, self._ns, self.reward)
         f = self._ns.float_dtype
         self._leaves = tuple(jnp.asarray(v, dtype=f) for v in numeric_leaves(self.model))
         self._flight = None

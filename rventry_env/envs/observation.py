@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.physics.entry import EntryForces
 
 ALTITUDE_SCALE = 40e3  # m
@@ -66,7 +66,7 @@ def features(task: EntryTask, radius: float) -> tuple[Feature, ...]:
 
 def feature_index(name: str) -> int:
     """Index of a feature by name (the order never depends on the task)."""
-    from rventry_env.envs.task import EntryTask as _Task
+    from rventry_env.task import EntryTask as _Task
 
     names = [f.name for f in features(_Task(), 6378137.0)]
     if name not in names:

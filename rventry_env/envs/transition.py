@@ -84,7 +84,8 @@ def advance(flight: Flight, actions: tuple, model: EntryModel, prop: Propagator,
     outcome = None
     if not ns.known(ns.logical_not(ns.any(ended))):
         outcome = episode_outcome(
-            out.x, c_ae, out.status, terminated, new.max_load, new.min_q, task, target_e, model.planet.radius, ns
+            out.x, c_ae, out.status, terminated, new.max_load, new.min_q, task, prop.weights, target_e,
+            model.planet.radius, ns,
         )
         reward = reward - ns.where(ended, outcome.terminal_penalty, 0.0)
     return Transition(new, c_ae, out, reward, terminated, truncated, outcome)

@@ -15,7 +15,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Callable
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 
 AGENT_GROUP = "rventry.agents"
 FILE_GROUP = "rventry.agent_files"

@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.rollout import EpisodeBatch, rollout
 
 
@@ -34,7 +34,7 @@ class EvaluationJob:
     """What every task of an evaluation shares (picklable: it travels to the workers).
 
     :param agent: an agent name or a saved policy's path (:func:`~rventry_env.evaluation.agents.load_agent`).
-    :param dispersion: a dispersion set's name or a dict of :class:`~rventry_env.envs.task.Dispersion` fields.
+    :param dispersion: a dispersion set's name or a dict of :class:`~rventry_env.task.Dispersion` fields.
     :param task: the task.
     :param options: keyword arguments for the built-in law.
     :param record_history: keep every step's state and action.
@@ -67,7 +67,7 @@ def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
 
 def episodes_per_task(job: EvaluationJob, n: int) -> int:
     """How many episodes one task holds: the law's own ``episodes_per_task``, else all of them."""
-    return max(1, int(getattr(_law(job), "episodes_per_task", n) or n))
+    return max(1, int(_law(job).episodes_per_task or n))
 
 
 def split(seeds: list[int], size: int) -> list[list[int]]:

@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.rollout import EpisodeBatch
 
 METRICS = ("miss_km", "vertical_error_deg", "speed_error_mps", "abs_speed_error_mps", "alpha_final_deg",
