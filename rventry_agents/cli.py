@@ -36,6 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     jx.add_argument("--seed", type=seed, help="random seed (default: the config's)")
     jx.add_argument("--out", default="runs/jax_ppo", help="output directory (default runs/jax_ppo)")
     jx.add_argument("--config", help="TOML config (default rventry_agents/baselines/jax_ppo.toml)")
+    jx.add_argument("--max-wall-s", type=float, help="stop after the chunk that ends past this wall time (s)")
     jx.set_defaults(func=_run_jax_ppo)
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
     dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
@@ -59,7 +60,7 @@ def _run_jax_ppo(args) -> int:
     except ImportError as exc:
         print(f"rventry train jax-ppo needs the [jax] extra (pip install -e '.[jax]'): {exc}", file=sys.stderr)
         return 2
-    meta = train_jax_ppo(args.config, args.timesteps, args.seed, args.out)
+    meta = train_jax_ppo(args.config, args.timesteps, args.seed, args.out, max_wall_s=args.max_wall_s)
     print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s (compilation {meta['compile_s']:.0f} s, "
           f"then {meta['env_steps_per_s'] or float('nan'):,.0f} env-steps/s); written to {args.out}")
     return 0

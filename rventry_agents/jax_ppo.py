@@ -71,36 +71,51 @@ def deterministic_act(algo, ts):
     return act
 
 
-def evaluate(env, params, act, key, episodes: int) -> dict:
-    """Fly ``episodes`` vehicles (one episode each, no autoreset) with ``act``; their outcomes."""
+def make_evaluator(env, algo, episodes: int):
+    """A compiled ``evaluate(ts, params, key)``: ``episodes`` vehicles, one episode each (no autoreset),
+    flown by the deterministic policy of the training state ``ts``; their outcomes."""
     import jax
     import jax.numpy as jnp
 
-    def one(k):
-        obs, st = env.reset(k, params)
+    @jax.jit
+    def run(ts, params, key):
+        act = deterministic_act(algo, ts)
 
-        def going(c):
-            return jnp.logical_not(c[2])
+        def one(k):
+            obs, st = env.reset(k, params)
+            _, _, _, _, info0 = env.step_env(k, st, jnp.zeros(2), params)  # the info's structure
 
-        def fly(c):
-            obs, st, _, ret, info = c
-            obs, st, r, done, info = env.step_env(k, st, act(obs), params)
-            return obs, st, done, ret + r, info
+            def fly(c):
+                obs, st, _, ret, info = c
+                obs, st, r, done, info = env.step_env(k, st, act(obs), params)
+                return obs, st, done, ret + r, info
 
-        _, _, _, _, info0 = env.step_env(k, st, jnp.zeros(2), params)  # the info's structure
-        c = jax.lax.while_loop(going, fly, (obs, st, jnp.array(False), jnp.zeros((), obs.dtype), info0))
-        return c[3], c[4]["is_success"], c[4]["miss_km"], c[4]["terminated"]
+            c = jax.lax.while_loop(lambda c: jnp.logical_not(c[2]), fly,
+                                   (obs, st, jnp.array(False), jnp.zeros((), obs.dtype), info0))  # fmt: skip
+            return c[3], c[4]["is_success"], c[4]["miss_km"], c[4]["terminated"]
 
-    ret, success, miss, terminated = jax.jit(jax.vmap(one))(jax.random.split(key, episodes))
-    return {
-        "success_rate": float(np.mean(success)), "miss_km_p50": float(np.median(miss)),
-        "mean_return": float(np.mean(ret)), "terminated": float(np.mean(terminated)),
-    }  # fmt: skip
+        return jax.vmap(one)(jax.random.split(key, episodes))
+
+    def evaluate(ts, params, key) -> dict:
+        ret, success, miss, terminated = run(ts, params, key)
+        return {
+            "success_rate": float(np.mean(success)), "miss_km_p50": float(np.median(miss)),
+            "mean_return": float(np.mean(ret)), "terminated": float(np.mean(terminated)),
+        }  # fmt: skip
+
+    return evaluate
 
 
 def train_jax_ppo(config=None, timesteps: int | None = None, seed: int | None = None, out: str | Path = "runs/jax_ppo",
-                  progress=print) -> dict:  # fmt: skip
-    """Train as the config says (default ``rventry_agents/baselines/jax_ppo.toml``); see the module docstring."""
+                  progress=print, max_wall_s: float | None = None) -> dict:  # fmt: skip
+    """Train as the config says (default ``rventry_agents/baselines/jax_ppo.toml``); see the module docstring.
+
+    :param max_wall_s: stop after the first chunk that ends past this wall time (s), with
+        everything written: a run's budget ("the steps reached in two hours").
+    """
+    from rventry_env.core.backend import prefer_fused_cpu_runtime
+
+    prefer_fused_cpu_runtime()
     import jax
 
     cfg = load_config(config)
@@ -114,30 +129,28 @@ def train_jax_ppo(config=None, timesteps: int | None = None, seed: int | None = 
     algo = make_algorithm(cfg, env, chunk)
     eval_params = env.make_params(dispersion=t.get("eval_dispersion", "standard"))
     train = jax.jit(algo.train)
+    evaluate = make_evaluator(env, algo, int(t["eval_episodes"]))
     ts = algo.init_state(jax.random.PRNGKey(seed))
     steps, history, wall0 = 0, [], time.perf_counter()
-    compile_s, chunk_rates = None, []
-    while steps < total:
+    chunk_rates = []
+    while steps < total and (max_wall_s is None or time.perf_counter() - wall0 < max_wall_s):
         t0 = time.perf_counter()
         ts, _ = train(train_state=ts)
         jax.block_until_ready(ts)
         dt = time.perf_counter() - t0
         done = int(ts.global_step)
-        if compile_s is None:
-            compile_s = dt - (done - steps) / _first_guess(dt, done - steps)  # refined below
-        else:
+        if history:  # the first chunk includes the compilation
             chunk_rates.append((done - steps) / dt)
         steps = done
-        ev = evaluate(env, eval_params, deterministic_act(algo, ts), jax.random.PRNGKey(t["eval_seed"]),
-                      int(t["eval_episodes"]))  # fmt: skip
+        ev = evaluate(ts, eval_params, jax.random.PRNGKey(t["eval_seed"]))
         rec = {"timesteps": steps, "wall_s": time.perf_counter() - wall0, "chunk_s": dt, **ev}
         history.append(rec)
         progress(f"{steps:>12,d} steps  {rec['wall_s']:8.0f} s  success {ev['success_rate']:.2f}  "
                  f"miss p50 {ev['miss_km_p50']:8.1f} km  return {ev['mean_return']:9.1f}")  # fmt: skip
         write_json(out / "evaluations.json", history)
     rate = float(np.median(chunk_rates)) if chunk_rates else None
-    if rate is not None:  # the first chunk's time less what its steps take at the later chunks' rate
-        compile_s = history[0]["chunk_s"] - history[0]["timesteps"] / rate
+    # the first chunk's time less what its steps take at the later chunks' rate (an upper bound without them)
+    compile_s = history[0]["chunk_s"] - (history[0]["timesteps"] / rate if rate else 0.0)
     flat = {"/".join(str(getattr(k, "key", getattr(k, "idx", k))) for k in path): np.asarray(v)
             for path, v in jax.tree_util.tree_flatten_with_path(
                 {"actor": ts.actor_ts.params, "critic": ts.critic_ts.params,
@@ -145,15 +158,11 @@ def train_jax_ppo(config=None, timesteps: int | None = None, seed: int | None = 
     np.savez(out / "params.npz", **flat)
     meta = {
         "command": " ".join(shlex.quote(a) for a in sys.argv), "config": cfg, "seed": seed, "timesteps": steps,
-        "wall_s": time.perf_counter() - wall0, "compile_s": compile_s, "env_steps_per_s": rate,
+        "wall_s": time.perf_counter() - wall0, "max_wall_s": max_wall_s, "compile_s": compile_s, "env_steps_per_s": rate,
         "device": str(jax.devices()[0]), "evaluations": history,
     }  # fmt: skip
     write_json(out / "metadata.json", meta)
     return meta
 
 
-def _first_guess(dt: float, steps: int) -> float:
-    return max(steps / dt, 1.0)  # placeholder until a compiled chunk's rate is known
-
-
-__all__ = ["train_jax_ppo", "load_config", "make_env", "evaluate", "DEFAULT_CONFIG"]
+__all__ = ["train_jax_ppo", "load_config", "make_env", "make_evaluator", "DEFAULT_CONFIG"]

@@ -132,14 +132,23 @@ def agreement(n: int, substeps: int, seed: int = 0) -> dict:
 
 
 def jax_ppo_speed(timesteps: int) -> dict:
-    """rejax PPO on the functional env with the baseline config: compile time and env-steps/s after it."""
-    from rventry_agents.jax_ppo import load_config, train_jax_ppo
+    """rejax PPO on the functional env with the baseline config: compile time and env-steps/s after it.
 
-    cfg = load_config()
-    chunk = int(cfg["env"]["num_envs"]) * int(cfg["ppo"]["num_steps"]) * 16
-    cfg["train"]["chunk_timesteps"] = chunk
+    In a fresh process: rejax's float32 training state needs JAX without float64 enabled, which
+    the float64 runs above turned on for this one.
+    """
+    import subprocess
+
     out = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_jax_ppo"
-    meta = train_jax_ppo(cfg, timesteps=max(timesteps, 3 * chunk), out=out, progress=lambda s: None)
+    code = (
+        "from rventry_agents.jax_ppo import load_config, train_jax_ppo\n"
+        "cfg = load_config()\n"
+        "chunk = int(cfg['env']['num_envs']) * int(cfg['ppo']['num_steps']) * 16\n"
+        "cfg['train']['chunk_timesteps'] = chunk\n"
+        f"train_jax_ppo(cfg, timesteps=max({timesteps}, 3 * chunk), out={str(out)!r}, progress=lambda s: None)\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+    meta = json.loads((out / "metadata.json").read_text())
     return {"env_steps_per_s": meta["env_steps_per_s"], "compile_s": meta["compile_s"], "timesteps": meta["timesteps"]}
 
 
@@ -168,6 +177,9 @@ def main():
     ap.add_argument("--substeps", type=int, help="RK4 substeps of the speed and agreement runs (default: the task's)")
     ap.add_argument("--skip", nargs="*", default=[], choices=["accuracy", "speed", "functional", "agreement", "ppo"])
     args = ap.parse_args()
+    from rventry_env.core.backend import prefer_fused_cpu_runtime
+
+    prefer_fused_cpu_runtime()  # what the package's JAX envs ask for, before JAX loads
     import jax
 
     from rventry_env.task import EntryTask
@@ -175,6 +187,7 @@ def main():
     q = 0.25 if args.quick else 1.0
     task = EntryTask() if args.substeps is None else EntryTask(substeps=args.substeps)
     res: dict = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "jax": jax.__version__,
+                             "xla_flags": os.environ.get("XLA_FLAGS", ""),
                              "device": str(jax.devices()[0]), "load_average": os.getloadavg()},
                  "task": {"dt": task.dt, "substeps": task.substeps}}  # fmt: skip
     print(f"JAX {jax.__version__} on {jax.devices()[0]}; {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}; "

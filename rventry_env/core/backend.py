@@ -156,6 +156,30 @@ def _jax_namespace(dtype) -> SimpleNamespace:
 
 
 _JAX: dict = {}
+_XLA_CPU_FLAG = "--xla_cpu_use_thunk_runtime=false"
+
+
+def prefer_fused_cpu_runtime() -> None:
+    """Ask XLA's CPU backend for its fused (pre-thunk) runtime, before JAX first loads.
+
+    Measured with jax 0.10.2 (docs/env.md): one control step of 8192 vehicles ran 2-3x faster
+    on the CPU with it. It leaves GPUs alone. Skipped where JAX is already loaded, where
+    ``XLA_FLAGS`` already names the option, or where jaxlib is 0.11 or newer (the option is
+    deprecated there and may be gone).
+    """
+    import os
+    import sys
+    from importlib.metadata import PackageNotFoundError, version
+
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "jax" in sys.modules or "xla_cpu_use_thunk_runtime" in flags:
+        return
+    try:
+        major, minor = (int(p) for p in version("jaxlib").split(".")[:2])
+    except (PackageNotFoundError, ValueError):
+        return
+    if (major, minor) < (0, 11):
+        os.environ["XLA_FLAGS"] = f"{flags} {_XLA_CPU_FLAG}".strip()
 
 
 def jax_ns(dtype: str = "float64") -> SimpleNamespace:
@@ -167,6 +191,7 @@ def jax_ns(dtype: str = "float64") -> SimpleNamespace:
     if dtype not in ("float64", "float32"):
         raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
     if dtype not in _JAX:
+        prefer_fused_cpu_runtime()
         try:
             import jax
         except ImportError as e:  # pragma: no cover - depends on the install

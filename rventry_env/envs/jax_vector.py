@@ -13,8 +13,12 @@ observations, rewards and infos come back as NumPy arrays.
 
 from __future__ import annotations
 
-import jax
-import jax.numpy as jnp
+from rventry_env.core.backend import prefer_fused_cpu_runtime
+
+prefer_fused_cpu_runtime()  # before JAX loads (see core/backend.py)
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
