@@ -25,10 +25,6 @@ from types import SimpleNamespace
 import numpy as np
 
 
-def _np_where(cond, a, b):
-    return np.where(cond, a, b)
-
-
 def _py_while(cond, body, carry):
     while cond(carry):
         carry = body(carry)
@@ -43,31 +39,34 @@ def is_zero(x) -> bool:
     return type(x) in _SCALAR_TYPES and x == 0
 
 
-NUMPY = SimpleNamespace(
-    name="numpy",
-    sqrt=np.sqrt,
-    exp=np.exp,
-    log=np.log,
-    sin=np.sin,
-    cos=np.cos,
-    tanh=np.tanh,
-    arctan2=np.arctan2,
-    fabs=np.abs,
-    fmax=np.maximum,
-    fmin=np.minimum,
-    where=_np_where,
-    isfinite=np.isfinite,
-    interp=np.interp,
-    array=True,
-    float_dtype=np.float64,
-    int8=lambda x: np.asarray(x).astype(np.int8),
-    any=np.any,
-    all=np.all,
-    logical_not=np.logical_not,
-    zeros_int8=lambda like: np.zeros(np.shape(like), dtype=np.int8),
-    known=bool,
-    while_loop=_py_while,
-)
+def _array_namespace(xp, name: str, **control) -> SimpleNamespace:
+    """The namespace of an array library with NumPy's API (NumPy itself, ``jax.numpy``)."""
+    return SimpleNamespace(
+        name=name,
+        sqrt=xp.sqrt,
+        exp=xp.exp,
+        log=xp.log,
+        sin=xp.sin,
+        cos=xp.cos,
+        tanh=xp.tanh,
+        arctan2=xp.arctan2,
+        fabs=xp.abs,
+        fmax=xp.maximum,
+        fmin=xp.minimum,
+        where=xp.where,
+        isfinite=xp.isfinite,
+        interp=xp.interp,
+        array=True,
+        int8=lambda x: xp.asarray(x).astype(xp.int8),
+        zeros_int8=lambda like: xp.zeros(xp.shape(like), dtype=xp.int8),
+        any=xp.any,
+        all=xp.all,
+        logical_not=xp.logical_not,
+        **control,
+    )
+
+
+NUMPY = _array_namespace(np, "numpy", float_dtype=np.float64, known=bool, while_loop=_py_while)
 
 
 # Plain Python floats: one vehicle stepped without NumPy's per-call overhead.
@@ -128,31 +127,8 @@ def _jax_namespace(dtype) -> SimpleNamespace:
     import jax
     import jax.numpy as jnp
 
-    return SimpleNamespace(
-        name="jax",
-        sqrt=jnp.sqrt,
-        exp=jnp.exp,
-        log=jnp.log,
-        sin=jnp.sin,
-        cos=jnp.cos,
-        tanh=jnp.tanh,
-        arctan2=jnp.arctan2,
-        fabs=jnp.abs,
-        fmax=jnp.maximum,
-        fmin=jnp.minimum,
-        where=jnp.where,
-        isfinite=jnp.isfinite,
-        interp=jnp.interp,
-        array=True,
-        float_dtype=dtype,
-        int8=lambda x: jnp.asarray(x).astype(jnp.int8),
-        any=jnp.any,
-        all=jnp.all,
-        logical_not=jnp.logical_not,
-        zeros_int8=lambda like: jnp.zeros(jnp.shape(like), dtype=jnp.int8),
-        known=lambda flag: False,  # a traced value is never known while tracing
-        while_loop=jax.lax.while_loop,
-    )
+    # a traced value is never known while tracing: the shortcuts give way to the masked path
+    return _array_namespace(jnp, "jax", float_dtype=dtype, known=lambda flag: False, while_loop=jax.lax.while_loop)
 
 
 _JAX: dict = {}
