@@ -49,6 +49,12 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     return out
 
 
+def task_metric_key(success_rate: float | None, mean_miss_km: float | None) -> tuple[float, float]:
+    """How evaluations rank on the task metric (training selections, scans): the success rate
+    first, then the smaller mean miss; a missing figure ranks last."""
+    return (success_rate or 0.0, -(mean_miss_km if mean_miss_km is not None else np.inf))
+
+
 def load_relief_summary(stats: list[dict]) -> dict | None:
     """For a law with load relief: how many steps it capped the alpha rate, and in how many episodes."""
     if not stats or "load_relief_steps" not in stats[0]:
