@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import replace
 
 import numpy as np
@@ -90,6 +91,57 @@ def check_max_steps(max_episode_steps) -> int | None:
     if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
         raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
     return int(max_episode_steps)
+
+
+# how far up the call stack reset() looks for the wrappers that called it (Monitor, TimeLimit,
+# OrderEnforcing, PassiveEnvChecker and its helper, a vector env: about 8 frames)
+_CALLER_DEPTH = 24
+
+
+def outer_time_limit(env, own: int | None) -> int | None:
+    """The time limit an episode of ``env`` ends at: its own, or a shorter one set outside it.
+
+    ``gym.make(id, max_episode_steps=N)`` wraps the environment in Gymnasium's ``TimeLimit``
+    and records N only in that wrapper's ``spec.max_episode_steps``: the environment itself is
+    given a spec without it, and Gymnasium refuses extra wrappers outside ``TimeLimit`` for an id
+    with a ``vector_entry_point``. Called from ``reset``, this finds the ``TimeLimit`` wrappers of
+    ``env`` among the frames that called it (each wrapper's ``reset`` calls the one inside it)
+    and reads their ``spec.max_episode_steps``, so that the environment truncates at the same
+    step and closes the episode with its end keys itself.
+    """
+    from gymnasium.wrappers import TimeLimit
+
+    limits = [] if own is None else [own]
+    frame = sys._getframe(1)
+    for _ in range(_CALLER_DEPTH):
+        if frame is None:
+            break
+        caller = frame.f_locals.get("self")
+        if isinstance(caller, TimeLimit) and caller.unwrapped is env:
+            spec = caller.spec
+            n = spec.max_episode_steps if spec is not None else None
+            if n is not None:
+                limits.append(int(n))
+        frame = frame.f_back
+    return min(limits) if limits else None
+
+
+RESET_OPTIONS = ("dispersion", "state")
+
+
+def reset_options(options) -> dict:
+    """``reset(options=...)`` checked: None or a dict whose keys are among :data:`RESET_OPTIONS`."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(
+            f"reset(options=...) must be a dict such as {{'state': x}} or {{'dispersion': 'standard'}}, "
+            f"got {type(options).__name__} {options!r:.80}"
+        )
+    unknown = set(options) - set(RESET_OPTIONS)
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {list(RESET_OPTIONS)}")
+    return dict(options)
 
 
 def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) -> EntryTask:

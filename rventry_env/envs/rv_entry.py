@@ -18,9 +18,6 @@ from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.physics.model import EntryModel, scaled_model
 
-_RESET_OPTIONS = {"state", "dispersion"}
-
-
 class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     """
     ## Description
@@ -101,7 +98,10 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     the RK4 map; the returned state is the state at impact), on skip-out (altitude
     above 80 km), on a non-finite state, or on stall (v < 50 m/s); the last three
     set ``info["failure"]``. ``truncated`` at the time limit, ``max_episode_steps``
-    = 2000 in the registration (2000 s at the default dt).
+    = 2000 by default (2000 s at the default dt). A shorter limit set with
+    ``gym.make("RvEntry-v0", max_episode_steps=N)`` (Gymnasium's ``TimeLimit``, which
+    records it in ``env.spec.max_episode_steps``) is read at ``reset``, so that episode
+    too ends with the end keys below, and a further ``step`` raises.
 
     ## Info
 
@@ -164,6 +164,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             model, task, dt, substeps, dispersion, render_mode, MATH
         )
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
+        self._limit = self.max_episode_steps  # this episode's: the own limit or a shorter outer one
         self._ended = False
 
     # ------------------------------------------------------------------ state
@@ -177,10 +178,8 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = {} if options is None else dict(options)
-        unknown = set(options) - _RESET_OPTIONS
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {sorted(_RESET_OPTIONS)}")
+        self._limit = common.outer_time_limit(self, self.max_episode_steps)
+        options = common.reset_options(options)
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
         self.task.check_dispersion(dispersion)
         x0 = common.check_state(options["state"], self._radius) if "state" in options else self._nominal
@@ -231,7 +230,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self._min_q = min(self._min_q, out.min_q)
         reward = -(out.cost + out.path_penalty)
         terminated = out.status != FLYING
-        truncated = not terminated and self.max_episode_steps is not None and self._steps >= self.max_episode_steps
+        truncated = not terminated and self._limit is not None and self._steps >= self._limit
         info_obs, obs_clipped = self._observe()
         info = self._info(clipped, out.alpha_saturated, obs_clipped)
         if terminated or truncated:

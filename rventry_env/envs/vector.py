@@ -111,10 +111,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                 raise ValueError(f"reset(seed=...) needs one seed per copy ({n}), got {len(seeds)}")
             self._rngs = [seeding.np_random(s)[0] for s in seeds]
         super().reset(seed=seed if isinstance(seed, int) else None)
-        options = {} if options is None else dict(options)
-        unknown = set(options) - {"state", "dispersion"}
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: ['dispersion', 'state']")
+        options = common.reset_options(options)
         # one-off, as in the single env: the episodes started by this reset draw from it,
         # later autoresets from the constructor's dispersion again
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
