@@ -29,6 +29,9 @@ def _corpus(tmp: Path) -> list[tuple[list[str], str]]:
     bad_toml = tmp / "bad.toml"
     bad_toml.write_text("[env\nnum_envs = ")
     report = str(tmp / "r.json")
+    bare = tmp / "bare" / "model.zip"  # a saved SB3 model without its observation statistics
+    bare.parent.mkdir()
+    bare.write_bytes((ROOT / "rventry_agents/data/baselines/ppo/model.zip").read_bytes())
     return [
         (["orbit", "--n", "0"], "--n"),
         (["orbit", "--n", "ten"], "--n"),
@@ -55,6 +58,12 @@ def _corpus(tmp: Path) -> list[tuple[list[str], str]]:
         (["evaluate", "--agent", "reference", "--json", str(tmp)], "is a directory"),
         (["evaluate", "--agent", "reference", "--json", str(a_file / "r.json")], "a_file"),
         (["evaluate", "--agent", "reference", "--json", report, "--plots", str(a_file)], "a_file"),
+        (["evaluate", "--agent", "reference", "--json", str(a_file / "sub" / "r.json")], "a_file is a file, not a folder"),
+        (["evaluate", "--agent", "", "--json", report], "argument --agent: must name an agent"),
+        (["evaluate", "--agent", str(bare), "--json", report], '"normalized": false'),
+        (["evaluate", "--agent", str(bare), "--json", report], "vecnormalize.pkl"),
+        (["identify", str(tmp / "rec.csv"), "--json", report, "--threshold", "-1e9"],
+         "argument --threshold: must be a finite number >= 0, got '-1e9'"),
         (["compare", "--episodes", "0", "--json", report], "--episodes"),
         (["compare", "--episodes", "2", "--json", report, "--plots", str(a_file)], "a_file"),
         (["train", "ppo", "--timesteps", "0", "--out", str(tmp / "run")], "--timesteps"),

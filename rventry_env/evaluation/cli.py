@@ -11,7 +11,7 @@ import argparse
 import time
 from pathlib import Path
 
-from rventry_env.util.args import positive_int, seed
+from rventry_env.util.args import agent_spec, positive_int, seed
 from rventry_env.util.files import check_writable, write_json
 
 # the RvEntry-v0 benchmark's targets for a guidance law, printed beside the measured values
@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     names = ", ".join(agent_names())
     ev = sub.add_parser("evaluate", help="evaluate a guidance law on RvEntry-v0 against the collocation reference")
-    ev.add_argument("--agent", required=True, help=f"{names}, or the path of a saved policy")
+    ev.add_argument("--agent", required=True, type=agent_spec, help=f"{names}, or the path of a saved policy")
     ev.add_argument("--episodes", type=positive_int, default=1, help="number of episodes (default 1)")
     _dispersion_arguments(ev)
     ev.add_argument("--seed", type=seed, default=0, help="episode i uses seed SEED + i (default 0)")
@@ -46,7 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help=f"dispersed episodes for mpc, which re-plans in flight (default {MPC_EPISODES}: "
                            "about 8 s each on two cores)")  # fmt: skip
     cmp_.add_argument("--seed", type=seed, default=0, help="dispersed episode i uses seed SEED + i (default 0)")
-    cmp_.add_argument("--agent", default="learned",
+    cmp_.add_argument("--agent", default="learned", type=agent_spec,
                       help="the learned agent to compare (default: the shipped learned policy)")  # fmt: skip
     _dispersion_arguments(cmp_, default="standard")
     cmp_.add_argument("--json", default="out/compare.json", metavar="PATH", help="default out/compare.json")

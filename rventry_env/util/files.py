@@ -36,6 +36,7 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
     if path.is_dir():
         raise OutputError(f"{path} is a directory, not a file")
     folder = path.parent
+    _check_no_file_in_the_way(folder, path)
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -146,7 +147,17 @@ def check_writable(*paths: str | Path | None, folders: tuple = ()) -> None:
         _probe(d, d)
 
 
+def _check_no_file_in_the_way(folder: Path, target: Path) -> None:
+    """Raise :class:`OutputError` naming it if a regular file stands where a folder of ``folder`` must be."""
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                raise OutputError(f"cannot write {target}: {part} is a file, not a folder")
+            return
+
+
 def _probe(folder: Path, target: Path) -> None:
+    _check_no_file_in_the_way(folder, target)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=".rventry-write-check.", dir=folder)
