@@ -84,6 +84,18 @@ def clip_observation(obs: np.ndarray, low: np.ndarray, high: np.ndarray):
     return obs, clipped
 
 
+def real_actions(actions, shape: tuple, what: str) -> np.ndarray:
+    """Actions as float64 of ``shape``: real numbers only (a complex action is refused, not cut to its real part)."""
+    raw = np.asarray(actions)
+    if raw.dtype.kind not in "biuf":
+        raise ValueError(f"{what} must be real numbers, got dtype {raw.dtype}: {raw.tolist()!r:.80}")
+    a = raw.astype(np.float64)
+    if a.shape != shape:
+        layout = "[alpha rate, bank rate]" if len(shape) == 1 else "one [alpha rate, bank rate] per copy"
+        raise ValueError(f"{what} must have shape {shape} ({layout}), got shape {a.shape}")
+    return a
+
+
 def check_max_steps(max_episode_steps) -> int | None:
     """A time limit in control steps: a positive integer, or None for none."""
     if max_episode_steps is None:
@@ -163,24 +175,42 @@ def make_model(model: EntryModel | None) -> EntryModel:
     return model
 
 
-def check_state(state, radius: float) -> np.ndarray:
-    """Validate a user-supplied initial state (12 components, state order of docs/conventions.md)."""
+# the fastest start accepted: well beyond any entry (Earth's escape speed is 11.2 km/s), and far
+# enough below overflow that every force and reward of the first steps stays finite
+MAX_INITIAL_SPEED = 1e5
+
+
+def check_state(state, radius: float, task: EntryTask) -> np.ndarray:
+    """Validate a user-supplied initial state (12 components, state order of docs/conventions.md).
+
+    Refused, naming the component: not 12 finite numbers, not above the surface or above the
+    skip-out ceiling, a speed not in (0, 100 km/s], Euler parameters not of unit norm, alpha
+    outside [0, alpha_max] (where the environment holds it).
+    """
     try:
         x = np.asarray(state, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"an initial state must be {N_STATE} numbers, got {state!r}") from None
+        raise ValueError(f"an initial state must be {N_STATE} numbers, got {state!r:.200}") from None
     if x.shape != (N_STATE,):
         raise ValueError(f"an initial state must have shape ({N_STATE},): r, eA1..etaA, v, eB1..etaB, alpha, sigma; got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError(f"the initial state contains NaN or inf: {x}")
     if x[0] <= radius:
         raise ValueError(f"the initial radius {x[0]:.1f} m is not above the surface ({radius:.1f} m)")
-    if x[5] <= 0:
-        raise ValueError(f"the initial speed must be positive, got {x[5]}")
+    if x[0] - radius > task.ceiling_altitude:
+        raise ValueError(f"the initial altitude {x[0] - radius:.6g} m is above the skip-out ceiling "
+                         f"({task.ceiling_altitude:g} m, EntryTask.ceiling_altitude)")  # fmt: skip
+    if not 0 < x[5] <= MAX_INITIAL_SPEED:
+        raise ValueError(f"the initial speed must lie in (0, {MAX_INITIAL_SPEED:g}] m/s, got {x[5]:.6g}")
     for name, q in (("eA", x[1:5]), ("eB", x[6:10])):
-        n = np.linalg.norm(q)
-        if abs(n - 1) > 1e-6:
-            raise ValueError(f"the initial {name} Euler parameters must have unit norm, got norm {n:.9f}")
+        with np.errstate(over="ignore"):
+            n = np.linalg.norm(q)
+        if not abs(n - 1) <= 1e-6:
+            raise ValueError(f"the initial {name} Euler parameters must have unit norm, got norm {n:.9g}")
+    alpha_max = task.problem.alpha_max
+    if not 0 <= x[10] <= alpha_max:
+        raise ValueError(f"the initial alpha must lie in [0, {math.degrees(alpha_max):g}] deg (alpha_max), "
+                         f"got {x[10]:.6g} rad")  # fmt: skip
     return x
 
 
@@ -196,16 +226,29 @@ def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
     x = np.array(x0, dtype=float, copy=True)
     dh, dv, dgam, dpsi, dalpha, dsigma = (d[..., i] for i in range(3, 9))
     if np.any(dh) or np.any(dv) or np.any(dgam) or np.any(dpsi):
-        # keep the physical lift direction: the new frames come from the east-down rule,
-        # so carry the bank across as the conventional angle mu, not as sigma
-        mu = cv.conventional_bank(x, x[..., 11])
-        s = cv.spherical_from_rv_euler(x)
-        s[..., 0] += dh
-        s[..., 3] += dv
-        s[..., 4] += np.radians(dgam)
-        s[..., 5] += np.radians(dpsi)
-        x[..., :10] = cv.rv_euler_from_spherical(s)
-        x[..., 11] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., 11])
+        try:
+            # keep the physical lift direction: the new frames come from the east-down rule,
+            # so carry the bank across as the conventional angle mu, not as sigma
+            mu = cv.conventional_bank(x, x[..., 11])
+            s = cv.spherical_from_rv_euler(x)
+            s[..., 0] += dh
+            s[..., 3] += dv
+            s[..., 4] += np.radians(dgam)
+            s[..., 5] += np.radians(dpsi)
+            x[..., :10] = cv.rv_euler_from_spherical(s)
+            x[..., 11] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., 11])
+        except cv.SingularConversionError as exc:
+            if np.any(dgam) or np.any(dpsi):
+                raise ValueError(
+                    "the dispersion of the flight-path angle or heading (Dispersion.flight_path_deg, "
+                    "Dispersion.heading_deg) cannot be applied to this initial state: at a pole or in vertical "
+                    f"flight the angle it perturbs is undefined ({exc}). Start it without them, or away from "
+                    "the pole and from vertical flight"
+                ) from None
+            # altitude and speed alone are the magnitudes r and v: no angle is needed
+            x = np.array(x0, dtype=float, copy=True)
+            x[..., 0] += dh
+            x[..., 5] += dv
     x[..., 10] += np.radians(dalpha)
     x[..., 11] += np.radians(dsigma)
     return x

@@ -182,7 +182,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         options = common.reset_options(options)
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
         self.task.check_dispersion(dispersion)
-        x0 = common.check_state(options["state"], self._radius) if "state" in options else self._nominal
+        x0 = common.check_state(options["state"], self._radius, self.task) if "state" in options else self._nominal
         d = common.draw_dispersion(self.np_random, dispersion)
         if not dispersion.is_zero:
             x0 = common.apply_state_dispersion(x0, d)
@@ -211,9 +211,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._ended:
             raise RuntimeError("step() called after the episode ended (terminated or truncated); call reset() first")
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) [alpha rate, bank rate], got shape {a.shape}")
+        a = common.real_actions(action, (2,), "action")
         a0, a1 = float(a[0]), float(a[1])
         if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"action contains NaN or inf: {a.tolist()}")
