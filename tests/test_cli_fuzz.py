@@ -108,3 +108,23 @@ def test_a_failed_report_write_leaves_the_old_report_whole(tmp_path):
     assert "could not write" in res.stderr and "eval.json" in res.stderr and "Traceback" not in res.stderr
     assert report.read_text() == old
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("mpl")) == ["eval.json"]
+
+
+def test_a_failed_plot_leaves_the_previous_report_and_plots_as_one_set(tmp_path):
+    """evaluate --json OUT --plots DIR: the report fits under the file-size limit, a plot does not. Nothing
+    of the new run replaces anything: the previous report and plots stay together, no stray file."""
+    report, plots = tmp_path / "eval.json", tmp_path / "plots"
+    plots.mkdir()
+    old = {"eval.json": '{"old": "report"}', "plots/trajectories_reference.png": "old plot",
+           "plots/outcomes_reference.png": "old plot"}  # fmt: skip
+    for name, text in old.items():
+        (tmp_path / name).write_text(text)
+    cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", "reference", "--episodes", "1",
+           "--json", str(report), "--plots", str(plots)]  # fmt: skip
+    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, preexec_fn=_limit_file_size,
+                         env={**os.environ, "MPLCONFIGDIR": str(tmp_path / "mpl")})  # fmt: skip
+    assert res.returncode == 2 and "could not write" in res.stderr and ".png" in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr
+    assert {name: (tmp_path / name).read_text() for name in old} == old
+    assert sorted(p.name for p in plots.iterdir()) == ["outcomes_reference.png", "trajectories_reference.png"]
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("mpl")) == ["eval.json", "plots"]

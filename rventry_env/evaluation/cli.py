@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from rventry_env.util.args import agent_spec, positive_int, seed
-from rventry_env.util.files import check_writable, write_json
+from rventry_env.util.files import check_writable, output_set, write_json
 
 # the RvEntry-v0 benchmark's targets for a guidance law, printed beside the measured values
 NOMINAL_TARGETS = {"miss_km": 1.0, "vertical_error_deg": 1.0, "abs_speed_error_mps": 50.0, "cost_ratio": 1.3}
@@ -141,12 +141,14 @@ def _evaluate(args) -> int:
     doc = _document(args.agent, args.episodes, dispersion, args.seed, batch, summary)
     doc["wall_time_s"] = time.time() - t0
     doc["workers"] = None if args.cluster else args.workers
-    write_json(args.json, doc)
+    with output_set():  # the report and its plots: all replaced, or none
+        write_json(args.json, doc)
+        if args.plots:
+            label = _label(args.agent)
+            plot_trajectories({label: batch}, Path(args.plots) / f"trajectories_{label}.png",
+                              reference=load_reference())  # fmt: skip
+            plot_outcomes({label: batch}, Path(args.plots) / f"outcomes_{label}.png", EntryTask().success)
     _print_summary(args.agent, summary)
-    if args.plots:
-        label = _label(args.agent)
-        plot_trajectories({label: batch}, Path(args.plots) / f"trajectories_{label}.png", reference=load_reference())
-        plot_outcomes({label: batch}, Path(args.plots) / f"outcomes_{label}.png", EntryTask().success)
     return 0
 
 
@@ -211,18 +213,19 @@ def _compare(args) -> int:
         "wall_time_s": time.time() - t0,
         "workers": None if args.cluster else args.workers,
     }
-    write_json(args.json, doc)
+    ref = load_reference()
+    plots = Path(args.plots)
+    with output_set():  # the report and its plots: all replaced, or none
+        write_json(args.json, doc)
+        for case, title in (("nominal", "Nominal: guidance laws vs the optimal reference"),
+                            ("dispersed", f"Dispersed ({dispersion} set)")):  # fmt: skip
+            plot_trajectories({f"{name}": runs[(case, name)][0] for _, name in agents},
+                              plots / f"{case}_trajectories.png", reference=ref, title=title)  # fmt: skip
+        plot_outcomes({name: runs[("dispersed", name)][0] for _, name in agents}, plots / "dispersed_outcomes.png",
+                      EntryTask().success)  # fmt: skip
     console = Console(width=150)
     for table in _tables(runs, [name for _, name in agents], episodes, dispersion, checks):
         console.print(table)
-    ref = load_reference()
-    plots = Path(args.plots)
-    for case, title in (("nominal", "Nominal: guidance laws vs the optimal reference"),
-                        ("dispersed", f"Dispersed ({dispersion} set)")):  # fmt: skip
-        plot_trajectories({f"{name}": runs[(case, name)][0] for _, name in agents}, plots / f"{case}_trajectories.png",
-                          reference=ref, title=title)  # fmt: skip
-    plot_outcomes({name: runs[("dispersed", name)][0] for _, name in agents}, plots / "dispersed_outcomes.png",
-                  EntryTask().success)  # fmt: skip
     print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)"
           f" in {time.time() - t0:.0f} s")  # fmt: skip
     return 0
@@ -296,9 +299,9 @@ def _tables(runs, names, episodes, dispersion, checks):
 
 def _print_summary(agent: str, s: dict) -> None:
     print(
-        f"{agent}: {s['episodes']} episode(s): success {s['success_rate']:.2f}, miss {s['miss_km']:.3g} km, "
-        f"vertical {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
-        f"J/J* {s['cost_ratio']:.3f}, endings {s['endings']}"
+        f"{agent}: {s['episodes']} episode(s): success rate {s['success_rate']:.2f}; means: miss {s['miss_km']:.3g} km, "
+        f"vertical error {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
+        f"J/J* {s['cost_ratio']:.3f}; endings {s['endings']} (percentiles in the JSON report)"
         + (f", load relief capped {r['capped_steps']} step(s) in {r['episodes_capped']} episode(s)"
            if (r := s.get("load_relief")) else "")
     )
