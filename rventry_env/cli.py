@@ -65,6 +65,13 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         print(f"rventry {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:
+        from rventry_env.evaluation.parallel import WorkerLost
+
+        if not isinstance(exc, WorkerLost):
+            raise
+        print(f"rventry {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"rventry {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -22,6 +22,12 @@ DISPERSED_SUCCESS_TARGETS = {"standard": 0.95, "wide": 0.90}
 MARGIN_OVER_LQR = 0.10
 DISPERSIONS = ("none", "standard", "wide")
 MPC_EPISODES = 20
+# the memory an evaluated episode holds until the report is written: its outcome and its JSON
+# record, and with --plots its every step's state and action. Measured with /usr/bin/time on
+# `rventry evaluate --agent reference --dispersion standard`: 20,000 episodes peaked at 247 MB,
+# 2,000 with --plots at 1.3 GB; these are those figures per episode, rounded up
+EPISODE_BYTES = 12e3
+EPISODE_HISTORY_BYTES = 7e5
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -86,6 +92,41 @@ def dispersion_name(args) -> str:
     return args.dispersion or args.dispersion_default
 
 
+def available_memory() -> float | None:
+    """Bytes this process may still use: the kernel's MemAvailable, or less under a cgroup limit (None: unknown)."""
+    try:
+        meminfo = Path("/proc/meminfo").read_text()
+    except OSError:
+        return None
+    fields = dict(line.split(":", 1) for line in meminfo.splitlines() if ":" in line)
+    if "MemAvailable" not in fields:
+        return None
+    free = float(fields["MemAvailable"].split()[0]) * 1024
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        used = float(Path("/sys/fs/cgroup/memory.current").read_text())
+        if limit != "max":
+            free = min(free, float(limit) - used)
+    except (OSError, ValueError):
+        pass
+    return free
+
+
+def check_memory(episodes: int, history: bool, option: str = "--episodes") -> None:
+    """Refuse at once a request whose episodes will not fit in memory, rather than after hours or at the kernel's hand."""
+    free = available_memory()
+    per = EPISODE_HISTORY_BYTES if history else EPISODE_BYTES
+    need = episodes * per
+    if free is None or need <= 0.8 * free:
+        return
+    fits = max(1, int(0.8 * free // per))
+    raise ValueError(
+        f"{option} {episodes} needs about {need / 1e9:.3g} GB of memory ({per / 1e3:.0f} kB per episode"
+        f"{' with --plots' if history else ''}), more than the {free / 1e9:.3g} GB available now; run it in parts of "
+        f"at most {fits} episodes with --seed S, S + {fits}, ..." + (", or without --plots" if history else "")
+    )
+
+
 def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
               cluster: str | None = None, progress=None):  # fmt: skip
     """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary)."""
@@ -132,6 +173,7 @@ def _evaluate(args) -> int:
 
     dispersion = dispersion_name(args)
     check_writable(args.json, folders=(args.plots,) if args.plots else ())
+    check_memory(args.episodes, bool(args.plots))
     t0 = time.time()
     with Progress(transient=True) as progress:
         job = progress.add_task(f"{args.agent}: {args.episodes} episode(s)", total=args.episodes)
@@ -175,6 +217,7 @@ def _compare(args) -> int:
     known = set(agent_names())
     agents = ((args.agent, label), *((a, n) for a, n in COMPARED if a in known and a != args.agent))
     episodes = {name: (args.mpc_episodes if agent == "mpc" else args.episodes) for agent, name in agents}
+    check_memory(sum(episodes.values()) + len(agents), history=True)  # every law's histories, for the plots
     plan = [(case, agent, name, 1 if case == "nominal" else episodes[name], "none" if case == "nominal" else dispersion)
             for case in ("nominal", "dispersed") for agent, name in agents]  # fmt: skip
     runs = {}
