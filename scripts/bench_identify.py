@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from rventry_env.util.files import check_writable, write_json
     from rventry_env.validation import apollo4, identify_record
-    from rventry_env.validation.simulate import parse_effects, simulate_record
+    from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
     if args.json:
         check_writable(args.json)

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from rventry_env.validation import identify_record
-from rventry_env.validation.aliases import admissible, alias_groups, sparsest_equivalent
-from rventry_env.validation.effects import Structure
-from rventry_env.validation.simulate import parse_effects, simulate_record
+from rventry_env.validation.search.aliases import admissible, alias_groups, sparsest_equivalent
+from rventry_env.validation.search.effects import Structure
+from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
 
 def _run(tmp_path, specs, noise=(20.0, 0.2), duration=200.0, rate=1.0, seed=0, **kw):

@@ -107,7 +107,7 @@ sys.meta_path.insert(0, Block())
 
 
 @pytest.mark.parametrize("module", ["rventry_env", "rventry_env.core", "rventry_env.physics", "rventry_env.problem",
-                                    "rventry_env.reference", "rventry_env.validation.record_replay"])
+                                    "rventry_env.reference", "rventry_env.validation.replay.record_replay"])
 def test_the_physics_imports_without_gymnasium(module):
     res = _run(BLOCK_GYMNASIUM + f"import {module}\nassert 'gymnasium' not in sys.modules\nprint('ok')")
     assert res.returncode == 0, res.stderr

@@ -17,10 +17,10 @@ from rventry_env.physics import (
     Vehicle,
 )
 from rventry_env.validation import identified_model, load_model, save_model
-from rventry_env.validation.effects import Structure, build_model, structure_parameters
-from rventry_env.validation.model_io import model_from_dict, model_to_dict
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.replay_setup import replay_setup
+from rventry_env.validation.replay.replay_setup import replay_setup
+from rventry_env.validation.report.model_io import model_from_dict, model_to_dict
+from rventry_env.validation.search.effects import Structure, build_model, structure_parameters
 
 FULL = EntryModel(
     gravity=J2Gravity(j2=1.1e-3),

@@ -90,9 +90,9 @@ def _record_path(text: str) -> Path:
 def _identify(args: argparse.Namespace) -> int:
     from rventry_env.util.files import check_writable, write_json
     from rventry_env.validation.identify import identify
-    from rventry_env.validation.model_io import save_model
-    from rventry_env.validation.plots import write_plots
     from rventry_env.validation.record import load_record, load_sidecar
+    from rventry_env.validation.report.model_io import save_model
+    from rventry_env.validation.report.plots import write_plots
 
     # every destination first: an unwritable one fails now, not after the run
     check_writable(args.json, args.model_out, folders=(args.plots,) if args.plots else ())
@@ -174,7 +174,7 @@ def _print_summary(rep: dict) -> None:
 
 def _simulate(args: argparse.Namespace) -> int:
     from rventry_env.util.files import check_writable
-    from rventry_env.validation.simulate import parse_effects, simulate_record
+    from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
     specs = [e for e in args.effect if e.strip().lower() != "none"]
     noise = args.noise if len(args.noise) == 2 else (args.noise[0], args.noise[0] / 100.0)

@@ -150,4 +150,4 @@ def whiteness(residual: np.ndarray, lags: int | None = None) -> dict:
     }
 
 
-__all__ = ["difference_noise", "bic", "bic_effective", "effective_size", "whiteness"]
+__all__ = ["bic", "bic_effective", "difference_noise", "effective_size", "whiteness"]

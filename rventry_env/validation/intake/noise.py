@@ -1,6 +1,6 @@
 """Noise of a record, observation groups, and how far the initial state may move.
 
-See :mod:`rventry_env.validation.statistics` for the estimators themselves.
+See :mod:`rventry_env.validation.search.statistics` for the estimators themselves.
 """
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from rventry_env.validation.record_replay import Replay
-from rventry_env.validation.statistics import difference_noise
+from rventry_env.validation.replay.record_replay import Replay
+from rventry_env.validation.search.statistics import difference_noise
 
 # observation groups: name, unit suffix, columns; each group has its own noise level
 GROUPS = {
@@ -76,4 +76,4 @@ def is_noise(kind_text: str) -> bool:
     return kind_text == "noise"
 
 
-__all__ = ["is_noise", "GROUPS", "PROVISIONAL_SIGMA", "INIT_BOUND_SIGMAS", "record_noise", "init_bounds"]
+__all__ = ["GROUPS", "INIT_BOUND_SIGMAS", "PROVISIONAL_SIGMA", "init_bounds", "is_noise", "record_noise"]

@@ -3,7 +3,7 @@
 ``rventry simulate-record --effect NAME[=VALUE] ... --noise POS_M,VEL_MPS --out RECORD.csv``
 
 The vehicle flies a scripted glide (angle of attack and conventional bank as
-smooth functions of time) through :mod:`rventry_env.validation.truth`, which
+smooth functions of time) through :mod:`rventry_env.validation.synthetic.truth`, which
 contains the requested effects. The record is written in the format of
 docs/conventions.md *without* a sidecar, so the identification is told nothing:
 it sees a CAV-H flight under the default Earth and atmosphere. The effects and the noise are
@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from rventry_env.util.files import write_json
-from rventry_env.validation import truth
 from rventry_env.validation.record import write_record
+from rventry_env.validation.synthetic import truth
 
 GENERATED_BY = "rventry simulate-record"
 DEFAULT_VALUES = {
@@ -247,4 +247,4 @@ def simulate_record(
     return out
 
 
-__all__ = ["DEFAULT_VALUES", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "truth_world", "simulate_record"]
+__all__ = ["DEFAULT_VALUES", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record", "truth_world"]

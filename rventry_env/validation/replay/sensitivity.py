@@ -3,7 +3,7 @@
 For one set of effects, the replay's step is built symbolically from the one copy of the physics
 (:func:`~rventry_env.physics.entry_rhs` on CasADi symbols, the force-model parts taking symbolic
 parameters) and the same RK4 stages, Euler-parameter projection and control handling as
-:class:`~rventry_env.validation.record_replay.Replay`. Forward-mode automatic differentiation
+:class:`~rventry_env.validation.replay.record_replay.Replay`. Forward-mode automatic differentiation
 (``jtimes``) carries the sensitivity matrix S = dx/d(theta) through every step along with the
 state, so the Jacobian of the discrete replay is exact (not a finite difference of it), and
 costs about three replays whatever the number of parameters. ``mapaccum`` runs the steps in
@@ -21,7 +21,7 @@ from rventry_env.core.backend import casadi_ns
 from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.physics import entry_rhs
-from rventry_env.validation.record_replay import N_RV, Replay, hermite_weights
+from rventry_env.validation.replay.record_replay import N_RV, Replay, hermite_weights
 
 
 class SensitivityReplay:

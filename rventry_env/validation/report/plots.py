@@ -146,4 +146,4 @@ def write_plots(ident, folder: str | Path) -> list[Path]:
     return out
 
 
-__all__ = ["plot_residuals", "plot_ranking", "plot_density", "write_plots"]
+__all__ = ["plot_density", "plot_ranking", "plot_residuals", "write_plots"]

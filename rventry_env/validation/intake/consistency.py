@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from rventry_env.validation.noise import INIT_BOUND_SIGMAS
+from rventry_env.validation.intake.noise import INIT_BOUND_SIGMAS
 from rventry_env.validation.record import RecordError
 
 ERROR_SIGMAS = 20.0

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from rventry_env.validation.statistics import whiteness
+from rventry_env.validation.search.statistics import whiteness
 
 ALPHA = 1e-3
 Z_CRIT = 3.3  # one-sided normal quantile of ALPHA
@@ -37,7 +37,7 @@ def adequacy(fit, sigma_by_group: dict, source: str, group_names: list, groups: 
              estimated_is: dict | None = None) -> dict:  # fmt: skip
     """Test the residual of ``fit`` against the noise.
 
-    :param fit: the final :class:`~rventry_env.validation.fit.FitResult`.
+    :param fit: the final :class:`~rventry_env.validation.search.fit.FitResult`.
     :param sigma_by_group: noise standard deviation per group.
     :param source: ``"declared"`` or ``"estimated"`` (from record differences) or
         ``"baseline residual"`` (no noise known: the size test is skipped).

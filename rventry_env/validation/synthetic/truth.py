@@ -28,8 +28,8 @@ force-model part.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -279,14 +279,14 @@ def fly(
 
 __all__ = [
     "EARTH_J2",
-    "us76_density",
     "TruthWorld",
-    "gravity_ecef",
-    "density",
-    "cav_h_coefficients",
-    "wind_ecef",
-    "lift_direction",
     "acceleration",
+    "cav_h_coefficients",
+    "density",
     "ecef_from_spherical",
     "fly",
+    "gravity_ecef",
+    "lift_direction",
+    "us76_density",
+    "wind_ecef",
 ]
