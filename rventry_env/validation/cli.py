@@ -88,11 +88,10 @@ def _record_path(text: str) -> Path:
 
 
 def _identify(args: argparse.Namespace) -> int:
-    from rventry_env.util.files import check_writable, write_json
+    from rventry_env.util.files import check_writable
     from rventry_env.validation.identify import identify
     from rventry_env.validation.record import load_record, load_sidecar
-    from rventry_env.validation.report.model_io import save_model
-    from rventry_env.validation.report.plots import write_plots
+    from rventry_env.validation.report.outputs import write_outputs
 
     # every destination first: an unwritable one fails now, not after the run
     check_writable(args.json, args.model_out, folders=(args.plots,) if args.plots else ())
@@ -107,13 +106,8 @@ def _identify(args: argparse.Namespace) -> int:
         record, vehicle=vehicle, start=args.start, threshold=args.threshold, h_max=args.h_max,
         max_effects=args.max_effects, progress=not args.quiet, noise=args.noise, **kwargs,
     )  # fmt: skip
+    write_outputs(ident, args.json, args.model_out, args.plots)
     rep = ident.report
-    if args.plots:
-        rep["plots"] = [str(p) for p in write_plots(ident, args.plots)]
-    if args.model_out:
-        save_model(ident.model, args.model_out)
-        rep["model_file"] = str(args.model_out)
-    write_json(args.json, rep, indent=2)
     try:
         _print_summary(rep)
         sys.stdout.flush()
