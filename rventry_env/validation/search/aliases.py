@@ -233,8 +233,8 @@ def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: 
                 continue
             params = {}
             for e, a in zip(sub, coef):
-                if e == "mass":
-                    params["mass_scale"] = math.exp(-a)
+                if e == "mass":  # its direction is already (-1, -1): the mass factor is exp(+a)
+                    params["mass_scale"] = math.exp(a)
                 elif e == "drag_coefficient":
                     params["cd_scale"] = math.exp(a)
                 elif e == "lift_coefficient":
