@@ -46,6 +46,7 @@ from rventry_env.validation.search.phases import (
     name_canonical_member,
 )
 from rventry_env.validation.search.selection import BIC_THRESHOLD
+from rventry_env.validation.trace.attribution import trace_residual
 
 
 @dataclass
@@ -158,15 +159,17 @@ def identify(
     adeq = adequacy(state.current, screened.sigma, screened.noise_source, screened.group_names, screened.groups,
                     ctx.sigma, {g: screened.estimate_is.get(g) for g in screened.group_names})  # fmt: skip
     aliases = name_canonical_member(ctx, state)
+    trace = trace_residual(ctx, state.current, threshold, say) if adeq["unexplained"] else None
     report = build_report(record, replay, controls, ctx.setup, screened, ctx, state, adeq, aliases, threshold,
-                          max_effects, time.perf_counter() - t_start)  # fmt: skip
+                          max_effects, time.perf_counter() - t_start, trace)  # fmt: skip
     report.update(run_diagnostics(record, ctx, base, state.current, state.chosen, record.kind, state.first))
     report["elapsed_s"] = time.perf_counter() - t_start
     check_finite(report)
     say(f"done in {report['elapsed_s']:.1f} s: effect {report['effect']}"
         + ("; unexplained residual remains" if adeq["unexplained"] else ""))  # fmt: skip
+    extra = {"trace": trace} if trace else {}
     return Identification(report, state.current.model, base, state.current, state.first, state.step_fits, replay,
-                          ctx.setup)  # fmt: skip
+                          ctx.setup, extra)  # fmt: skip
 
 
 __all__ = ["BIC_THRESHOLD", "Identification", "check_arguments", "fly_record", "identify"]

@@ -103,8 +103,12 @@ def record_section(record, replay, controls) -> dict:
 
 
 def build_report(record, replay, controls, setup, screened, ctx, state, adeq: dict, aliases: list,
-                 threshold: float, max_effects: int, elapsed: float) -> dict:  # fmt: skip
-    """The identification report (see ``docs/validation.md`` for every key)."""
+                 threshold: float, max_effects: int, elapsed: float, trace: dict | None = None) -> dict:  # fmt: skip
+    """The identification report (see ``docs/validation.md`` for every key).
+
+    :param trace: the residual trace (:mod:`~rventry_env.validation.trace.attribution`), when the
+        residual is not noise.
+    """
     current, base, chosen = state.current, state.base, state.chosen
     kind = record.kind
     sigma = ctx.sigma
@@ -116,7 +120,9 @@ def build_report(record, replay, controls, setup, screened, ctx, state, adeq: di
         "effect": chosen[0] if chosen else ("unexplained" if adeq["unexplained"] else "none"),
         "effects": list(chosen),
         "unexplained": adeq["unexplained"],
-        "statement": statement(chosen, adeq, aliases),
+        "statement": statement(chosen, adeq, aliases) + (" " + trace["statement"] if trace else ""),
+        "attribution": trace["attribution"] if trace else [],
+        "trace": None if trace is None else {k: v for k, v in trace.items() if k != "residual_after_trace"},
         "parameters": params,
         "parameter_stderr": stderr,
         "fixed_parameters": {"j2": EARTH_J2} if "j2_gravity" in chosen else {},

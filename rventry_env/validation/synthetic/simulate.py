@@ -22,10 +22,17 @@ Effect values (defaults in brackets):
 * ``mach_drag=A`` C_D multiplied by exp(A (1 - exp((M - 22) / 5))): 1 at Mach 22, the
   start of the scripted glide, and growing toward lower Mach [0.15];
 * ``time_offset=DT`` the observations' time tags are DT seconds early: the row of time t
-  holds the state at t + DT (the controls keep their own time) [0.5].
+  holds the state at t + DT (the controls keep their own time) [0.5];
+* ``lift_band=S,LO,HI`` / ``drag_band=S,LO,HI`` C_L (C_D) multiplied by S between LO and HI km
+  altitude, with 1 km edges [0.8,50,53 / 1.15,50,53: the bottom of the scripted glide];
+* ``mach_lift=S,M`` C_L multiplied by S below Mach M (1-Mach edge; the truth's speed of sound is
+  300 m/s) [0.85,21];
+* ``wind_shear=W[,H]`` an eastward wind W tanh((h - H) / 2 km) that reverses at H km [60,54];
+* ``side_force=Y`` a force out of the vertical plane, Y times the drag [0.02].
 
-The last two are outside the identification's candidate set in shape (a smooth Mach law
-against a piecewise-linear correction) or altogether (a clock error).
+``mach_drag`` and ``time_offset`` are outside the identification's candidate set in shape (a smooth Mach law
+against a piecewise-linear correction) or altogether (a clock error); the last five are outside it
+altogether, for the residual trace (:mod:`rventry_env.validation.trace`).
 """
 
 from __future__ import annotations
@@ -51,6 +58,12 @@ DEFAULT_VALUES = {
     "us76_density": "",
     "mach_drag": "0.15",
     "time_offset": "0.5",
+    # outside the candidate set: for the residual trace
+    "lift_band": "0.8,50,53",
+    "drag_band": "1.15,50,53",
+    "mach_lift": "0.85,21",
+    "wind_shear": "60,54",
+    "side_force": "0.02",
 }
 SIMULATED_EFFECTS = tuple(DEFAULT_VALUES)
 
@@ -125,6 +138,22 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
                 raise ValueError("--effect wind takes EAST or EAST,NORTH (m/s)")
             w = replace(w, wind_east=values[0], wind_north=values[1] if len(values) > 1 else 0.0)
             continue
+        if name in ("lift_band", "drag_band"):
+            if len(values) != 3 or values[0] <= 0 or not values[1] < values[2]:
+                raise ValueError(f"--effect {name} takes SCALE,LOW_KM,HIGH_KM (scale > 0, low < high)")
+            w = replace(w, band_channel=name.split("_")[0], band_scale=values[0], band_low=values[1] * 1e3,
+                        band_high=values[2] * 1e3)  # fmt: skip
+            continue
+        if name == "mach_lift":
+            if len(values) != 2 or values[1] <= 0:
+                raise ValueError("--effect mach_lift takes SCALE,MACH (C_L x SCALE below MACH > 0)")
+            w = replace(w, mach_lift_scale=values[0], mach_lift_below=values[1])
+            continue
+        if name == "wind_shear":
+            if len(values) > 2:
+                raise ValueError("--effect wind_shear takes PEAK_MPS[,REVERSAL_KM]")
+            w = replace(w, wind_shear=values[0], shear_altitude=(values[1] * 1e3 if len(values) > 1 else w.shear_altitude))
+            continue
         if len(values) != 1:
             raise ValueError(f"--effect {name} takes one value")
         v = values[0]
@@ -140,6 +169,8 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
             w = replace(w, cd_scale=v) if name == "drag_coefficient" else replace(w, mass=w.mass * v)
         elif name == "mach_drag":
             w = replace(w, mach_drag_amplitude=v)
+        elif name == "side_force":
+            w = replace(w, side_force=v)
         elif name == "time_offset":
             if abs(v) > 10.0:
                 raise ValueError(f"--effect time_offset: at most 10 s, got {v:g}")
