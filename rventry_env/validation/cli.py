@@ -75,6 +75,10 @@ def register(subparsers) -> None:
     s.add_argument("--seed", type=seed_type, default=0, help="noise seed [0]")
     s.add_argument("--observe", choices=("ecef", "reduced"), default="ecef",
                    help="full ECEF state, or altitude and speed plus a sidecar [ecef]")  # fmt: skip
+    s.add_argument("--noise-tails", choices=("normal", "student-t3"), default="normal",
+                   help="noise distribution, both with the given standard deviation [normal]")  # fmt: skip
+    s.add_argument("--start-scatter", type=number_list(non_negative_float, 2, 2), metavar="SECONDS,METRES",
+                   help="the first SECONDS of positions (altitudes) scatter by a further METRES")  # fmt: skip
     s.set_defaults(func=_simulate)
 
 
@@ -177,7 +181,8 @@ def _simulate(args: argparse.Namespace) -> int:
     check_writable(out, out.with_name(out.stem + ".truth.json"),
                    out.with_suffix(".json") if args.observe == "reduced" else None)  # fmt: skip
     out = simulate_record(out, effects, noise=noise, duration=args.duration, rate=args.rate, seed=args.seed,
-                          observe=args.observe)  # fmt: skip
+                          observe=args.observe, noise_tails=args.noise_tails,
+                          start_scatter=tuple(args.start_scatter) if args.start_scatter else None)  # fmt: skip
     print(f"wrote {out} ({', '.join(specs) or 'no effect'}; noise {noise[0]:g} m, {noise[1]:g} m/s)",
           file=sys.stderr)  # fmt: skip
     return 0

@@ -157,7 +157,8 @@ def identify(
     forward_selection(ctx, state, candidates, max_effects, threshold, say)
     backward_elimination(ctx, state, threshold, say)
     adeq = adequacy(state.current, screened.sigma, screened.noise_source, screened.group_names, screened.groups,
-                    ctx.sigma, {g: screened.estimate_is.get(g) for g in screened.group_names})  # fmt: skip
+                    ctx.sigma, {g: screened.estimate_is.get(g) for g in screened.group_names},
+                    screened.robust_noise)  # fmt: skip
     aliases = name_canonical_member(ctx, state)
     trace = trace_residual(ctx, state.current, threshold, say) if adeq["unexplained"] else None
     report = build_report(record, replay, controls, ctx.setup, screened, ctx, state, adeq, aliases, threshold,

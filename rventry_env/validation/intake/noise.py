@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from rventry_env.validation.replay.record_replay import Replay
-from rventry_env.validation.search.statistics import difference_noise
+from rventry_env.validation.search.statistics import difference_noise, robust_difference_noise
 
 # observation groups: name, unit suffix, columns; each group has its own noise level
 GROUPS = {
@@ -45,6 +45,15 @@ def record_noise(replay: Replay, kind: str) -> tuple[dict, dict]:
             ok = 0.8 < r < 1.25
             kind_of[name] = "noise" if ok else f"upper bound (3rd/4th difference estimates {r:.2f})"
     return out, kind_of
+
+
+def record_robust_noise(replay: Replay, kind: str) -> dict:
+    """Per-group robust noise scale from the record's differences (1.4826 MAD; NaN where not possible)."""
+    out = {}
+    for name, _, cols in GROUPS[kind]:
+        est = [e for e in (robust_difference_noise(replay.t_obs, replay.y[:, c]) for c in cols) if np.isfinite(e)]
+        out[name] = float(np.median(est)) if est else math.nan
+    return out
 
 
 def init_bounds(replay: Replay, kind: str, noise: dict) -> np.ndarray | None:

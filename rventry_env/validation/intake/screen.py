@@ -12,7 +12,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rventry_env.validation.intake.consistency import check_entry_state
-from rventry_env.validation.intake.noise import GROUPS, PROVISIONAL_SIGMA, init_bounds, is_noise, record_noise
+from rventry_env.validation.intake.noise import (
+    GROUPS,
+    PROVISIONAL_SIGMA,
+    init_bounds,
+    is_noise,
+    record_noise,
+    record_robust_noise,
+)
 from rventry_env.validation.intake.outliers import reject_outliers
 from rventry_env.validation.record import RecordError
 
@@ -31,6 +38,8 @@ class Screened:
     :param rejected: the rejected outliers, by file line.
     :param entry_check: the sidecar's entry state against the first samples (reduced records).
     :param bound: half-widths within which the fitted entry state may move (None: free).
+    :param robust_estimate: the record's robust (MAD) noise scale by group, what the adequacy
+        test compares the residual's robust scale with.
     """
 
     group_names: list
@@ -43,6 +52,12 @@ class Screened:
     rejected: list = field(default_factory=list)
     entry_check: dict = field(default_factory=dict)
     bound: np.ndarray | None = None
+    robust_estimate: dict = field(default_factory=dict)
+
+    @property
+    def robust_noise(self) -> dict:
+        """The noise scale the residual's robust scale is tested against: declared, else the robust estimate."""
+        return dict(self.declared) if self.declared is not None else dict(self.robust_estimate)
 
     def sigma_vector(self) -> np.ndarray:
         """The weight of every observation column."""
@@ -105,8 +120,20 @@ def screen_record(replay, setup, say=lambda msg: None) -> Screened:
     for w in entry_check.get("warnings", []):
         say("warning: " + w)
     bound = init_bounds(replay, kind, declared if declared is not None else estimate)
+    bound = widen_bound(bound, kind, entry_check.get("widen", {}))
     return Screened(group_names, groups, declared, estimate, estimate_is, sigma, weights_from, rejected,
-                    entry_check, bound)  # fmt: skip
+                    entry_check, bound, record_robust_noise(replay, kind))  # fmt: skip
+
+
+def widen_bound(bound: np.ndarray | None, kind: str, widen: dict) -> np.ndarray | None:
+    """The entry state's prior widened where the sidecar disagrees with the record's first samples."""
+    if bound is None or not widen:
+        return bound
+    bound = bound.copy()
+    for i, (g, _, _) in enumerate(GROUPS[kind]):
+        if g in widen:
+            bound[i] = max(bound[i], widen[g])
+    return bound
 
 
 def reweight_from_baseline(screened: Screened, base) -> bool:

@@ -81,6 +81,7 @@ def noise_section(screened, current: FitResult) -> dict:
         "difference_estimate": {g: (screened.estimate[g] if np.isfinite(screened.estimate[g]) else None)
                                 for g in names},
         "difference_estimate_is": screened.estimate_is,
+        "robust_difference_estimate": {g: (v if np.isfinite(v) else None) for g, v in screened.robust_estimate.items()},
         "weights": {g: screened.sigma[g] for g in names},
         "weights_from": screened.weights_from,
         "after_fit_rms": {g: (math.sqrt(current.rss_by_group[i] / current.n_by_group[i])

@@ -186,6 +186,8 @@ def simulate_record(
     seed: int = 0,
     scenario: Scenario | None = None,
     observe: str = "ecef",
+    noise_tails: str = "normal",
+    start_scatter: tuple[float, float] | None = None,
 ) -> Path:
     """Fly the truth model and write a record.
 
@@ -199,6 +201,11 @@ def simulate_record(
     :param scenario: initial state and scripted controls.
     :param observe: ``"ecef"`` (full state) or ``"reduced"`` (altitude, speed, and a
         sidecar with the entry state).
+    :param noise_tails: ``"normal"``, or ``"student-t3"``: Student's t with 3 degrees of freedom
+        scaled to the same standard deviation (heavy tails).
+    :param start_scatter: ``(seconds, metres)``: the samples of the first ``seconds`` scatter by
+        a further ``metres`` (one standard deviation, normal) in every position or altitude
+        component, like a record digitised from a figure whose start is crowded.
     :return: the record path.
     """
     effects = effects or {}
@@ -233,7 +240,25 @@ def simulate_record(
     if np.any(h < 0):
         t_ground = t[np.argmax(h < 0)]
         raise ValueError(f"the truth flight reaches the ground at t = {t_ground:.0f} s; shorten it")
+    if noise_tails not in ("normal", "student-t3"):
+        raise ValueError(f"noise_tails must be 'normal' or 'student-t3', got {noise_tails!r}")
+    if start_scatter is not None and not (len(start_scatter) == 2 and all(math.isfinite(x) and x >= 0
+                                                                         for x in start_scatter)):  # fmt: skip
+        raise ValueError(f"start_scatter: two finite numbers >= 0 (seconds, metres), got {start_scatter!r}")
     rng = np.random.default_rng(seed)
+
+    def draw(sd: float, shape) -> np.ndarray:
+        if noise_tails == "normal":
+            return rng.normal(0.0, sd, shape)
+        return sd * rng.standard_t(3, shape) / math.sqrt(3.0)  # variance of t(3) is 3
+
+    def scatter(shape) -> np.ndarray:
+        out = np.zeros(shape)
+        if start_scatter is not None and start_scatter[1] > 0:
+            early = t <= start_scatter[0]
+            out[early] = rng.normal(0.0, start_scatter[1], out[early].shape)
+        return out
+
     ctrl = np.array([sc.controls(ti) for ti in t])
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -241,14 +266,14 @@ def simulate_record(
     if stale.is_file() and GENERATED_BY in stale.read_text():
         stale.unlink()  # a sidecar this command wrote for an earlier record of that name
     if observe == "ecef":
-        r_m = r + rng.normal(0.0, noise[0], r.shape)
-        v_m = v + rng.normal(0.0, noise[1], v.shape)
+        r_m = r + draw(noise[0], r.shape) + scatter(r.shape)
+        v_m = v + draw(noise[1], v.shape)
         cols = {n: c for n, c in zip(("x_m", "y_m", "z_m"), r_m.T)}
         cols.update({n: c for n, c in zip(("vx_mps", "vy_mps", "vz_mps"), v_m.T)})
     elif observe == "reduced":
         cols = {
-            "altitude_m": h + rng.normal(0.0, noise[0], h.shape),
-            "speed_rel_mps": np.linalg.norm(v, axis=1) + rng.normal(0.0, noise[1], h.shape),
+            "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
+            "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
         }
         sidecar = {
             "generated_by": GENERATED_BY,
@@ -269,6 +294,8 @@ def simulate_record(
         "effects": effects,
         "noise": {"position_m" if observe == "ecef" else "altitude_m": noise[0],
                   "velocity_mps" if observe == "ecef" else "speed_mps": noise[1]},
+        "noise_tails": noise_tails,
+        "start_scatter": None if start_scatter is None else {"seconds": start_scatter[0], "metres": start_scatter[1]},
         "seed": seed,
         "scenario": asdict(sc),
         "truth_world": asdict(world),
