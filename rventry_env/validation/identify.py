@@ -44,6 +44,7 @@ from rventry_env.validation.search.phases import (
     forward_selection,
     has_density_column,
     name_canonical_member,
+    try_pairs,
 )
 from rventry_env.validation.search.selection import BIC_THRESHOLD
 from rventry_env.validation.trace.attribution import trace_residual
@@ -156,6 +157,7 @@ def identify(
     state = first_step(ctx, base, candidates, max_effects, threshold, say)
     forward_selection(ctx, state, candidates, max_effects, threshold, say)
     backward_elimination(ctx, state, threshold, say)
+    try_pairs(ctx, state, max_effects, threshold, say)
     adeq = adequacy(state.current, screened.sigma, screened.noise_source, screened.group_names, screened.groups,
                     ctx.sigma, {g: screened.estimate_is.get(g) for g in screened.group_names},
                     screened.robust_noise)  # fmt: skip

@@ -122,9 +122,10 @@ class Structure:
         )
 
 
-KNOT_COUNTS = (2, 3, 4, 6, 8)
+KNOT_COUNTS = (2, 3, 4, 6, 8, 12, 16, 24, 32)
 MACH_KNOT_COUNTS = (2, 3, 4)
-MIN_KNOT_SPACING = 2e3  # m: finer than this a density correction is not resolved by a trajectory
+MIN_KNOT_SPACING = 1e3  # m: finer than this a density correction is not resolved by a trajectory
+SAMPLES_PER_KNOT = 10  # a profile gets at most one knot per this many samples
 
 
 def density_knots(altitudes: np.ndarray, n_knots: int = 2) -> tuple:
@@ -144,10 +145,17 @@ def density_knots(altitudes: np.ndarray, n_knots: int = 2) -> tuple:
 
 
 def knot_counts(altitudes: np.ndarray) -> tuple:
-    """Knot counts worth trying: those of :data:`KNOT_COUNTS` not finer than :data:`MIN_KNOT_SPACING`."""
+    """Knot counts worth trying, up to what the record resolves.
+
+    Those of :data:`KNOT_COUNTS` whose spacing over the altitudes flown is at least
+    :data:`MIN_KNOT_SPACING` and with at least :data:`SAMPLES_PER_KNOT` samples per knot: a long
+    dense record may bend its profile every kilometre (a density wave of a few kilometres), a
+    short or sparse one stays coarse. BIC picks among them (:meth:`FitContext.fit_profile`).
+    """
     h = altitudes[np.isfinite(altitudes)]
     span = float(np.max(h) - np.min(h))
-    return tuple(n for n in KNOT_COUNTS if n == 2 or span / (n - 1) >= MIN_KNOT_SPACING)
+    return tuple(n for n in KNOT_COUNTS
+                 if n == 2 or (span / (n - 1) >= MIN_KNOT_SPACING and n * SAMPLES_PER_KNOT <= h.size))  # fmt: skip
 
 
 def mach_knots(mach: np.ndarray, n_knots: int = 2) -> tuple:
@@ -290,6 +298,8 @@ __all__ = [
     "EFFECT_NAMES",
     "KNOT_COUNTS",
     "MACH_KNOT_COUNTS",
+    "MIN_KNOT_SPACING",
+    "SAMPLES_PER_KNOT",
     "PHYSICAL_BOUNDS",
     "Param",
     "Structure",

@@ -6,7 +6,9 @@
 3. :func:`first_step` - every candidate alone, ranked by BIC;
 4. :func:`forward_selection` - add while one addition beats the current model;
 5. :func:`backward_elimination` - drop an effect the others make redundant;
-6. :func:`name_canonical_member` - among exact aliases of the answer, name the first in the
+6. :func:`try_pairs` - every pair of the best single candidates, so a true pair is not lost to
+   an alias accepted first;
+7. :func:`name_canonical_member` - among exact aliases of the answer, name the first in the
    candidate order.
 
 The phases share a :class:`SearchState`: the fits so far, the accepted set and the steps taken
@@ -16,6 +18,7 @@ The phases share a :class:`SearchState`: the fits so far, the accepted set and t
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,6 +44,10 @@ from rventry_env.validation.search.selection import FitContext, compare_fits
 
 SCREEN_KEEP = 2  # additions fitted in full per forward-selection step, after linearized screening
 PROFILES = ("density_profile", "mach_drag")  # effects whose knot count is chosen by BIC
+MAX_PROVISIONAL_STEPS = 1  # steps in a row the search may continue from a fit whose entry state is on its bound
+SEARCH_REPLAY_BUDGET = 250  # replays with sensitivities after which forward selection adds nothing more
+PAIR_CANDIDATES = 3  # the best single candidates whose pairs are fitted after the greedy search
+FIXED_EFFECTS = ("j2_gravity", "measured_density")  # effects without a free parameter
 
 
 def _quiet(msg: str) -> None:
@@ -70,6 +77,7 @@ class SearchState:
     step_fits: list = field(default_factory=list)
     knot_trials: dict = field(default_factory=dict)
     aliases_skipped: list = field(default_factory=list)
+    provisional_run: int = 0
 
     @property
     def chosen(self) -> tuple:
@@ -190,6 +198,7 @@ def first_step(ctx: FitContext, base: FitResult, candidates: tuple, max_effects:
         say(f"accepted {' + '.join(state.chosen)}")
     elif cmp1["provisional"] is not None:
         state.frontier = cmp1["provisional"]
+        state.provisional_run = 1
         state.steps[0]["provisional"] = list(state.frontier.effects)
         say(f"no credible candidate beats the current model; continuing from {' + '.join(state.frontier.effects)} "
             "(its entry state is on its bound)")  # fmt: skip
@@ -277,9 +286,15 @@ def forward_step(ctx: FitContext, state: SearchState, candidates: tuple, max_eff
     })  # fmt: skip
     if cmp["accepted"] is not None:
         state.accept(cmp["accepted"])
+        state.provisional_run = 0
         say(f"accepted {' + '.join(state.chosen)}")
         return True
     if cmp["provisional"] is not None and cmp["provisional"].structure.key() != search.structure.key():
+        if state.provisional_run >= MAX_PROVISIONAL_STEPS:
+            state.steps[-1]["stopped"] = (f"the best fit again needs its entry state on the bound; the search "
+                                          f"continues from such a fit for at most {MAX_PROVISIONAL_STEPS} step(s)")
+            return False
+        state.provisional_run += 1
         state.frontier = cmp["provisional"]
         state.steps[-1]["provisional"] = list(state.frontier.effects)
         say(f"continuing from {' + '.join(state.frontier.effects)} (its entry state is on its bound)")
@@ -294,8 +309,69 @@ def forward_selection(ctx: FitContext, state: SearchState, candidates: tuple, ma
     while state.frontier is not None and state.frontier.effects and (
         len(state.frontier.effects) < limit or any(p in state.frontier.effects for p in PROFILES)
     ):
+        if ctx.nfev > SEARCH_REPLAY_BUDGET:
+            state.steps.append({"step": "stopped", "from": list(state.frontier.effects),
+                                "note": f"{ctx.nfev} replays: the forward search stops at its budget of "
+                                        f"{SEARCH_REPLAY_BUDGET}"})  # fmt: skip
+            say(f"forward search stopped at its budget ({ctx.nfev} replays)")
+            break
         if not forward_step(ctx, state, candidates, max_effects, threshold, say):
             break
+    return state
+
+
+def _pair_structure(ctx: FitContext, pair: tuple, fits: list[FitResult]):
+    """A structure for a pair with the knots its members' single fits chose."""
+    dk = next((f.structure.density_knots for f in fits if "density_profile" in f.effects), None)
+    mk = next((f.structure.mach_knots for f in fits if "mach_drag" in f.effects), None)
+    st = ctx.structure(pair)
+    return dataclasses.replace(st, density_knots=dk or st.density_knots, mach_knots=mk or st.mach_knots)
+
+
+def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: float, say=_quiet) -> SearchState:
+    """Fit every admissible pair of the best single candidates, so a true pair is not lost to an alias.
+
+    The greedy search accepts the best single effect first; when that is an alias of one member
+    of a true pair (a density level for a mass error), the other member may then only fit
+    implausibly next to it (J2 soaking up the difference). The :data:`PAIR_CANDIDATES` best
+    first-step fits that are not stretched to a physical bound are paired with each other and
+    with every effect that has no free parameter (:data:`FIXED_EFFECTS`); a credible pair
+    replaces the answer when it beats it by the threshold (by any margin when the answer has as
+    many effects).
+    """
+    if max_effects < 2:
+        return state
+    c0 = ctx.setup.start_lift_scale
+    ranked = [row["effect"] for row in state.steps[0]["tried"] if not row["at_bound"]]
+    top = [e for e in ranked if e in state.first][:PAIR_CANDIDATES]
+    # an effect without a free parameter (J2 at its known value, the measured density) ranks low
+    # alone, since it only corrects the model next to the effect it was missing: pair it with each
+    fixed = [e for e in state.first if e in FIXED_EFFECTS and e not in top]
+    pairs = list(itertools.combinations(top, 2)) + [(a, b) for a in top for b in fixed]
+    fits = {}
+    for pair in pairs:
+        if set(pair) == set(state.chosen):
+            continue
+        members = [state.first[e] for e in pair]
+        st = _pair_structure(ctx, pair, members)
+        if not admissible(pair, st, c0):
+            continue
+        say(f"pair: {' + '.join(pair)}")
+        start = min(members, key=lambda f: f.bic)
+        fits[" + ".join(pair)] = ctx.fit(st, start)
+    if not fits:
+        return state
+    state.step_fits.append(fits)
+    cmp = compare_fits(state.current, list(fits.values()), ctx.sigma, 0.0, list(fits))
+    margin = threshold if len(state.chosen) < 2 else 0.0
+    best = next((row for row in cmp["table"] if row["credible"]), None)
+    replace = best is not None and best["bic"] < cmp["bic_current"] - margin
+    state.steps.append({"step": "pairs", "from": list(state.chosen), "effective_samples": cmp["n_eff"],
+                        "bic_current": cmp["bic_current"], "tried": cmp["table"],
+                        "accepted": best["effect"] if replace else None})  # fmt: skip
+    if replace:
+        state.current = fits[best["effect"]]
+        say(f"accepted the pair {best['effect']}: it beats {' + '.join(state.steps[-1]['from']) or 'the baseline'}")
     return state
 
 
@@ -382,6 +458,7 @@ __all__ = [
     "SCREEN_KEEP",
     "SearchState",
     "backward_elimination",
+    "try_pairs",
     "canonical_member",
     "first_step",
     "fit_baseline",
