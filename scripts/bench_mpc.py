@@ -27,7 +27,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.parallel import EvaluationJob, concatenate, map_local, run_task
 from rventry_env.evaluation.summary import summarize
 from rventry_env.guidance.replanning import ReplanningSettings

@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.evaluation.parallel import EvaluationJob, evaluate
 from rventry_env.evaluation.rollout import rollout
 from rventry_env.guidance.replanning import PlanSolver, ReplanningGuidance, ReplanningSettings
@@ -71,14 +72,14 @@ def test_a_failed_first_solve_falls_back_to_the_nominal_plan(monkeypatch):
     venv = RvEntryVectorEnv(num_envs=1)
     obs, info = venv.reset(seed=0)
     law.reset(1)
-    law(obs, info["time_s"], venv.state, sensed_accel_b=info["sensed_accel_b"])
+    law(Measurement.of(obs, info["time_s"], venv.state, info["sensed_accel_b"]))
     assert law.tracks[0].solution is law.nominal and law.logs[0].replan_failures == 1
 
 
 def _fly(law, venv, obs, info, steps):
     actions = []
     for _ in range(steps):
-        a = law(obs, info["time_s"], venv.state, sensed_accel_b=info["sensed_accel_b"])
+        a = law(Measurement.of(obs, info["time_s"], venv.state, info["sensed_accel_b"]))
         actions.append(a.copy())
         obs, _, _, _, info = venv.step(a)
     return np.array(actions)
@@ -106,15 +107,33 @@ def test_a_law_cannot_tell_a_dispersion_draw_from_the_same_vehicle_built_by_hand
 def test_rollout_hands_a_law_only_what_a_vehicle_measures():
     seen = []
 
-    class Spy:
-        uses_sensed_acceleration = True
-
+    class Spy(Law):
         def __call__(self, *args, **kwargs):
-            seen.append((len(args), sorted(kwargs), [np.shape(a) for a in args], np.shape(kwargs["sensed_accel_b"])))
-            return np.zeros((len(args[0]), 2), np.float32)
+            (m,) = args
+            assert not kwargs and isinstance(m, Measurement)
+            seen.append({f: np.shape(getattr(m, f)) for f in m.__dataclass_fields__})
+            return np.zeros((m.n, 2), np.float32)
 
     rollout(Spy(), 3, dispersion="standard", max_episode_steps=4)
-    assert seen and all(s == (3, ["sensed_accel_b"], [(3, 26), (3,), (3, 12)], (3, 3)) for s in seen)
+    assert seen and all(s == {"observation": (3, 26), "time_s": (3,), "navigation_state": (3, 12),
+                              "sensed_accel_b": (3, 3), "flying": (3,)} for s in seen)  # fmt: skip
+
+
+def test_rollout_refuses_what_is_not_a_guidance_law():
+    with pytest.raises(TypeError, match="lacks reset, episode_stats, episodes_per_task"):
+        rollout(lambda m: np.zeros((m.n, 2)), 1, max_episode_steps=2)
+
+
+def test_every_shipped_law_implements_the_interface():
+    from rventry_env.evaluation.agents import agent_names, load_agent
+    from rventry_env.guidance.law import GuidanceLaw
+
+    for name in agent_names():
+        if name == "mpc":
+            law = ReplanningGuidance(settings=COARSE)
+        else:
+            law = load_agent(name)
+        assert isinstance(law, GuidanceLaw) and isinstance(law, Law), name
 
 
 @pytest.mark.slow

@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.rollout import EpisodeBatch
 
 METRICS = ("miss_km", "vertical_error_deg", "speed_error_mps", "abs_speed_error_mps", "alpha_final_deg",
@@ -47,6 +47,12 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     out["replanning"] = replanning_summary(batch.law_stats)
     out["load_relief"] = load_relief_summary(batch.law_stats)
     return out
+
+
+def task_metric_key(success_rate: float | None, mean_miss_km: float | None) -> tuple[float, float]:
+    """How evaluations rank on the task metric (training selections, scans): the success rate
+    first, then the smaller mean miss; a missing figure ranks last."""
+    return (success_rate or 0.0, -(mean_miss_km if mean_miss_km is not None else np.inf))
 
 
 def load_relief_summary(stats: list[dict]) -> dict | None:

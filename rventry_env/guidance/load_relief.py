@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.physics import EntryModel
 from rventry_env.physics.entry import entry_forces, entry_rhs
 

@@ -47,8 +47,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.physics.entry import IDX
+from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator, EstimatorSettings
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
 from rventry_env.physics.model import EntryModel
 
@@ -261,7 +263,7 @@ class _EpisodeLog:
     failures: list = field(default_factory=list)  # (time, status)
 
 
-class ReplanningGuidance:
+class ReplanningGuidance(Law):
     """The re-planning law (agent ``mpc``): batched over episodes, one plan each.
 
     :param task: the task (problem constants, dt).
@@ -270,7 +272,6 @@ class ReplanningGuidance:
     :param estimator_settings: the filter's settings.
     """
 
-    uses_sensed_acceleration = True
     episodes_per_task = 1  # seconds per episode: parallel evaluations give each episode its own task
 
     def __init__(self, task: EntryTask | None = None, model: EntryModel | None = None,
@@ -348,25 +349,21 @@ class ReplanningGuidance:
         them for a second or two, so a few seconds ahead is what the law wants, not where it is.
         """
         time_s = np.asarray(time_s, dtype=float)
-        out = np.array(state, dtype=float)[:, 10:12]
+        out = np.array(state, dtype=float)[:, IDX.angles]
         ahead = np.broadcast_to(self.task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float), time_s.shape)
         steps = np.maximum(np.rint(ahead / self.task.dt).astype(int), 1)
         for i, tr in enumerate(self.tracks):
             if tr is None:
                 continue
             k = tr.step(time_s[i], self.task.dt) + int(steps[i])
-            out[i] = tr.x_ref[min(max(k, 0), tr.x_ref.shape[0] - 1), 10:12]
+            out[i] = tr.x_ref[min(max(k, 0), tr.x_ref.shape[0] - 1), IDX.angles]
         return out
 
-    def __call__(self, obs, time_s, state, sensed_accel_b=None):
-        if sensed_accel_b is None:
-            raise ValueError("mpc needs the sensed acceleration (info['sensed_accel_b'])")
-        time_s = np.asarray(time_s, dtype=float)
-        state = np.asarray(state, dtype=float)
-        if len(state) != self.n:
-            self.reset(len(state))
-        self.estimator.update(time_s, state, sensed_accel_b)
-        theta = self.estimator.log_scales()
+    def __call__(self, m: Measurement) -> np.ndarray:
+        time_s, state = m.time_s, m.navigation_state
+        if m.n != self.n:
+            self.reset(m.n)
+        theta = self.estimator.observe(m)
         for i in range(self.n):
             tr = self.tracks[i]
             to_go = tr.t_end - time_s[i] if tr is not None else np.inf
