@@ -35,7 +35,7 @@ KNOT_COUNTS = (2, 3, 4, 6, 8, 12, 16)
 MIN_ALTITUDE_SPACING = 1e3  # m between knots of an altitude profile
 MIN_TIME_SPACING = 10.0  # s between knots of a time profile
 VALUES_PER_PARAMETER = 8  # a fit needs at least this many measured values per parameter
-REFINE_ITERATIONS = 6
+REFINE_ITERATIONS = 4
 REFINE_LEADERS = 2  # corrections per axis refined to convergence after the one-step screening
 AERO_MAX = 1.0  # an aerodynamic correction beyond 100 % of the drag is not a correction
 BAND_FRACTION = 0.5  # the band: where the correction is at least this fraction of its peak
@@ -73,7 +73,8 @@ def _stage_times(replay) -> np.ndarray:
 class _Linearized:
     """One replay with sensitivities at the identified fit, all channels' corrections at zero."""
 
-    def __init__(self, ctx, final, axis: str, n_knots: int, channels=CHANNELS, engines: dict | None = None):
+    def __init__(self, ctx, final, axis: str, n_knots: int, channels=CHANNELS, engines: dict | None = None,
+                 residual: np.ndarray | None = None):  # fmt: skip
         replay, setup = ctx.replay, ctx.setup
         self.axis, self.knots = axis, _knots(replay, axis, n_knots)
         self.n0 = final.extra["n_initial"]
@@ -92,8 +93,11 @@ class _Linearized:
         self.y_obs = replay.y
         self.group_of = np.broadcast_to(ctx.groups, replay.y.shape)[self.mask]
         self.theta0 = np.concatenate([final.values, np.zeros(len(forcing.names))])
-        self.r, self.jac = self.evaluate(self.theta0)
-        ctx.nfev += 1
+        if residual is None:  # the Jacobian at the identified fit
+            self.r, self.jac = self.evaluate(self.theta0)
+            ctx.nfev += 1
+        else:  # the residual there is known (the corrections are zero): no replay needed
+            self.r, self.jac = residual, None
 
     def evaluate(self, theta: np.ndarray):
         with np.errstate(all="ignore"):
@@ -363,12 +367,13 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
     # the leaders of the one-step screening, refined to convergence: a large residual is not linear
     leaders = [f for axis in ("altitude", "time") for f in [g for g in ranked if g["axis"] == axis][:REFINE_LEADERS]]
-    # a pair is compared with its members alone, refined alike
-    leaders += [chosen[((c,), f["axis"])] for f in list(leaders) if len(f["channels"]) == 2 for c in f["channels"]]
+    # a pair is compared with its members alone, refined alike (only the leading pair of an axis)
+    leaders += [chosen[((c,), f["axis"])] for f in list(leaders)[::REFINE_LEADERS]
+                if len(f["channels"]) == 2 for c in f["channels"]]
     leaders = list({id(f): f for f in leaders}.values())
     for f in leaders:
         say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
-        theta, r = _refine(ctx, f)
+        theta, r = _refine(ctx, f, final)
         rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
         f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True)
         f["outside"] = _outside_bounds(f["lin"], theta, f["channels"])
@@ -425,12 +430,25 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     return out
 
 
-def _refine(ctx, f) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton from the screening step, a fresh Jacobian each iteration, halving a step that does not help."""
-    lin, cols = f["lin"], f["cols"]
+def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Newton from the screening step, a fresh Jacobian each iteration, halving a step that does not help.
+
+    The refinement replays only the fit's own channels (fewer sensitivity columns than the
+    screening's all-channel replay); ``f["lin"]`` and ``f["cols"]`` become that replay's.
+    """
+    screen = f["lin"]
+    screened = dict(zip(screen.names, screen.theta0[screen.n0:]))
+    for i, s in zip(f["cols"], f["step"]):
+        if i >= screen.n0:
+            screened[screen.names[i - screen.n0]] += s
+    lin = _Linearized(ctx, final, screen.axis, len(screen.knots), f["channels"], ctx.engines, residual=screen.r)
+    cols = lin.columns(f["channels"])
+    f["lin"], f["cols"] = lin, cols
     theta = lin.theta0.copy()
     step = np.zeros(len(theta))
-    step[cols] = f["step"]
+    step[: screen.n0] = f["step"][: screen.n0]  # the entry state's columns come first in both
+    for j, name in enumerate(lin.names):
+        step[lin.n0 + j] = screened[name] - theta[lin.n0 + j]
     r_best = lin.r
     cost = float(r_best @ r_best)
     for _ in range(REFINE_ITERATIONS):
