@@ -33,6 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
     dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
     dag.add_argument("--workers", type=positive_int, default=2, help="local processes flying the expert (default 2)")
+    dag.add_argument("--cluster", metavar="ADDRESS",
+                     help="fly the expert's episodes on the Dask cluster at this scheduler address instead")
     dag.add_argument("--out", default="runs/dagger", help="output directory (default runs/dagger)")
     dag.add_argument("--config", help="TOML config (default rventry_agents/dagger.toml)")
     dag.add_argument("--resume", action="store_true", help="take the rounds already finished in --out, go on from there")
@@ -59,7 +61,7 @@ def _run_dagger(args) -> int:
     from rventry_agents.dagger import train_dagger
 
     out = train_dagger(args.config, args.out, workers=args.workers, seed=args.seed, progress_bar=not args.no_progress,
-                       resume=args.resume)
+                       resume=args.resume, cluster=args.cluster)
     print(f"wrote {out}/student.pt (best on the task metric), rounds.json, learning_curve.png, metadata.json")
     return 0
 
