@@ -480,11 +480,11 @@ def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: 
     scan = []
     for h in horizons:
         metric = select_metric(LearnedGuidance(network, task=task, horizon=h, load_relief_margin=relief), cfg, task)
-        scan.append({**_horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
+        scan.append({**horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
     return scan
 
 
-def _horizon_keys(h: Horizon, prefix: str) -> dict:
+def horizon_keys(h: Horizon, prefix: str) -> dict:
     """A horizon as student.json keys (an unbounded descent rate as null)."""
     return {f"{prefix}_s": h.max_s, f"{prefix}_min_s": h.min_s,
             f"{prefix}_descent_mps": h.descent_mps if math.isfinite(h.descent_mps) else None}  # fmt: skip
@@ -523,7 +523,7 @@ def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, track
     write_json(out / "student.json", {"hidden": list(best.hidden), "members": best.members, "inputs": "observation features "
                "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
                "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
-               **_horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else _horizon_keys(tracker, "tracking")),
+               **horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else horizon_keys(tracker, "tracking")),
                "load_relief_margin": law["load_relief_margin"], "selected_round": best.source,
                **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
 
@@ -615,7 +615,12 @@ def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
                          + next(f"index {i}: {a!r} saved, {b!r} now" for i, (a, b) in enumerate(zip(names, INPUT_NAMES))
                                 if a != b))  # fmt: skip
     network = network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]), int(meta.get("members", 1)))
-    return LearnedGuidance(network, task=task, **student_law(meta, task))
+    law = LearnedGuidance(network, task=task, **student_law(meta, task))
+    run = json.loads((run_dir / "metadata.json").read_text()) if (run_dir / "metadata.json").is_file() else {}
+    law.provenance = {"algorithm": "DAgger (supervised imitation of mpc)", "start": "scratch",
+                      "samples": run.get("selected", {}).get("samples"), "seed": run.get("seed"),
+                      "selected": meta.get("selected_round")}  # fmt: skip
+    return law
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:

@@ -232,6 +232,7 @@ def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
         dispersion_draw=np.concatenate([b.dispersion_draw for b in batches]),
         seeds=np.concatenate([b.seeds for b in batches]),
         law_stats=[s for b in batches for s in b.law_stats],
+        provenance=batches[0].provenance,
         lengths=np.concatenate([b.lengths for b in batches]),
     )
     if all(b.history_t is not None for b in batches):
