@@ -25,8 +25,9 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   a drag error is density (which sets q) rather than C_D.
 * **A budget.** IPOPT stops after ``max_iterations`` iterations: the deterministic budget, so
   an episode's result does not depend on the machine's load. A wall-time cap ``max_wall_s``
-  is an option for flight-like runs (off by default: on a busy machine it fired on 2 of 644
-  re-solves and changed the miss figures); a solve it stops is counted (``replan_timeouts``).
+  is an option for flight-like runs (off by default: a 2 s cap stopped 83 of 650 solves on a
+  machine shared with three other jobs and changed the miss figures); a solve it stops is
+  counted (``replan_timeouts``).
   A failed or unfinished solve keeps the previous plan, and is counted.
 * **Freeze.** No new plan within ``freeze_s`` of the planned impact: the last plan is
   tracked into the ground.
@@ -38,10 +39,9 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   alpha to zero inside the step of impact only at that step's end, so the lift of the last step
   or two is the price: nominally, aiming at 1 / 0.5 / 0.2 deg leaves 0.91 / 0.45 / 0.18 deg and
   moves the vertical-impact error from 0.48 to 1.26 / 1.71 / 1.98 deg (J/J* 0.952 to 1.013 /
-  1.056 / 1.084). Solving the last plan
-  again with its duration a whole number of steps, so that the impact falls on a step's end,
-  did not work: fixing the last minute's duration from 58.23 s to 58 s took 137 IPOPT iterations
-  and quadrupled the plan's cost.
+  1.056 / 1.084). Solving the last plan again with its duration a whole number of steps, so
+  that the impact falls on a step's end, did not work: fixing the last minute's duration from
+  58.23 s to 58 s took 137 IPOPT iterations and more than tripled the plan's cost.
 * **Final re-planning** (off by default). With ``final_replan_s`` set, the interval shortens
   to it once the planned time to go is under ``final_window_s``. The law itself does not need
   it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
