@@ -2,15 +2,17 @@
 
 Two loaders are registered with ``rventry evaluate`` through entry points:
 
-* ``ppo`` (group ``rventry.agents``): the policy shipped in ``rventry_agents/data/ppo``;
+* ``ppo`` and ``ppo-residual`` (group ``rventry.agents``): the PPO-trained policy shipped in
+  ``rventry_agents/data/ppo``, the PPO residual on TV-LQR; ``ppo-plain``, ``recurrent-ppo-plain`` and
+  ``sac-plain``: the plain-RL baselines;
 * ``sb3`` (group ``rventry.agent_files``): any saved model, given as a path.
 
 A training run of this package writes, beside ``model.zip``, ``policy.json`` (how
 to fly it: direct, or residual on the classical law) and ``vecnormalize.pkl`` (the
-observation statistics). A run's model without its normalization file is an error,
-never a silent skip: flying it on raw observations would be a different policy.
-A bare SB3 zip from elsewhere (no ``policy.json`` beside it) is flown directly,
-on raw observations, and says so.
+observation statistics). A model without its normalization file is refused, never
+flown on raw observations, which would be a different policy; a model that was trained
+on raw observations says so in ``policy.json`` beside it: ``{"mode": "direct",
+"normalized": false}``.
 """
 
 from __future__ import annotations
@@ -89,7 +91,7 @@ def _load_sb3(path: Path, algorithm: str | None = None):
     (or sb3-contrib recurrent) algorithm with a continuous-action policy."""
     from stable_baselines3 import A2C, DDPG, PPO, SAC, TD3
 
-    from rventry_agents.train import algorithm_class
+    from rventry_agents.config import algorithm_class
 
     if algorithm is not None:
         return algorithm_class(algorithm).load(path, device="cpu")
@@ -119,9 +121,11 @@ class SB3Policy(Law):
     :param model_path: the ``.zip`` written by ``model.save``, or a run directory holding ``model.zip``.
     :param normalize_path: the ``VecNormalize`` pickle; default: the one that belongs to the model
         (required for a model of an rventry training run).
+    :param task: the task to fly (default: the run's training task); a run's model is refused,
+        with each difference named, on a task other than the one it was trained on.
     """
 
-    def __init__(self, model_path: str | Path, normalize_path: str | Path | None = None):
+    def __init__(self, model_path: str | Path, normalize_path: str | Path | None = None, task: EntryTask | None = None):
         from stable_baselines3.common.base_class import BaseAlgorithm
 
         path = Path(model_path)
@@ -133,14 +137,19 @@ class SB3Policy(Law):
         spec = next((d / "policy.json" for d in (path.parent, path.parent.parent) if (d / "policy.json").is_file()), None)
         self.spec = json.loads(spec.read_text()) if spec is not None else {"mode": "direct"}
         self.from_run = spec is not None
-        if normalize_path is None and self.from_run:
+        self.model: BaseAlgorithm = _load_sb3(path, self.spec.get("algorithm"))  # first: is it a model at all
+        if normalize_path is None:
             normalize_path = _normalization_for(path)
             if not normalize_path.is_file():
-                raise FileNotFoundError(
-                    f"{path} belongs to an rventry training run ({spec}) but its observation statistics "
-                    f"{normalize_path.name} are missing beside it; pass the VecNormalize file explicitly"
-                )
-        self.model: BaseAlgorithm = _load_sb3(path, self.spec.get("algorithm"))
+                if self.spec.get("normalized", True):
+                    raise FileNotFoundError(
+                        f"{path} has no observation statistics beside it ({normalize_path.name}): flown on raw "
+                        "observations it would be a different policy, so it is refused. Put the VecNormalize file "
+                        f"it was trained with there as {normalize_path.name}, or, for a model trained on raw "
+                        f'observations, write {{"mode": "direct", "normalized": false}} to '
+                        f"{path.parent / 'policy.json'}"
+                    )
+                normalize_path = None
         self.obs_mean = self.obs_var = None
         self.clip_obs, self.epsilon = 10.0, 1e-8
         self.normalize_path = None if normalize_path is None else Path(normalize_path)
@@ -152,13 +161,31 @@ class SB3Policy(Law):
             if vn.norm_obs:  # statistics exist even when they were not used
                 self.obs_mean, self.obs_var = vn.obs_rms.mean.copy(), vn.obs_rms.var.copy()
                 self.clip_obs, self.epsilon = vn.clip_obs, vn.epsilon
-        meta = path.with_name("metadata.json")
-        self.metadata = json.loads(meta.read_text()) if meta.is_file() else {}
-        self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"], self.spec.get("authority_rad"))
+        meta = next((d / "metadata.json" for d in (path.parent, path.parent.parent) if (d / "metadata.json").is_file()), None)
+        self.metadata = json.loads(meta.read_text()) if meta is not None else {}
+        self.task = EntryTask() if task is None else task
+        env = self.metadata.get("config", {}).get("env")
+        if env is not None:
+            self.task.check_trained(EntryTask(dt=float(env["dt"]), substeps=int(env["substeps"])).record(),
+                                    f"the model {path}")  # fmt: skip
+        self.provenance = self.metadata.get("provenance") or (
+            {"algorithm": f"{self.metadata.get('algorithm', self.spec.get('algorithm', 'ppo'))} (stable-baselines3)",
+             "start": {"residual": "TV-LQR, residual", "direct": "scratch"}.get(self.spec["mode"], self.spec["mode"]),
+             "timesteps": self.metadata.get("timesteps"), "seed": self.metadata.get("seed")}
+            if self.from_run else None)  # fmt: skip
+        if self.spec["mode"] == "student":
+            from rventry_agents.finetune import fine_tuned_law
+
+            self._act = fine_tuned_law(self.model.policy, self.spec["student"], self.task)
+        else:
+            self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"],
+                                    self.spec.get("authority_rad"), self.task)  # fmt: skip
 
     def reset(self, n_episodes: int) -> None:
-        if hasattr(self._act, "reset"):
-            self._act.reset(n_episodes)
+        self._act.reset(n_episodes)
+
+    def episode_stats(self) -> list[dict]:
+        return self._act.episode_stats()
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_mean is None:
@@ -171,10 +198,10 @@ class SB3Policy(Law):
 
 
 def load_shipped(name: str = "ppo-residual", task: EntryTask | None = None) -> SB3Policy:
-    """The PPO residual on TV-LQR shipped with this package (entry point ``ppo-residual``)."""
+    """The PPO residual on TV-LQR shipped with this package (entry points ``ppo`` and ``ppo-residual``)."""
     if not (SHIPPED_PPO / "model.zip").is_file():
         raise FileNotFoundError(f"the shipped PPO residual is missing from {SHIPPED_PPO}")
-    return SB3Policy(SHIPPED_PPO)
+    return SB3Policy(SHIPPED_PPO, task=task)
 
 
 def load_baseline(name: str, task: EntryTask | None = None) -> SB3Policy:
@@ -184,12 +211,12 @@ def load_baseline(name: str, task: EntryTask | None = None) -> SB3Policy:
     run = SHIPPED_BASELINES / BASELINE_AGENTS[name]
     if not (run / "model.zip").is_file():
         raise FileNotFoundError(f"the baseline {name} is not shipped: no {run / 'model.zip'}")
-    return SB3Policy(run)
+    return SB3Policy(run, task=task)
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> SB3Policy:
     """A saved SB3 model or run directory (entry point ``rventry.agent_files``)."""
-    return SB3Policy(path)
+    return SB3Policy(path, task=task)
 
 
 __all__ = [

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rventry_env.task import Dispersion, EntryTask
-from rventry_agents.sb3_policy import SHIPPED_PPO, SB3Policy
+from rventry_agents.sb3_policy import SHIPPED_BASELINES, SHIPPED_PPO, SB3Policy
 from rventry_env.evaluation.agents import load_agent as load_policy
 from rventry_env.evaluation.rollout import rollout
 
@@ -219,15 +219,18 @@ def test_a_recurrent_policy_carries_its_memory_per_vehicle_and_reset_clears_it()
 def test_shipped_policies_are_present_and_deterministic_for_a_seed():
     learned = load_policy("learned")
     assert type(learned).__name__ == "LearnedGuidance" and learned.relief is not None  # the student, load-relieved
-    a = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
+    a = rollout(load_policy("dagger"), 4, seed=21, dispersion=Dispersion.standard())
     b = rollout(learned, 4, seed=21, dispersion=Dispersion.standard())  # the same policy by its other name
     for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
         np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
     assert (a.failure == "").all() and a.is_success.all()  # it lands every one of these
-    # the PPO residual on TV-LQR, shipped before it, under its own name
+    # `ppo` is the PPO-trained policy: the PPO residual on TV-LQR, also under its own name
     assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
+    assert type(load_policy("ppo")).__name__ == "SB3Policy"
     c = rollout(load_policy("ppo-residual"), 4, seed=21, dispersion=Dispersion.standard())
+    d = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
     assert (c.failure == "").all()
+    np.testing.assert_array_equal(c.miss_km, d.miss_km)
 
 
 @pytest.mark.slow
@@ -257,3 +260,15 @@ def test_evaluate_cli_rejects_bad_arguments(tmp_path):
            "--json", str(tmp_path / "x.json")]  # fmt: skip
     res = subprocess.run(cmd, capture_output=True, text=True)
     assert res.returncode == 2 and "positive integer" in res.stderr
+
+
+def test_a_saved_model_without_its_statistics_is_refused_unless_declared_raw(tmp_path):
+    """A model.zip alone is refused (raw observations would fly a different policy), naming the two ways out."""
+    import shutil
+
+    shutil.copy(SHIPPED_BASELINES / "ppo" / "model.zip", tmp_path / "model.zip")
+    with pytest.raises(ValueError, match=r"vecnormalize.pkl.*\"normalized\": false"):
+        load_policy(str(tmp_path / "model.zip"))
+    (tmp_path / "policy.json").write_text(json.dumps({"mode": "direct", "normalized": False}))
+    policy = SB3Policy(tmp_path / "model.zip")
+    assert policy.normalize_path is None and policy.obs_mean is None

@@ -336,3 +336,73 @@ def test_load_relief_counts_each_episode_flying_not_frozen():
     assert np.all(pair.max_load_factor_g <= 12.0)
     bare = rollout(LearnedGuidance(shipped.network, horizon=shipped.horizon), seeds=[0], dispersion="standard")
     assert bare.law_stats == [] and bare.max_load_factor_g[0] > alone.max_load_factor_g[0]
+
+
+def test_a_saved_network_rebuilds_itself_and_refuses_features_in_another_order():
+    import torch
+
+    from rventry_agents.imitation import INPUT_NAMES, network_bytes, network_from_bytes
+    from rventry_agents.networks import Ensemble, Student, load_bytes
+
+    net = make_network((8, 4), members=2)
+    blob = network_bytes(net)
+    back = network_from_bytes(blob)  # no widths, no member count: the bytes carry them
+    assert isinstance(back, Ensemble) and back.hidden == (8, 4) and back.n_members == 2
+    x = torch.zeros(3, len(INPUT_NAMES))
+    with torch.no_grad():
+        np.testing.assert_array_equal(back.commands(x), net.commands(x))
+    assert isinstance(network_from_bytes(network_bytes(make_network((4,)))), Student)
+    with pytest.raises(ValueError, match="hidden = \\(8, 4\\), not the \\(16,\\)"):
+        network_from_bytes(blob, (16,))
+    swapped = list(INPUT_NAMES)
+    swapped[0], swapped[1] = swapped[1], swapped[0]  # a package that builds speed before altitude
+    with pytest.raises(ValueError, match="'altitude' \\(index 0 saved, 1 now\\)"):
+        load_bytes(blob, tuple(swapped))
+
+
+def test_the_shipped_student_refuses_a_task_it_was_not_trained_on():
+    import math
+
+    from rventry_agents.dagger import load_shipped
+    from rventry_env.task import EntryProblem
+
+    assert load_shipped("dagger", EntryTask()).task == EntryTask()
+    with pytest.raises(ValueError, match=r"dt: trained 1\.0, here 0\.5.*problem\.alpha_max: trained"):
+        load_shipped("dagger", EntryTask(dt=0.5, problem=EntryProblem(alpha_max=math.radians(20.0))))
+
+
+def test_a_shipped_sb3_policy_refuses_a_task_it_was_not_trained_on():
+    from rventry_agents.sb3_policy import load_shipped
+
+    with pytest.raises(ValueError, match=r"substeps: trained 1, here 4"):
+        load_shipped("ppo", EntryTask(substeps=4))
+
+
+def test_task_records_name_every_difference():
+    import json
+
+    from rventry_env.task import EntryProblem
+
+    rec = json.loads(json.dumps(EntryTask().record()))  # through JSON, as a run stores it
+    assert EntryTask().differences(rec) == []
+    diffs = EntryTask(substeps=2, problem=EntryProblem(q_min=10e3)).differences(rec)
+    assert diffs == ["substeps: trained 1, here 2", "problem.q_min: trained 12000.0, here 10000.0"]
+
+
+@pytest.mark.slow
+def test_dagger_on_a_dask_cluster_gives_the_local_run(tmp_path):
+    """The expert's episodes flown on a two-worker LocalCluster: the same data, rounds and student."""
+    distributed = pytest.importorskip("distributed")
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL.replace("[final]\nmembers = 2", "[final]\nmembers = 1"))
+    here = train_dagger(cfg, tmp_path / "here", workers=1, progress_bar=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl:
+        there = train_dagger(cfg, tmp_path / "there", progress_bar=False, cluster=cl.scheduler_address)
+    for k in range(2):
+        with np.load(here / f"data_round_{k}.npz") as a, np.load(there / f"data_round_{k}.npz") as b:
+            np.testing.assert_array_equal(a["x"], b["x"])
+            np.testing.assert_array_equal(a["angles"], b["angles"])
+    drop = {"wall_s"}
+    ra, rb = (json.loads((d / "rounds.json").read_text()) for d in (here, there))
+    assert [{k: v for k, v in r.items() if k not in drop} for r in ra] == [{k: v for k, v in r.items() if k not in drop} for r in rb]
+    assert (here / "student.pt").read_bytes() == (there / "student.pt").read_bytes()

@@ -48,7 +48,7 @@ from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.observation import observation_box
 from rventry_env.envs.propagation import Propagator
 from rventry_env.envs.reward import RewardWeights
-from rventry_env.task import Dispersion, disperse_state
+from rventry_env.task import Dispersion, apply_state_dispersion, disperse_state
 from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
 from rventry_env.physics.model import EntryModel, numeric_leaves, scaled_model, with_numeric_leaves
 
@@ -143,8 +143,9 @@ class RvEntryFunctional(environment.Environment):
         steps = self.max_episode_steps if max_episode_steps is None else max_episode_steps
         if common.check_max_steps(steps) is None:
             raise ValueError("the functional environment needs a time limit (max_episode_steps)")
-        x0 = self._nominal if nominal is None else common.check_state(nominal, model.planet.radius)
+        x0 = self._nominal if nominal is None else common.check_state(nominal, model.planet.radius, self.task)
         half = [getattr(dispersion, f) for f in Dispersion.__dataclass_fields__]
+        apply_state_dispersion(x0, np.asarray(half))  # refuses angles that are undefined at this start
         f = self.ns.float_dtype
         return EnvParams(tuple(jnp.asarray(v, dtype=f) for v in leaves), jnp.asarray(x0, f), jnp.asarray(half, f),
                          jnp.asarray(steps, jnp.int32))  # fmt: skip

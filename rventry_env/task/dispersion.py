@@ -13,9 +13,11 @@ import numpy as np
 
 from rventry_env.physics.entry import IDX
 from rventry_env.core.backend import NUMPY
+from rventry_env.core import euler_parameters as ep
 from rventry_env.core.euler_parameters import dcm_column, rates_from_omega
 
 NAMED_SETS = ("standard", "wide")
+SINGULAR_TOL = 1e-9  # cos(latitude) or cos(flight-path angle) at or below this: a pole, vertical flight
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,19 @@ def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Initial states ``(..., 12)`` perturbed by draws ``d (..., 9)`` (see :class:`Dispersion`)."""
     x = np.asarray(x0, dtype=float)
     d = np.asarray(d, dtype=float)
+    if np.any(d[..., 5]) or np.any(d[..., 6]):
+        # where the flight-path angle or heading is undefined, the rotation that perturbs it is too
+        c_ae, c_ba = (ep.dcm_from_quaternion(x[..., s]) for s in (IDX.e_a, IDX.e_b))
+        cos_lat = np.hypot(c_ae[..., 0, 0], c_ae[..., 0, 1])
+        cos_gamma = np.hypot(c_ba[..., 1, 0], c_ba[..., 2, 0])
+        if np.any(cos_lat <= SINGULAR_TOL) or np.any(cos_gamma <= SINGULAR_TOL):
+            where = "at a pole" if np.any(cos_lat <= SINGULAR_TOL) else "in vertical flight"
+            raise ValueError(
+                "the dispersion of the flight-path angle or heading (Dispersion.flight_path_deg, "
+                "Dispersion.heading_deg) cannot be applied to this initial state: at a pole or in vertical "
+                f"flight the angle it perturbs is undefined (the state is {where}). Start it without them, or "
+                "away from the pole and from vertical flight"
+            )
     out = disperse_state(tuple(np.moveaxis(x, -1, 0)), tuple(np.moveaxis(d, -1, 0)), NUMPY)
     return np.stack(np.broadcast_arrays(*out), axis=-1)
 
@@ -117,7 +132,8 @@ def disperse_state(x: tuple, d: tuple, ns) -> tuple:
     the lift direction along: the bank angle relative to the vertical plane (the
     conventional mu) is unchanged, as the vertical plane turns with B. This equals the
     round trip through spherical coordinates and the east-down frame rule to rounding
-    (tests/test_jax.py). Undefined in vertical flight, like the heading itself. Plain
+    (tests/test_jax.py). Undefined at a pole and in vertical flight, like the angles themselves
+    (:func:`apply_state_dispersion` refuses them there; altitude and speed still apply). Plain
     component arithmetic, so NumPy and JAX (the functional environment's reset) share it.
     """
     dh, dv, dgam, dpsi, dalpha, dsigma = d[3:9]
@@ -126,6 +142,7 @@ def disperse_state(x: tuple, d: tuple, ns) -> tuple:
     eb = tuple(x[IDX.e_b])
     _, u2, u3 = dcm_column(*eb, 0)  # a1 in B
     c = ns.sqrt(u2 * u2 + u3 * u3)
+    c = ns.where(c > 0.0, c, 1.0)  # vertical flight: no turn to make (its angles are refused above)
     eb = _turn(eb, (0.0, -u3 / c, u2 / c), dgam * deg, ns)
     eb = _turn(eb, dcm_column(*eb, 0), -dpsi * deg, ns)
     return (r + dh, *x[IDX.e_a], v + dv, *eb, alpha + dalpha * deg, sigma + dsigma * deg)
