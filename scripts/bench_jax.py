@@ -65,6 +65,27 @@ def vector_speeds(n: int, rounds: int, steps: int, substeps: int) -> dict:
     return {"num_envs": n, "vehicle_steps_per_s": best, "first_step_s": compile_s}
 
 
+def numpy_substeps_speed(n: int, rounds: int = 3, steps: int = 10) -> dict:
+    """The NumPy vector env at 1 and 2 RK4 substeps, interleaved rounds (best round each)."""
+    import gymnasium as gym
+
+    import rventry_env  # noqa: F401
+
+    envs = {k: gym.make_vec("RvEntry-v0", num_envs=n, vectorization_mode="vector_entry_point", dispersion="standard",
+                            substeps=k) for k in (1, 2)}  # fmt: skip
+    a = np.tile(np.array([0.0, 0.02]), (n, 1))
+    best = {1: 0.0, 2: 0.0}
+    for _ in range(rounds):
+        for k, e in envs.items():
+            e.reset(seed=0)
+            e.step(a)
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                e.step(a)
+            best[k] = max(best[k], n * steps / (time.perf_counter() - t0))
+    return {"num_envs": n, "vehicle_steps_per_s": {str(k): v for k, v in best.items()}}
+
+
 def functional_speed(n: int, dtype: str, steps: int, substeps: int) -> dict:
     """Vehicle-steps/s of the functional env: lax.scan over vmap-ed gymnax steps (autoreset), all compiled."""
     import jax
@@ -175,7 +196,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="fewer steps (noisier figures)")
     ap.add_argument("--num-envs", type=int, default=8192)
     ap.add_argument("--substeps", type=int, help="RK4 substeps of the speed and agreement runs (default: the task's)")
-    ap.add_argument("--skip", nargs="*", default=[], choices=["accuracy", "speed", "functional", "agreement", "ppo"])
+    ap.add_argument("--skip", nargs="*", default=[], choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo"])
     args = ap.parse_args()
     from rventry_env.core.backend import prefer_fused_cpu_runtime
 
@@ -207,6 +228,12 @@ def main():
               f"({s['jax_float64'] / s['numpy']:.2f}x; target >= 2x), JAX float32 {s['jax_float32']:,.0f} "
               f"({s['jax_float32'] / s['numpy']:.2f}x) vehicle-steps/s; first step (compilation) "
               f"{v['first_step_s']['jax_float64']:.1f} s / {v['first_step_s']['jax_float32']:.1f} s")  # fmt: skip
+    if "numpy-substeps" not in args.skip:
+        ns_ = numpy_substeps_speed(args.num_envs)
+        res["numpy_substeps"] = ns_
+        v1, v2 = ns_["vehicle_steps_per_s"]["1"], ns_["vehicle_steps_per_s"]["2"]
+        print(f"NumPy vector env, N = {args.num_envs}: {v1:,.0f} vehicle-steps/s at 1 substep, {v2:,.0f} at 2 "
+              f"({v1 / v2:.2f}x the cost)")  # fmt: skip
     if "functional" not in args.skip:
         res["functional"] = [functional_speed(args.num_envs, d, max(5, int(50 * q)), task.substeps)
                              for d in ("float64", "float32")]
