@@ -47,10 +47,9 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   :class:`~rventry_env.guidance.load_relief.LoadRelief`, which caps the alpha rate where the load
   factor predicted one control step ahead, calibrated on the accelerometer, would pass
   ``a_max (1 - margin)``: closed-loop feedback on the load, which the plans alone do not have
-  between solves. On two standard-set vehicles flying a density that varies with altitude (5 %
-  rms, 6 km correlation) it took the peak load from 12.24 / 15.28 g to 11.86 / 12.05 g. Looking
-  three steps ahead with the asked rate held, or with alpha held after one step, was too
-  cautious: it capped the pull-up and the reference replay ended 8-15 deg from vertical.
+  between solves. Looking three steps ahead with the asked rate held, or with alpha held after
+  one step, was too cautious: it capped the pull-up, and the optimum replayed through a density
+  step ended 8-15 deg from vertical.
 * **Final re-planning** (off by default). With ``final_replan_s`` set, the interval shortens
   to it once the planned time to go is under ``final_window_s``. The law itself does not need
   it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
