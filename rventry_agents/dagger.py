@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from rventry_agents.imitation import (
+    INPUT_NAMES,
     CollectJob,
     Horizon,
     LearnedGuidance,
@@ -44,7 +45,7 @@ from rventry_agents.imitation import (
     network_bytes,
     network_from_bytes,  # fmt: skip
 )
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.util.files import atomic_write, check_writable, dumps_json, save_figure, write_json
 
@@ -54,7 +55,7 @@ SHIPPED_DAGGER = Path(__file__).resolve().parent / "data" / "dagger"  # the run 
 
 def load_config(path=None) -> dict:
     """The DAgger configuration: a TOML file (default ``rventry_agents/dagger.toml``) or a dict."""
-    from rventry_agents.train import read_config
+    from rventry_agents.config import read_config
 
     cfg, where = read_config(path, DEFAULT_CONFIG, ("student", "data", "rounds", "fit", "select"))
     for i, r in enumerate(cfg["rounds"]):
@@ -344,7 +345,7 @@ def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool 
                 student, rec = _fly_round(run, k, n, beta, next_seed, student, rounds, clock, bar)
                 if rounds.best is None or _select_key(rec) > _select_key(rounds.records[rounds.best.source]):
                     rounds.best = Selected(k, network_bytes(student), run.members, run.hidden)
-                    _write_selected(run.out, rounds.best, run.law)
+                    _write_selected(run.out, rounds.best, run.law, run.task)
             next_seed += n
     write_json(run.out / "rounds.json", rounds.records)
     return rounds
@@ -377,7 +378,7 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
               f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
     if _select_key(final) > _select_key(rounds.records[best.source]):
         best = Selected("final", (run.out / "student_final.pt").read_bytes(), n_final, run.hidden)
-        _write_selected(run.out, best, run.law)
+        _write_selected(run.out, best, run.law, run.task)
     return best, final
 
 
@@ -394,7 +395,7 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
     if taken:
         clock.credit(distilled["wall_s"])  # a distillation taken as it was counts in the run's wall time
     best = Selected("distilled", (run.out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]))
-    _write_selected(run.out, best, run.law, distilled_from=distilled["teacher"])
+    _write_selected(run.out, best, run.law, run.task, distilled_from=distilled["teacher"])
     return best, distilled
 
 
@@ -408,7 +409,7 @@ def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None)
     scan = choose_tracker(best.network(), [horizon, *run.trackers], run.law["load_relief_margin"], run.cfg, run.task)
     write_json(run.out / "flight.json", {"student": best.source, "candidates": scan})
     i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
-    _write_selected(run.out, best, run.law, tracker=None if i == 0 else run.trackers[i - 1],
+    _write_selected(run.out, best, run.law, run.task, tracker=None if i == 0 else run.trackers[i - 1],
                     distilled_from=None if distilled is None else distilled["teacher"])  # fmt: skip
     chosen = scan[i]
     print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
@@ -464,8 +465,11 @@ def _tracker_words(rec: dict) -> str:
 
 
 def _select_key(rec: dict) -> tuple[float, float]:
-    """How a round's (or the final ensemble's) record ranks: selection success, then the smaller mean miss."""
-    return rec["select_success_rate"], -rec["select_miss_km_mean"]
+    """How a round's (or the final ensemble's) record ranks on the selection set
+    (:func:`~rventry_env.evaluation.summary.task_metric_key`)."""
+    from rventry_env.evaluation.summary import task_metric_key
+
+    return task_metric_key(rec["select_success_rate"], rec["select_miss_km_mean"])
 
 
 def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: dict, task: EntryTask) -> list[dict]:
@@ -507,14 +511,15 @@ def student_law(student_cfg: dict, task: EntryTask) -> dict:
     return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin}
 
 
-def _write_selected(out: Path, best: Selected, law: dict, tracker: Horizon | None = None,
+def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, tracker: Horizon | None = None,
                     distilled_from=None) -> None:  # fmt: skip
     """student.pt and student.json for the network ``best``, trained with ``law``; ``tracker``, the
     tracker horizon chosen after training (None: the trained one); ``distilled_from``, the round
     or "final" a distilled network was fitted to."""
     atomic_write(out / "student.pt", best.weights)
     write_json(out / "student.json", {"hidden": list(best.hidden), "members": best.members, "inputs": "observation features "
-               "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD", "outputs": "alpha and bank commands",
+               "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
+               "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
                **_horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else _horizon_keys(tracker, "tracking")),
                "load_relief_margin": law["load_relief_margin"], "selected_round": best.source,
                **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
@@ -587,14 +592,27 @@ def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> No
     save_figure(fig, path)
 
 
-def load_student(run_dir) -> LearnedGuidance:
-    """The selected student of a finished run, as a guidance law."""
+def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
+    """The selected student of a finished run, as a guidance law for ``task`` (default: the task it
+    was trained on).
+
+    :raises ValueError: ``task`` differs from the training task (each difference named), or the
+        network reads its features in another order than this package builds them.
+    """
     run_dir = Path(run_dir)
     meta = json.loads((run_dir / "student.json").read_text())
-    task = EntryTask()
-    return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]),
-                                              int(meta.get("members", 1))),
-                           task=task, **student_law(meta, task))  # fmt: skip
+    trained = meta.get("task", EntryTask().record())  # runs before the task was recorded trained on the default
+    if task is None:
+        task = EntryTask()
+    task.check_trained(trained, f"the DAgger student in {run_dir}")
+    names = meta.get("input_features")
+    if names is not None and tuple(names) != INPUT_NAMES:
+        raise ValueError(f"the DAgger student in {run_dir} reads {len(names)} input features in another order than "
+                         f"this package builds; first difference: "
+                         + next(f"index {i}: {a!r} saved, {b!r} now" for i, (a, b) in enumerate(zip(names, INPUT_NAMES))
+                                if a != b))  # fmt: skip
+    network = network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]), int(meta.get("members", 1)))
+    return LearnedGuidance(network, task=task, **student_law(meta, task))
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:
@@ -602,11 +620,12 @@ def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:
     p = Path(path)
     if not (p.is_dir() and (p / "student.json").is_file() and (p / "student.pt").is_file()):
         raise ValueError(f"{p} is not a DAgger run directory (student.json and student.pt)")
-    return load_student(p)
+    return load_student(p, task)
 
 
 def load_shipped(name: str = "learned", task: EntryTask | None = None) -> LearnedGuidance:
-    """The DAgger student shipped with this package, the learned policy (entry points ``learned`` and ``ppo``)."""
+    """The DAgger student shipped with this package (entry point ``dagger``), today's best learned
+    policy (entry point ``learned``)."""
     if not (SHIPPED_DAGGER / "student.pt").is_file():
         raise FileNotFoundError(f"the shipped DAgger student is missing from {SHIPPED_DAGGER}")
-    return load_student(SHIPPED_DAGGER)
+    return load_student(SHIPPED_DAGGER, task)

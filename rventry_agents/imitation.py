@@ -34,24 +34,30 @@ the network is plain torch.
 
 from __future__ import annotations
 
-import io
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.physics.entry import IDX
+from rventry_env.task import EntryTask
+from rventry_env.envs.observation import feature_names
 from rventry_env.guidance.estimation import AeroScaleEstimator
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.physics import EntryModel
 
-N_OBS = 26
-N_FEATURES = N_OBS + 2  # what is recorded: the observation and the scaled log-estimates
+OBSERVATION_NAMES = feature_names()
+N_OBS = len(OBSERVATION_NAMES)
+# what is recorded: the observation and the scaled log-estimates of the aerodynamic scales
+FEATURE_NAMES = (*OBSERVATION_NAMES, "ln_k_drag_x10", "ln_k_lift_to_drag_x10")
+N_FEATURES = len(FEATURE_NAMES)
 LOG_SCALE_GAIN = 10.0  # ln-scale errors are a few hundredths: x10 puts them on the observation's scale
-# observation features that depend on the current alpha or sigma: alpha, sin/cos sigma, the two
-# lift shares, the load factor
-ANGLE_FEATURES = (11, 12, 13, 14, 15, 25)
+# observation features that depend on the current alpha or sigma, which the student does not see
+ANGLE_FEATURES = tuple(FEATURE_NAMES.index(n) for n in ("alpha", "sin_sigma", "cos_sigma", "lift_up", "lift_right",
+                                                        "load_factor"))  # fmt: skip
 INPUTS = tuple(i for i in range(N_FEATURES) if i not in ANGLE_FEATURES)
+INPUT_NAMES = tuple(FEATURE_NAMES[i] for i in INPUTS)
 N_INPUTS = len(INPUTS)
 
 
@@ -81,7 +87,7 @@ class Horizon:
 
     def seconds(self, state: np.ndarray, radius_m: float, dt: float) -> np.ndarray:
         """The horizon (N,) in seconds for vehicles in ``state`` (N, 12) above a planet of ``radius_m``."""
-        h = np.asarray(state, dtype=float)[:, 0] - radius_m
+        h = np.asarray(state, dtype=float)[:, IDX.r] - radius_m
         tau = np.clip(h / self.descent_mps, self.min_s, self.max_s)
         return np.maximum(np.rint(tau / dt), 1.0) * dt
 
@@ -99,7 +105,7 @@ def reached_angles(state: np.ndarray, rates: np.ndarray, task: EntryTask, ahead_
     p = task.problem
     state = np.asarray(state, dtype=float)
     h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
-    return np.stack([state[:, 10] + rates[:, 0] * p.u_alpha_max * h, state[:, 11] + rates[:, 1] * p.u_sigma_max * h], 1)
+    return np.stack([state[:, IDX.alpha] + rates[:, 0] * p.u_alpha_max * h, state[:, IDX.sigma] + rates[:, 1] * p.u_sigma_max * h], 1)
 
 
 def expert_angles(expert, time_s, state, rates, task: EntryTask, ahead_s=None) -> np.ndarray:
@@ -116,8 +122,8 @@ def tracking_rates(commands: np.ndarray, state: np.ndarray, task: EntryTask, ahe
     h = task.dt if ahead_s is None else np.asarray(ahead_s, dtype=float)
     alpha_c = (commands[:, 0] + 1.0) * p.alpha_max / 2.0
     sigma_c = np.arctan2(commands[:, 2], commands[:, 1])
-    d_sigma = (sigma_c - state[:, 11] + np.pi) % (2.0 * np.pi) - np.pi
-    rates = np.stack([(alpha_c - state[:, 10]) / (p.u_alpha_max * h), d_sigma / (p.u_sigma_max * h)], axis=1)
+    d_sigma = (sigma_c - state[:, IDX.sigma] + np.pi) % (2.0 * np.pi) - np.pi
+    rates = np.stack([(alpha_c - state[:, IDX.alpha]) / (p.u_alpha_max * h), d_sigma / (p.u_sigma_max * h)], axis=1)
     return np.clip(rates, -1.0, 1.0).astype(np.float32)
 
 
@@ -130,59 +136,22 @@ class FeatureTracker:
     def reset(self, n: int) -> None:
         self.estimator.reset(n)
 
-    def __call__(self, obs, time_s, state, sensed_accel_b) -> np.ndarray:
-        if sensed_accel_b is None:
-            raise ValueError("the learned policy needs the sensed acceleration (info['sensed_accel_b'])")
-        if self.estimator.n != len(state):
-            self.estimator.reset(len(state))
-        self.estimator.update(time_s, state, sensed_accel_b)
-        return features(obs, self.estimator)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        self.estimator.observe(m)
+        return features(m.observation, self.estimator)
 
 
 def make_network(hidden: tuple[int, ...] = (256, 256), members: int = 1):
-    """An MLP from the inputs to the commanded angles, standardized on both sides (buffers set
-    from the data); with ``members`` > 1, an ensemble of such MLPs whose commands are the mean of
-    theirs (each fitted with its own seed: :func:`fit`)."""
-    import torch
-    from torch import nn
+    """An MLP from the inputs to the commanded angles (:class:`rventry_agents.networks.Student`),
+    standardized on both sides (buffers set from the data); with ``members`` > 1, an ensemble of
+    such MLPs whose commands are the mean of theirs (each fitted with its own seed: :func:`fit`)."""
+    from rventry_agents.networks import build
 
-    if int(members) < 1:
-        raise ValueError(f"a student needs at least one member network, got members = {members!r}")
-
-    class Student(nn.Module):
-        def __init__(self):
-            super().__init__()
-            self.register_buffer("mean", torch.zeros(N_INPUTS))
-            self.register_buffer("std", torch.ones(N_INPUTS))
-            self.register_buffer("out_mean", torch.zeros(3))
-            self.register_buffer("out_scale", torch.ones(3))
-            layers, width = [], N_INPUTS
-            for h in hidden:
-                layers += [nn.Linear(width, h), nn.Tanh()]
-                width = h
-            layers += [nn.Linear(width, 3)]
-            self.body = nn.Sequential(*layers)
-
-        def forward(self, x):
-            """The commands, standardized; :meth:`commands` gives them in their own units."""
-            return self.body((x - self.mean) / self.std)
-
-        def commands(self, x):
-            return self.forward(x) * self.out_scale + self.out_mean
-
-    class Ensemble(nn.Module):
-        def __init__(self):
-            super().__init__()
-            self.members = nn.ModuleList(Student() for _ in range(int(members)))
-
-        def commands(self, x):
-            return torch.stack([m.commands(x) for m in self.members]).mean(0)
-
-    return Student() if int(members) == 1 else Ensemble()
+    return build(N_INPUTS, hidden, members)
 
 
-class LearnedGuidance:
-    """The student as a guidance law: ``law(obs, time_s, state, sensed_accel_b) -> actions``.
+class LearnedGuidance(Law):
+    """The student as a guidance law (:class:`~rventry_env.guidance.law.GuidanceLaw`).
 
     :param horizon: the tracker's :class:`Horizon`, as trained (default: one step).
     :param load_relief_margin: when given, the tracker's rates pass through
@@ -190,11 +159,8 @@ class LearnedGuidance:
         alpha rate where the load factor predicted one step ahead would pass ``a_max (1 - margin)``;
         :attr:`relief` then reports the capped steps, and :meth:`episode_stats` each episode's
         count of them (``load_relief_steps``), over the calls in which it was flying (the
-        ``flying`` mask a rollout gives; every call when none is given).
+        measurement's ``flying`` mask).
     """
-
-    uses_sensed_acceleration = True
-    uses_flying_mask = True
 
     def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
                  horizon: Horizon | None = None, load_relief_margin: float | None = None):  # fmt: skip
@@ -213,8 +179,8 @@ class LearnedGuidance:
         if self.relief is not None:
             self.relief.reset(n_episodes)
 
-    def __call__(self, obs, time_s, state, sensed_accel_b=None, flying=None):
-        return self.act(self.tracker(obs, time_s, state, sensed_accel_b), state, sensed_accel_b, flying)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        return self.act(self.tracker(m), m.navigation_state, m.sensed_accel_b, m.flying)
 
     def act(self, f: np.ndarray, state, sensed_accel_b, flying=None) -> np.ndarray:
         """The rates for the recorded features ``f`` (N, 28) of vehicles in ``state`` that sense
@@ -233,11 +199,9 @@ class LearnedGuidance:
         return [] if self.relief is None else [{"load_relief_steps": int(k)} for k in self.relief.steps]
 
 
-class DAggerLaw:
+class DAggerLaw(Law):
     """Flies the expert's action with probability ``beta`` per step, else the student's; records
     the student's features and the expert's label (:func:`expert_angles`) at every step."""
-
-    uses_sensed_acceleration = True
 
     def __init__(self, expert, student: LearnedGuidance | None, beta: float, seed: int, model: EntryModel | None = None,
                  task: EntryTask | None = None, horizon: Horizon | None = None):  # fmt: skip
@@ -254,13 +218,14 @@ class DAggerLaw:
         self.expert.reset(n)
         self.tracker.reset(n)  # the student's own, when there is one
 
-    def __call__(self, obs, time_s, state, sensed_accel_b=None):
-        a_exp = np.asarray(self.expert(obs, time_s, state, sensed_accel_b=sensed_accel_b), np.float32)
-        f = self.tracker(obs, time_s, state, sensed_accel_b)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        a_exp = np.asarray(self.expert(m), np.float32)
+        f = self.tracker(m)
+        time_s, state = m.time_s, m.navigation_state
         act = a_exp
         if self.student is not None:
-            use = self.rng.random(len(obs)) < self.beta
-            act = np.where(use[:, None], a_exp, self.student.act(f, state, sensed_accel_b))
+            use = self.rng.random(m.n) < self.beta
+            act = np.where(use[:, None], a_exp, self.student.act(f, state, m.sensed_accel_b))
         self.x.append(f)
         ahead = self.horizon.seconds(state, self.radius, self.task.dt)
         self.y.append(expert_angles(self.expert, time_s, state, a_exp, self.task, ahead).astype(np.float32))
@@ -268,19 +233,19 @@ class DAggerLaw:
 
 
 def network_bytes(network) -> bytes:
-    import torch
+    """A student network as self-describing bytes (architecture, input names, weights)."""
+    from rventry_agents.networks import save_bytes
 
-    buf = io.BytesIO()
-    torch.save(network.state_dict(), buf)
-    return buf.getvalue()
+    return save_bytes(network, INPUT_NAMES)
 
 
-def network_from_bytes(data: bytes, hidden: tuple[int, ...], members: int = 1):
-    import torch
+def network_from_bytes(data: bytes, hidden: tuple[int, ...] | None = None, members: int | None = None):
+    """A student network from :func:`network_bytes` (``hidden`` and ``members``, when given, are
+    checked; a bare state dict of an older run needs them); refused, with the features named, when
+    it reads its inputs in another order than this package builds them."""
+    from rventry_agents.networks import load_bytes
 
-    net = make_network(hidden, members)
-    net.load_state_dict(torch.load(io.BytesIO(data), weights_only=True))
-    return net
+    return load_bytes(data, INPUT_NAMES, hidden, members)
 
 
 @dataclass(frozen=True)
@@ -300,29 +265,24 @@ class CollectJob:
     members: int = 1  # the student's member networks
 
 
-_EXPERT = {}
-
-
 def collect_episode(job: CollectJob) -> dict:
     """Fly one DAgger episode (a worker's unit of work): features, expert labels and the outcome."""
     import torch
 
-    from rventry_env.evaluation.agents import load_agent
+    from rventry_env.evaluation.parallel import cached_law
     from rventry_env.evaluation.rollout import rollout
 
     torch.set_num_threads(1)
-    key = (job.expert, job.task, job.expert_settings)
-    if key not in _EXPERT:  # built once per process (mpc: its transcription)
-        options = {}
-        if job.expert_settings:
-            from rventry_env.guidance.replanning import ReplanningSettings
+    options = ()
+    if job.expert_settings:
+        from rventry_env.guidance.replanning import ReplanningSettings
 
-            options["settings"] = ReplanningSettings(**dict(job.expert_settings))
-        _EXPERT[key] = load_agent(job.expert, job.task, **options)
+        options = (("settings", ReplanningSettings(**dict(job.expert_settings))),)
+    expert = cached_law(job.expert, job.task, options)
     student = None if job.student is None else LearnedGuidance(network_from_bytes(job.student, job.hidden, job.members),
                                                                 task=job.task, horizon=job.horizon,
                                                                 load_relief_margin=job.load_relief_margin)  # fmt: skip
-    law = DAggerLaw(_EXPERT[key], student, job.beta, seed=job.seed, task=job.task, horizon=job.horizon)
+    law = DAggerLaw(expert, student, job.beta, seed=job.seed, task=job.task, horizon=job.horizon)
     b = rollout(law, seeds=[job.seed], dispersion=job.dispersion, task=job.task)
     return {
         "x": np.concatenate(law.x).astype(np.float32),
@@ -375,7 +335,9 @@ def fit_commands(network, x: np.ndarray, commands: np.ndarray, epochs: int, batc
     network's: :func:`network_commands`) instead of angles."""
     import torch
 
-    if hasattr(network, "members"):
+    from rventry_agents.networks import Ensemble
+
+    if isinstance(network, Ensemble):
         per_member = [fit_commands(m, x, commands, epochs, batch_size, lr, seed + k, weight_decay)
                       for k, m in enumerate(network.members)]  # fmt: skip
         network.eval()
@@ -412,7 +374,9 @@ def fit_commands(network, x: np.ndarray, commands: np.ndarray, epochs: int, batc
 
 
 __all__ = [
+    "FEATURE_NAMES",
     "INPUTS",
+    "INPUT_NAMES",
     "N_FEATURES",
     "CollectJob",
     "DAggerLaw",

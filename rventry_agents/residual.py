@@ -44,9 +44,10 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
 from rventry_env.envs.observation import TIME_SCALE, feature_index, observation_box, observe
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.physics.entry import entry_forces
 from rventry_env.physics.model import EntryModel
 
@@ -162,8 +163,8 @@ class ResidualVecEnv(VecEnvWrapper):
         return self.guidance.schedule.augment(obs), reward, dones, infos
 
 
-class ResidualPolicy:
-    """A trained residual model as a :func:`rventry_env.evaluation.rollout` policy.
+class ResidualPolicy(Law):
+    """A trained residual model as a guidance law (:class:`~rventry_env.guidance.law.GuidanceLaw`).
 
     :param predict: maps augmented observations to residuals.
     :param guidance: the classical law and the residual's authority.
@@ -176,6 +177,6 @@ class ResidualPolicy:
         if hasattr(self.predict, "reset"):
             self.predict.reset(n_episodes)
 
-    def __call__(self, obs, time_s, state):
-        obs = np.asarray(obs)
-        return self.guidance.actions(obs, state, self.predict(self.guidance.schedule.augment(obs)))
+    def __call__(self, m: Measurement) -> np.ndarray:
+        obs = np.asarray(m.observation)
+        return self.guidance.actions(obs, m.navigation_state, self.predict(self.guidance.schedule.augment(obs)))

@@ -79,7 +79,7 @@ class RvEntrySB3VecEnv(VecEnv):
         from rventry_env.envs.outcome import TerminalMetrics, time_limit_penalty
 
         m = TerminalMetrics(*(np.asarray(final[k], float) for k in TerminalMetrics._fields))
-        return time_limit_penalty(m, self.venv.task, NUMPY)
+        return time_limit_penalty(m, self.venv.reward, NUMPY)
 
     def close(self) -> None:
         self.venv.close()

@@ -3,8 +3,9 @@
 Rooms, each importing only from the rooms before it:
 
 * :mod:`rventry_env.core` - Euler parameters, rv-Euler equations of motion, conversions;
-* :mod:`rventry_env.physics` - force-model parts and the entry dynamics
-  (with :mod:`rventry_env.problem`, the paper's Example 2 constants);
+* :mod:`rventry_env.physics` - force-model parts and the entry dynamics;
+* :mod:`rventry_env.task` - the paper's Example 2 problem, the control step, the success
+  thresholds and the dispersion sets (no Gymnasium);
 * :mod:`rventry_env.envs` - the ``RvEntry-v0`` Gymnasium environment (single and vector);
   :mod:`rventry_env.reference` - LGR collocation and the shipped optimal reference;
   :mod:`rventry_env.validation` - the model-validation loop on measured flight data;

@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 from rventry_env.util.args import positive_int
@@ -46,11 +46,11 @@ class TimedLaw:
     def __getattr__(self, name):
         return getattr(self._law, name)
 
-    def __call__(self, obs, time_s, state, **kwargs):
+    def __call__(self, measurement):
         t0 = time.perf_counter()
-        out = self._law(obs, time_s, state, **kwargs)
+        out = self._law(measurement)
         self.call_s.append(time.perf_counter() - t0)
-        self.call_batch.append(len(obs))
+        self.call_batch.append(measurement.n)
         return out
 
 

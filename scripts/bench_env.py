@@ -78,7 +78,8 @@ def accuracy(substeps_list=(1, 2, 4)) -> list[dict]:
 
     from rventry_env.core.conversions import cartesian_from_rv_euler
     from rventry_env.envs.rv_entry import RvEntryEnv
-    from rventry_env.envs.task import EntryTask
+    from rventry_env.guidance.law import Measurement
+    from rventry_env.task import EntryTask
     from rventry_env.guidance.reference_replay import ReferencePolicy
     from rventry_env.physics import EntryModel, entry_rhs
 
@@ -94,7 +95,7 @@ def accuracy(substeps_list=(1, 2, 4)) -> list[dict]:
             actions, states, times, loads = [], [env.state.copy()], [0.0], [info["load_factor_g"]]
             while True:
                 if scenario == "reference":
-                    a = policy(obs[None], np.array([info["time_s"]]), None)[0]
+                    a = policy(Measurement.single(obs, info, env.state))[0]
                 else:
                     a = _dive_actions(obs, info["time_s"])
                 actions.append(np.asarray(a, float))

@@ -12,9 +12,11 @@ from gymnasium.vector import AutoresetMode
 from scipy.integrate import solve_ivp
 
 import rventry_env  # noqa: F401  (registers RvEntry-v0 once Gymnasium is loaded)
+from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.rv_entry import RvEntryEnv
-from rventry_env.envs.task import Dispersion, EntryProblem, EntryTask
+from rventry_env.task import Dispersion, EntryProblem, EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.guidance.law import Law, Measurement
 from rventry_env.physics import EntryModel, J2Gravity, PointMassGravity, entry_rhs
 
 # alpha(0), sigma(0) pinned so these tests do not depend on the shipped reference
@@ -238,7 +240,7 @@ def test_skip_out_ends_the_episode_as_a_failure():
     env = RvEntryEnv(task=EntryTask(problem=EntryProblem(initial_alpha=math.radians(11.86), initial_sigma=math.pi)))
     _, total, info = run_episode(env, policy=lambda o: np.zeros(2, np.float32))
     assert info["failure"] == "skip-out" and not info["is_success"]
-    assert info["altitude_m"] > 80e3 and info["terminal_penalty"] > TASK.weights.failure
+    assert info["altitude_m"] > 80e3 and info["terminal_penalty"] > RewardWeights().failure
 
 
 def test_observations_stay_in_the_box_under_random_dispersed_episodes():
@@ -438,23 +440,22 @@ def test_success_bonus_is_paid_only_at_a_successful_impact():
 
     from rventry_env.guidance.reference_replay import ReferencePolicy
 
-    def last_reward(task):
-        env = RvEntryEnv(task=task)
-        policy = ReferencePolicy(task)
+    def last_reward(reward):
+        env = RvEntryEnv(reward=reward)
+        policy = ReferencePolicy(EntryTask())
         obs, info = env.reset(seed=0)
         while True:
-            obs, r, term, trunc, info = env.step(policy(obs[None], np.array([info["time_s"]]), None)[0])
+            obs, r, term, trunc, info = env.step(policy(Measurement.single(obs, info, env.state))[0])
             if term or trunc:
                 return r, info
 
-    base = EntryTask()
-    r0, i0 = last_reward(base)
-    r1, i1 = last_reward(replace(base, weights=replace(base.weights, success_bonus=7.0)))
+    r0, i0 = last_reward(RewardWeights())
+    r1, i1 = last_reward(RewardWeights(success_bonus=7.0))
     assert i0["is_success"] and r1 == pytest.approx(r0 + 7.0, abs=1e-9)
     # a failed episode gets no bonus
     fail = EntryTask(problem=EntryProblem(initial_alpha=math.radians(11.86), initial_sigma=math.pi))
     ra, ia = run_episode(RvEntryEnv(task=fail), policy=lambda o: np.zeros(2, np.float32))[1:]
-    rb, ib = run_episode(RvEntryEnv(task=replace(fail, weights=replace(fail.weights, success_bonus=7.0))),
+    rb, ib = run_episode(RvEntryEnv(task=fail, reward=RewardWeights(success_bonus=7.0)),
                          policy=lambda o: np.zeros(2, np.float32))[1:]  # fmt: skip
     assert not ia["is_success"] and ra == rb
 
@@ -464,12 +465,13 @@ def test_vector_env_pays_the_same_success_bonus():
 
     from rventry_env.guidance.reference_replay import ReferencePolicy
 
-    task = replace(EntryTask(), weights=replace(EntryTask().weights, success_bonus=7.0))
-    venv, env, policy = RvEntryVectorEnv(num_envs=1, task=task), RvEntryEnv(task=task), ReferencePolicy(task)
+    task, reward = EntryTask(), RewardWeights(success_bonus=7.0)
+    venv, env = RvEntryVectorEnv(num_envs=1, task=task, reward=reward), RvEntryEnv(task=task, reward=reward)
+    policy = ReferencePolicy(task)
     obs_v, info_v = venv.reset(seed=0)
     obs, info = env.reset(seed=0)
     while True:
-        a = policy(obs[None], np.array([info["time_s"]]), None)
+        a = policy(Measurement.single(obs, info, env.state))
         obs_v, rv, tv, _, info_v = venv.step(a)
         obs, r, term, trunc, info = env.step(a[0])
         assert rv[0] == pytest.approx(r, rel=1e-9, abs=1e-12)

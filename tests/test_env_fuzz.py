@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode
 import rventry_env  # noqa: F401  (registers RvEntry-v0)
 from rventry_env.core import conversions as cv
 from rventry_env.envs.rv_entry import RvEntryEnv
-from rventry_env.envs.task import EntryProblem, EntryTask
+from rventry_env.task import EntryProblem, EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.physics import (
     CAVHAerodynamics,

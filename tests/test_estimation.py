@@ -7,7 +7,7 @@ import pytest
 
 from rventry_env.core.backend import NUMPY
 from rventry_env.envs.rv_entry import RvEntryEnv
-from rventry_env.envs.task import Dispersion
+from rventry_env.task import Dispersion
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.guidance.estimation import AeroScaleEstimator, EstimatorSettings
 from rventry_env.physics import EntryModel, entry_forces, scaled_model

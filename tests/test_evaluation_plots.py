@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from rventry_env.core import conversions as cv
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.plots import coinciding, conventional_bank_deg, outcomes_figure
 from rventry_env.evaluation.rollout import rollout

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from rventry_env.envs.task import Dispersion
+from rventry_env.task import Dispersion
 from rventry_env.guidance.reference_replay import ReferencePolicy
 from rventry_env.evaluation.rollout import rollout
 from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance

@@ -7,7 +7,7 @@ import pytest
 
 from rventry_env.core.backend import NUMPY
 from rventry_env.envs.propagation import Propagator
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.physics import EntryModel
 from rventry_env.physics.entry import entry_forces, entry_rhs

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from rventry_env.problem import EntryProblem
+from rventry_env.task.problem import EntryProblem
 
 from rventry_env.core.euler_parameters import omega_from_rates
 from rventry_env.physics.entry import entry_rhs

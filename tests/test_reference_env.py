@@ -11,8 +11,10 @@ from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs.outcome import terminal_metrics, terminal_penalty
 from rventry_env.envs.propagation import path_violation
+from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.rv_entry import RvEntryEnv
-from rventry_env.envs.task import EntryTask
+from rventry_env.guidance.law import Law, Measurement
+from rventry_env.task import EntryTask
 from rventry_env.guidance.reference_replay import ReferencePolicy
 from rventry_env.physics import EntryModel, entry_forces
 from rventry_env.reference import load_reference
@@ -54,7 +56,7 @@ def test_env_reward_along_the_tight_replay_is_minus_j_star_with_no_terminal_pena
     m = terminal_metrics(xf, dcm(*xf[1:5]), task, task.problem.target_unit_vector(), model.planet.radius, NUMPY)
     assert m.miss_km < 0.1 and m.vertical_error_deg < 0.1 and abs(m.speed_error_mps) < 1.0
     assert abs(m.alpha_final_deg) < 0.05
-    assert terminal_penalty(m, task, NUMPY) < 0.02 * ref.cost
+    assert terminal_penalty(m, RewardWeights(), NUMPY) < 0.02 * ref.cost
 
 
 def test_env_default_step_replays_the_reference_closely():
@@ -65,7 +67,7 @@ def test_env_default_step_replays_the_reference_closely():
     obs, info = env.reset(seed=0)
     total = 0.0
     while True:
-        obs, r, term, trunc, info = env.step(policy(obs[None], np.array([info["time_s"]]), None)[0])
+        obs, r, term, trunc, info = env.step(policy(Measurement.single(obs, info, env.state))[0])
         total += r
         if term or trunc:
             break

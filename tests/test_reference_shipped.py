@@ -71,7 +71,7 @@ def test_initial_state_is_table_tab_ex2_bcs(ref):
 
 def test_the_problem_defaults_are_the_shipped_optimum_initial_angles(ref):
     """EntryProblem carries alpha(0) and sigma(0) as numbers; they must stay those of the shipped optimum."""
-    from rventry_env.problem import EntryProblem
+    from rventry_env.task.problem import EntryProblem
 
     p = EntryProblem()
     assert p.initial_alpha == ref.x[0, 10] and p.initial_sigma == ref.x[0, 11]

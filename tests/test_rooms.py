@@ -1,7 +1,7 @@
 """The rooms import one way, the physics loads without Gymnasium, and the env registers in any import order.
 
-Rooms, lowest first: util < core < physics (with problem.py) < envs, reference, validation,
-examples (siblings: none imports another) < guidance < evaluation < the command line; the
+Rooms, lowest first: util < core < physics < task < envs, reference, validation, examples
+(siblings: none imports another) < guidance < evaluation < the command line; the
 learning agents (``rventry_agents``) sit on top and the library never imports them. The check
 reads every ``import`` statement, including those inside functions.
 """
@@ -17,9 +17,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 RANK = {
-    "util": 0, "core": 1, "physics": 2, "problem": 2,
-    "envs": 3, "reference": 3, "validation": 3, "examples": 3,
-    "guidance": 4, "evaluation": 5, "cli": 6,
+    "util": 0, "core": 1, "physics": 2, "task": 3,
+    "envs": 4, "reference": 4, "validation": 4, "examples": 4,
+    "guidance": 5, "evaluation": 6, "cli": 7,
 }  # fmt: skip
 SIBLINGS = {"envs", "reference", "validation", "examples"}
 
@@ -83,12 +83,15 @@ def test_the_room_check_catches_an_upward_import(tmp_path, monkeypatch):
     """The check itself can fail: a physics module importing the envs is reported."""
     fake = tmp_path / "rventry_env" / "physics"
     fake.mkdir(parents=True)
-    (fake / "bad.py").write_text("def f():\n    from rventry_env.envs.task import EntryTask\n")
+    (fake / "bad.py").write_text("def f():\n    from rventry_env.task import EntryTask\n")
+    (tmp_path / "rventry_env" / "task").mkdir()
+    (tmp_path / "rventry_env" / "task" / "worst.py").write_text("from rventry_env.envs.reward import RewardWeights\n")
     (tmp_path / "rventry_env" / "guidance").mkdir()
     (tmp_path / "rventry_env" / "guidance" / "worse.py").write_text("import rventry_agents.train\n")
     monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
     found = _violations()
-    assert any("physics may not import the higher room envs" in v for v in found)
+    assert any("physics may not import the higher room task" in v for v in found)
+    assert any("task may not import the higher room envs" in v for v in found)
     assert any("must not import the learning agents" in v for v in found)
 
 
@@ -106,8 +109,10 @@ sys.meta_path.insert(0, Block())
 """
 
 
-@pytest.mark.parametrize("module", ["rventry_env", "rventry_env.core", "rventry_env.physics", "rventry_env.problem",
-                                    "rventry_env.reference", "rventry_env.validation.record_replay"])
+@pytest.mark.parametrize("module", ["rventry_env", "rventry_env.core", "rventry_env.physics", "rventry_env.task",
+                                    "rventry_env.reference", "rventry_env.validation.replay.record_replay",
+                                    "rventry_env.guidance", "rventry_env.guidance.estimation",
+                                    "rventry_env.guidance.replanning", "rventry_env.guidance.tvlqr"])
 def test_the_physics_imports_without_gymnasium(module):
     res = _run(BLOCK_GYMNASIUM + f"import {module}\nassert 'gymnasium' not in sys.modules\nprint('ok')")
     assert res.returncode == 0, res.stderr

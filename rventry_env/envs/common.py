@@ -10,7 +10,8 @@ import numpy as np
 from gymnasium import spaces
 
 from rventry_env.core import conversions as cv
-from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import Dispersion, EntryTask
 from rventry_env.physics.entry import N_STATE
 from rventry_env.physics.model import EntryModel
 
@@ -18,13 +19,14 @@ from rventry_env.physics.model import EntryModel
 class EntryEnvSetup:
     """Construction shared by :class:`RvEntryEnv` and :class:`RvEntryVectorEnv`."""
 
-    def _configure(self, model, task, dt, substeps, dispersion, render_mode, ns) -> tuple[spaces.Box, spaces.Box]:
+    def _configure(self, model, task, reward, dt, substeps, dispersion, render_mode, ns) -> tuple[spaces.Box, spaces.Box]:
         """Validate and store the arguments; return the single-copy (observation, action) spaces."""
         from rventry_env.envs.observation import observation_box
         from rventry_env.envs.propagation import Propagator
 
         self.model = make_model(model)
         self.task = make_task(task, dt, substeps)
+        self.reward = make_reward(reward)
         self.dispersion = Dispersion.parse(dispersion)
         self.task.check_dispersion(self.dispersion)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -36,7 +38,7 @@ class EntryEnvSetup:
         self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
         self._nominal = self.task.problem.initial_state(self.model.planet.radius)
         self._obs_low, self._obs_high = observation_box(self.task, self._radius)
-        self._prop = Propagator(self.task, ns)
+        self._prop = Propagator(self.task, ns, self.reward)
         self._x = None
         return (
             spaces.Box(self._obs_low, self._obs_high, dtype=np.float32),
@@ -168,6 +170,13 @@ def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) ->
     return replace(task, **changes) if changes else task
 
 
+def make_reward(reward: RewardWeights | None) -> RewardWeights:
+    reward = RewardWeights() if reward is None else reward
+    if not isinstance(reward, RewardWeights):
+        raise TypeError(f"reward must be RewardWeights, got {type(reward).__name__}")
+    return reward
+
+
 def make_model(model: EntryModel | None) -> EntryModel:
     model = EntryModel() if model is None else model
     if not isinstance(model, EntryModel):
@@ -211,46 +220,6 @@ def check_state(state, radius: float, task: EntryTask) -> np.ndarray:
     if not 0 <= x[10] <= alpha_max:
         raise ValueError(f"the initial alpha must lie in [0, {math.degrees(alpha_max):g}] deg (alpha_max), "
                          f"got {x[10]:.6g} rad")  # fmt: skip
-    return x
-
-
-def draw_dispersion(rng: np.random.Generator, dispersion: Dispersion) -> np.ndarray:
-    """One draw of the 9 dispersion variables, in Dispersion field order (always 9 numbers,
-    so single and vector environments stay in step draw for draw)."""
-    half = np.array([getattr(dispersion, f) for f in Dispersion.__dataclass_fields__])
-    return rng.uniform(-1.0, 1.0, size=half.shape) * half
-
-
-def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Initial states ``(..., 12)`` perturbed by draws ``d (..., 9)`` (see :class:`Dispersion`)."""
-    x = np.array(x0, dtype=float, copy=True)
-    dh, dv, dgam, dpsi, dalpha, dsigma = (d[..., i] for i in range(3, 9))
-    if np.any(dh) or np.any(dv) or np.any(dgam) or np.any(dpsi):
-        try:
-            # keep the physical lift direction: the new frames come from the east-down rule,
-            # so carry the bank across as the conventional angle mu, not as sigma
-            mu = cv.conventional_bank(x, x[..., 11])
-            s = cv.spherical_from_rv_euler(x)
-            s[..., 0] += dh
-            s[..., 3] += dv
-            s[..., 4] += np.radians(dgam)
-            s[..., 5] += np.radians(dpsi)
-            x[..., :10] = cv.rv_euler_from_spherical(s)
-            x[..., 11] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., 11])
-        except cv.SingularConversionError as exc:
-            if np.any(dgam) or np.any(dpsi):
-                raise ValueError(
-                    "the dispersion of the flight-path angle or heading (Dispersion.flight_path_deg, "
-                    "Dispersion.heading_deg) cannot be applied to this initial state: at a pole or in vertical "
-                    f"flight the angle it perturbs is undefined ({exc}). Start it without them, or away from "
-                    "the pole and from vertical flight"
-                ) from None
-            # altitude and speed alone are the magnitudes r and v: no angle is needed
-            x = np.array(x0, dtype=float, copy=True)
-            x[..., 0] += dh
-            x[..., 5] += dv
-    x[..., 10] += np.radians(dalpha)
-    x[..., 11] += np.radians(dsigma)
     return x
 
 

@@ -10,7 +10,7 @@ time-limit cut with :func:`time_limit_penalty` built from the same terms.
   ``q_min`` anywhere along the flight, each by more than
   ``SuccessThresholds.constraint_tolerance`` (1 %).
 * **Success**: impact, miss <= 5 km, vertical error <= 5 deg, |speed error| <= 100 m/s
-  and no violation (:class:`~rventry_env.envs.task.SuccessThresholds`).
+  and no violation (:class:`~rventry_env.task.SuccessThresholds`).
 * **Penalty** (paid once, at a terminating step): the weighted terminal terms
   (:func:`terminal_penalty`); on a failure (skip-out, stall, non-finite state)
   ``RewardWeights.failure`` more; on a success ``success_bonus`` less. A terminal
@@ -27,7 +27,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from rventry_env.envs.propagation import FAILURE_NAMES, IMPACT
-from rventry_env.envs.task import EntryTask
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import EntryTask
 
 TIME_LIMIT = "time limit"
 
@@ -68,9 +69,8 @@ def terminal_metrics(x: tuple, c_ae, task: EntryTask, target_e, radius: float, n
     )
 
 
-def terminal_penalty(m: TerminalMetrics, task: EntryTask, ns):
-    """The weighted terminal terms of :class:`~rventry_env.envs.task.RewardWeights` (linear in each error)."""
-    w = task.weights
+def terminal_penalty(m: TerminalMetrics, w: RewardWeights, ns):
+    """The weighted terminal terms of :class:`~rventry_env.envs.reward.RewardWeights` (linear in each error)."""
     return (
         w.miss_per_km * m.miss_km
         + w.vertical_per_deg * m.vertical_error_deg
@@ -86,8 +86,8 @@ def path_violation(max_load_g, min_q, task: EntryTask):
     return (max_load_g > p.a_max_g * (1 + tol)) | (min_q < p.q_min * (1 - tol))
 
 
-def episode_outcome(x: tuple, c_ae, status, terminated, max_load_g, min_q, task: EntryTask, target_e, radius: float,
-                    ns) -> Outcome:  # fmt: skip
+def episode_outcome(x: tuple, c_ae, status, terminated, max_load_g, min_q, task: EntryTask, weights: RewardWeights,
+                    target_e, radius: float, ns) -> Outcome:  # fmt: skip
     """The outcome of episodes that ended at state ``x`` with propagation ``status``.
 
     :param terminated: whether the episode terminated (impact or failure) rather than
@@ -96,7 +96,7 @@ def episode_outcome(x: tuple, c_ae, status, terminated, max_load_g, min_q, task:
     """
     m = terminal_metrics(x, c_ae, task, target_e, radius, ns)
     s = task.success
-    w = task.weights
+    w = weights
     violation = path_violation(max_load_g, min_q, task)
     impact = status == IMPACT
     within = (
@@ -106,10 +106,10 @@ def episode_outcome(x: tuple, c_ae, status, terminated, max_load_g, min_q, task:
     if ns.name == "numpy":
         success = impact & within & ~violation
         with np.errstate(invalid="ignore"):
-            terms = terminal_penalty(m, task, ns)
+            terms = terminal_penalty(m, w, ns)
     else:
         success = bool(impact and within and not violation)
-        terms = terminal_penalty(m, task, ns)
+        terms = terminal_penalty(m, w, ns)
     terms = ns.where(ns.isfinite(terms), terms, 0.0)
     penalty = ns.where(terminated, ns.where(impact, terms - w.success_bonus * success, terms + w.failure), 0.0)
     return Outcome(m, violation, success, penalty, failure_name(status, terminated, ns))
@@ -123,9 +123,9 @@ def failure_name(status, terminated, ns):
     return np.where(terminated, names, TIME_LIMIT)
 
 
-def time_limit_penalty(m: TerminalMetrics, task: EntryTask, ns):
+def time_limit_penalty(m: TerminalMetrics, weights: RewardWeights, ns):
     """What training charges an episode cut by the time limit: the failure penalty plus the terminal terms."""
-    return task.weights.failure + terminal_penalty(m, task, ns)
+    return weights.failure + terminal_penalty(m, weights, ns)
 
 
 __all__ = [

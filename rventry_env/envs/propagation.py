@@ -15,7 +15,7 @@ Integration (see DESIGN notes in the env docstring):
   bound at the substep's end, and held there afterwards. The *commanded* rate is
   what the cost charges;
 * the running cost of Eq. ``Ex2-Cost`` is integrated exactly (alpha is linear in
-  time within a substep; :meth:`~rventry_env.problem.EntryProblem.cost_over_hold`);
+  time within a substep; :meth:`~rventry_env.task.problem.EntryProblem.cost_over_hold`);
 * impact (r = R_e) is located inside the substep by root-finding on the RK4 map
   tau -> r(RK4(x, tau)) (Illinois regula falsi to 1e-6 m), and the state returned
   is the state at impact;
@@ -33,7 +33,8 @@ import numpy as np
 from rventry_env.core.integrate import rk4_step
 from rventry_env.physics.entry import EntryForces, entry_forces, entry_rhs
 from rventry_env.physics.model import EntryModel
-from rventry_env.envs.task import EntryTask
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import EntryTask
 
 IMPACT_TOLERANCE_M = 1e-6
 
@@ -92,10 +93,12 @@ class StepOutcome(NamedTuple):
 
 @dataclass
 class Propagator:
-    """Steps vehicles through one control step. ``ns`` picks floats (MATH) or arrays (NUMPY)."""
+    """Steps vehicles through one control step. ``ns`` picks floats (MATH) or arrays (NUMPY);
+    ``weights`` price the path-bound violations in :attr:`StepOutcome.path_penalty`."""
 
     task: EntryTask
     ns: Any
+    weights: RewardWeights = RewardWeights()
 
     def forces(self, x: tuple, model: EntryModel) -> EntryForces:
         return entry_forces(x, model, self.ns)
@@ -113,7 +116,7 @@ class Propagator:
         radius = model.planet.radius
         g0 = model.planet.g0
         h = task.dt / task.substeps
-        w = task.weights
+        w = self.weights
         batched = ns.name == "numpy"
 
         if batched:

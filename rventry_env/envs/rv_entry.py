@@ -15,7 +15,8 @@ from rventry_env.envs.observation import features, observe
 from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
-from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion
 from rventry_env.physics.model import EntryModel, scaled_model
 
 class RvEntryEnv(common.EntryEnvSetup, gym.Env):
@@ -77,7 +78,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         0.2 x miss [km] + 0.2 x vertical error [deg] + 0.02 x |v - 1219 m/s| + 0.1 x |alpha(t_f)| [deg]
 
     and, if the episode ended without impact, a failure penalty of 200. All
-    weights are :class:`~rventry_env.envs.task.RewardWeights` fields. Along the
+    weights are :class:`~rventry_env.envs.reward.RewardWeights` fields. Along the
     optimal collocation reference the summed reward is -J* with a near-zero
     terminal penalty.
 
@@ -87,7 +88,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     v = 7138 m/s, eB = (0, 0, sqrt(2)/2, sqrt(2)/2); alpha and sigma (free in the
     paper) default to the shipped collocation reference's initial values.
     Dispersions (constructor ``dispersion=`` or ``reset(options={"dispersion": ...})``,
-    a :class:`~rventry_env.envs.task.Dispersion`, a dict of its fields or
+    a :class:`~rventry_env.task.Dispersion`, a dict of its fields or
     ``"standard"``) draw uniformly from ``self.np_random``: density and C_L/C_D
     scale factors, initial altitude, speed, flight-path angle, heading, alpha,
     sigma. ``reset(options={"state": x})`` starts from any valid 12-state.
@@ -117,17 +118,18 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     by more than 1 %), ``terminal_penalty``, ``failure`` ("" on impact) and
     ``is_success``: impact with miss <= 5 km, vertical error <= 5 deg,
     |speed error| <= 100 m/s and no constraint violation
-    (:class:`~rventry_env.envs.task.SuccessThresholds`).
+    (:class:`~rventry_env.task.SuccessThresholds`).
 
     ## Arguments
 
-    ``gym.make("RvEntry-v0", model=None, task=None, dt=None, substeps=None,
+    ``gym.make("RvEntry-v0", model=None, task=None, reward=None, dt=None, substeps=None,
     dispersion=None, render_mode=None)``
 
     * ``model``: an :class:`~rventry_env.physics.EntryModel` (gravity, atmosphere,
       vehicle/aerodynamics, wind parts); default: the documented defaults (docs/conventions.md).
-    * ``task``: an :class:`~rventry_env.envs.task.EntryTask` (problem constants,
-      reward weights, success thresholds, dt, substeps, ceiling).
+    * ``task``: an :class:`~rventry_env.task.EntryTask` (problem constants,
+      success thresholds, dt, substeps, ceiling).
+    * ``reward``: :class:`~rventry_env.envs.reward.RewardWeights` (see Rewards).
     * ``dt``: control step, default 1 s; ``substeps``: RK4 substeps per control
       step, default 1.
     * ``dispersion``: see Starting State.
@@ -154,6 +156,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self,
         model: EntryModel | None = None,
         task: EntryTask | None = None,
+        reward: RewardWeights | None = None,
         dt: float | None = None,
         substeps: int | None = None,
         dispersion: Dispersion | dict | str | None = None,
@@ -161,7 +164,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         max_episode_steps: int | None = MAX_EPISODE_STEPS,
     ):
         self.observation_space, self.action_space = self._configure(
-            model, task, dt, substeps, dispersion, render_mode, MATH
+            model, task, reward, dt, substeps, dispersion, render_mode, MATH
         )
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self._limit = self.max_episode_steps  # this episode's: the own limit or a shorter outer one
@@ -183,9 +186,9 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
         self.task.check_dispersion(dispersion)
         x0 = common.check_state(options["state"], self._radius, self.task) if "state" in options else self._nominal
-        d = common.draw_dispersion(self.np_random, dispersion)
+        d = draw_dispersion(self.np_random, dispersion)
         if not dispersion.is_zero:
-            x0 = common.apply_state_dispersion(x0, d)
+            x0 = apply_state_dispersion(x0, d)
             # Python floats, not NumPy scalars: the single env works on floats (overflow raises, and is caught)
             self._episode_model = scaled_model(self.model, float(1 + d[0]), float(1 + d[1]), float(1 + d[2]))
         else:
@@ -290,7 +293,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     def _finish(self, info: dict, status: int, terminated: bool) -> float:
         """Add the end-of-episode keys to ``info``; return the terminal penalty (:mod:`.outcome`)."""
         o = episode_outcome(
-            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self._target,
+            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self.reward, self._target,
             self._radius, MATH,
         )  # fmt: skip
         info.update(
@@ -311,7 +314,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
 
 
 def _obs_table() -> str:
-    from rventry_env.envs.task import EntryTask as _T
+    from rventry_env.task import EntryTask as _T
 
     rows = features(_T(), 6378137.0)
     return "\n    ".join(f"| {i} | {f.name} | {f.meaning} | {f.low:g} | {f.high:.3g} |" for i, f in enumerate(rows))

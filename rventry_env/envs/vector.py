@@ -17,7 +17,8 @@ from rventry_env.envs.observation import observe
 from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
-from rventry_env.envs.task import Dispersion, EntryTask
+from rventry_env.envs.reward import RewardWeights
+from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion
 from rventry_env.physics.model import EntryModel, scaled_model
 
 TERMINAL_KEYS = (
@@ -46,7 +47,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     :param num_envs: number of copies N.
     :param max_episode_steps: time limit in control steps (truncation).
     :param model: an :class:`~rventry_env.physics.EntryModel`.
-    :param task: an :class:`~rventry_env.envs.task.EntryTask`.
+    :param task: an :class:`~rventry_env.task.EntryTask`.
     :param dt: control step (s). :param substeps: RK4 substeps per control step.
     :param dispersion: see the single environment.
     :param render_mode: ``"rgb_array"``: one picture with the tracks of the first 16 copies.
@@ -68,6 +69,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         max_episode_steps: int = MAX_EPISODE_STEPS,
         model: EntryModel | None = None,
         task: EntryTask | None = None,
+        reward: RewardWeights | None = None,
         dt: float | None = None,
         substeps: int | None = None,
         dispersion: Dispersion | dict | str | None = None,
@@ -83,7 +85,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self.num_envs = int(num_envs)
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self.single_observation_space, self.single_action_space = self._configure(
-            model, task, dt, substeps, dispersion, render_mode, NUMPY
+            model, task, reward, dt, substeps, dispersion, render_mode, NUMPY
         )
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -219,10 +221,10 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         :param dispersion: this reset's dispersion (default: the constructor's).
         """
         dispersion = self.dispersion if dispersion is None else dispersion
-        d = np.stack([common.draw_dispersion(self._rngs[i], dispersion) for i in idx])
+        d = np.stack([draw_dispersion(self._rngs[i], dispersion) for i in idx])
         x0 = self._initial[idx]
         if not dispersion.is_zero:
-            x0 = common.apply_state_dispersion(x0, d)
+            x0 = apply_state_dispersion(x0, d)
         self.dispersion_draw[idx] = d
         self._density[idx] = 1 + d[:, 0]
         self._lift[idx] = 1 + d[:, 1]
@@ -281,7 +283,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     def _finish(self, infos: dict, status, terminated, ended) -> np.ndarray:
         """Fill the end-of-episode keys for copies whose episode ended; return their terminal penalties."""
         o = episode_outcome(
-            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self._target,
+            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self.reward, self._target,
             self._radius, NUMPY,
         )  # fmt: skip
         values = {

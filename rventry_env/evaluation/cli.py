@@ -130,7 +130,7 @@ def check_memory(episodes: int, history: bool, option: str = "--episodes") -> No
 def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
               cluster: str | None = None, progress=None):  # fmt: skip
     """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary)."""
-    from rventry_env.envs.task import EntryTask
+    from rventry_env.task import EntryTask
     from rventry_env.evaluation.parallel import EvaluationJob, evaluate
     from rventry_env.evaluation.summary import summarize
     from rventry_env.reference import load_reference
@@ -142,7 +142,7 @@ def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bo
 
 
 def _document(agent, episodes, dispersion, seed, batch, summary) -> dict:
-    from rventry_env.envs.task import Dispersion
+    from rventry_env.task import Dispersion
     from rventry_env.reference import load_reference
 
     ref = load_reference()
@@ -167,7 +167,7 @@ def _label(agent: str) -> str:
 def _evaluate(args) -> int:
     from rich.progress import Progress
 
-    from rventry_env.envs.task import EntryTask
+    from rventry_env.task import EntryTask
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.reference import load_reference
 
@@ -204,7 +204,7 @@ def _compare(args) -> int:
     from rich.console import Console
     from rich.progress import Progress
 
-    from rventry_env.envs.task import EntryTask
+    from rventry_env.task import EntryTask
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.reference import load_reference
 

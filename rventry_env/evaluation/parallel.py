@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.task import EntryTask
 from rventry_env.evaluation.rollout import EpisodeBatch, rollout
 
 
@@ -34,7 +34,7 @@ class EvaluationJob:
     """What every task of an evaluation shares (picklable: it travels to the workers).
 
     :param agent: an agent name or a saved policy's path (:func:`~rventry_env.evaluation.agents.load_agent`).
-    :param dispersion: a dispersion set's name or a dict of :class:`~rventry_env.envs.task.Dispersion` fields.
+    :param dispersion: a dispersion set's name or a dict of :class:`~rventry_env.task.Dispersion` fields.
     :param task: the task.
     :param options: keyword arguments for the built-in law.
     :param record_history: keep every step's state and action.
@@ -50,14 +50,20 @@ class EvaluationJob:
 _LAWS: dict = {}
 
 
-def _law(job: EvaluationJob):
-    """The law of ``job``, built once per process."""
-    key = (job.agent, job.task, job.options)
+def cached_law(agent: str, task: EntryTask, options: tuple = ()):
+    """The law ``agent`` for ``task`` with ``options`` ((name, value) pairs), built once per
+    process: a worker that flies many tasks builds ``mpc``'s transcription once."""
+    key = (agent, task, options)
     if key not in _LAWS:
         from rventry_env.evaluation.agents import load_agent
 
-        _LAWS[key] = load_agent(job.agent, job.task, **dict(job.options))
+        _LAWS[key] = load_agent(agent, task, **dict(options))
     return _LAWS[key]
+
+
+def _law(job: EvaluationJob):
+    """The law of ``job``, built once per process."""
+    return cached_law(job.agent, job.task, job.options)
 
 
 def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
@@ -67,7 +73,7 @@ def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
 
 def episodes_per_task(job: EvaluationJob, n: int) -> int:
     """How many episodes one task holds: the law's own ``episodes_per_task``, else all of them."""
-    return max(1, int(getattr(_law(job), "episodes_per_task", n) or n))
+    return max(1, int(_law(job).episodes_per_task or n))
 
 
 def split(seeds: list[int], size: int) -> list[list[int]]:

@@ -8,6 +8,7 @@ import numpy as np
 
 from rventry_env.core.conversions import cartesian_from_rv_euler, lift_up_angle, wrap_angle
 from rventry_env.evaluation.rollout import EpisodeBatch
+from rventry_env.physics.entry import IDX
 from rventry_env.util.files import save_figure
 
 R_E = 6378137.0
@@ -15,7 +16,7 @@ NEAR_VERTICAL = np.sin(np.radians(2.0)) ** 2  # the squared horizontal share of 
 
 
 def _ground_track(x: np.ndarray):
-    ok = np.isfinite(x[..., 0])
+    ok = np.isfinite(x[..., IDX.r])
     lat = np.full(x.shape[:-1], np.nan)
     lon = np.full(x.shape[:-1], np.nan)
     r, _ = cartesian_from_rv_euler(np.where(ok[..., None], x, np.array([R_E + 1, 0, 0, 0, 1, 1, 0, 0, 0, 1, 0, 0])))
@@ -94,10 +95,10 @@ def plot_trajectories(
         n = x.shape[1]
         lw, alpha = (1.6, 1.0) if n == 1 else (0.6, max(0.08, min(0.6, 8.0 / n)))
         lat, lon = _ground_track(x)
-        ax["h"].plot(t, (x[..., 0] - R_E) / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
-        ax["v"].plot(t, x[..., 5] / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["h"].plot(t, (x[..., IDX.r] - R_E) / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["v"].plot(t, x[..., IDX.v] / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
         ax["track"].plot(lon, lat, color=c, lw=lw, alpha=alpha, ls=ls)
-        ax["alpha"].plot(t, np.degrees(x[..., 10]), color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), color=c, lw=lw, alpha=alpha, ls=ls)
         ax["sigma"].plot(t, conventional_bank_deg(x), color=c, lw=lw, alpha=alpha, ls=ls)
         ax["legend"].plot([], [], color=c, lw=2, ls=ls, label=f"{label} ({n} episode{'s' if n > 1 else ''})")
     if reference is not None:
@@ -105,10 +106,10 @@ def plot_trajectories(
         xr = reference.state(tr)
         lat, lon = _ground_track(xr)
         kw = dict(color="k", lw=1.2, ls="--")
-        ax["h"].plot(tr, (xr[:, 0] - R_E) / 1e3, **kw)
-        ax["v"].plot(tr, xr[:, 5] / 1e3, **kw)
+        ax["h"].plot(tr, (xr[:, IDX.r] - R_E) / 1e3, **kw)
+        ax["v"].plot(tr, xr[:, IDX.v] / 1e3, **kw)
         ax["track"].plot(lon, lat, **kw)
-        ax["alpha"].plot(tr, np.degrees(xr[:, 10]), **kw)
+        ax["alpha"].plot(tr, np.degrees(xr[:, IDX.alpha]), **kw)
         ax["sigma"].plot(tr, conventional_bank_deg(xr), **kw)
         ax["legend"].plot([], [], label="collocation reference (optimal)", **kw)
     ax["track"].plot([target_deg[1]], [target_deg[0]], "rx", ms=10, mew=2)

@@ -1,22 +1,12 @@
-"""Fly a guidance policy through RvEntry-v0 episodes, batched, and record the task metrics.
+"""Fly a guidance law through RvEntry-v0 episodes, batched, and record the task metrics.
 
-A policy (a guidance law) is any callable ``policy(obs, time_s, state) -> actions``:
-
-* ``obs``: float32 observations, shape (N, 26);
-* ``time_s``: time since each episode's start (N,);
-* ``state``: the float64 navigation states (N, 12), state order of docs/conventions.md;
-* returns actions (N, 2) in [-1, 1].
-
-A law that reads the accelerometer says so with ``uses_sensed_acceleration = True``;
-it is then called ``policy(obs, time_s, state, sensed_accel_b=...)`` with the
-sensed aerodynamic specific force (N, 3) in B components (``info["sensed_accel_b"]``).
-A law that counts events per episode says ``uses_flying_mask = True``; it is then also given
-``flying`` (N,) bool, False for the copies of episodes that have ended, which stay frozen
-and are still called until every episode has ended (their actions are not flown).
-That is everything a law is given: never the dispersion draw or the true model.
-A law with per-episode memory implements ``reset(n_episodes)``, called before the
-first step; one that reports on its episodes implements ``episode_stats()``, a list of
-one dict per episode merged into the records (``replans``, solve times, ...).
+The law implements :class:`~rventry_env.guidance.law.GuidanceLaw`: ``reset(n)`` before the
+first step, then at every step one :class:`~rventry_env.guidance.law.Measurement` (observation,
+time, navigation state, sensed acceleration, flying mask) and N actions in [-1, 1] back; after
+the last step its ``episode_stats()`` are merged into the records. That is everything a law is
+given: never the dispersion draw or the true model. Copies whose episode has ended stay frozen
+and are still measured (``flying`` False) until every episode has ended; their actions are not
+flown.
 
 All N episodes run side by side in one :class:`RvEntryVectorEnv`, so episode i is
 exactly a single ``RvEntry-v0`` episode reset with seed ``seeds[i]`` (``seed + i`` by
@@ -26,16 +16,14 @@ default).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from rventry_env.envs.task import Dispersion, EntryTask
 from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.guidance.law import GuidanceLaw, Measurement, check_law
 from rventry_env.physics.model import EntryModel
-
-Policy = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+from rventry_env.task import Dispersion, EntryTask
 
 
 @dataclass
@@ -90,7 +78,7 @@ class EpisodeBatch:
 
 
 def rollout(
-    policy: Policy,
+    policy: GuidanceLaw,
     n_episodes: int | None = None,
     *,
     seed: int = 0,
@@ -103,7 +91,7 @@ def rollout(
 ) -> EpisodeBatch:
     """Run ``n_episodes`` episodes of ``policy`` side by side; episode i uses seed ``seed + i``.
 
-    :param policy: ``policy(obs, time_s, state) -> actions`` (see module docstring).
+    :param policy: the guidance law (see module docstring).
     :param n_episodes: number of episodes (one copy each).
     :param seed: base seed: episode i uses ``seed + i``.
     :param seeds: the seeds of the episodes, one each (instead of ``n_episodes`` and ``seed``).
@@ -129,10 +117,7 @@ def rollout(
     venv = RvEntryVectorEnv(num_envs=n, task=task, model=model, dispersion=dispersion,
                             autoreset_mode=AutoresetMode.DISABLED, **kwargs)  # fmt: skip
     obs, info = venv.reset(seed=seeds)
-    if hasattr(policy, "reset"):
-        policy.reset(n)
-    sensed = getattr(policy, "uses_sensed_acceleration", False)
-    masked = getattr(policy, "uses_flying_mask", False)
+    check_law(policy).reset(n)
     done = np.zeros(n, bool)
     keys = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
             "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
@@ -143,11 +128,8 @@ def rollout(
     time_s = np.zeros(n)
     while not done.all():
         state = venv.state
-        law_kwargs = {"sensed_accel_b": info["sensed_accel_b"].copy()} if sensed else {}
-        if masked:
-            law_kwargs["flying"] = ~done
-        actions = policy(obs, time_s.copy(), state, **law_kwargs)
-        actions = np.asarray(actions, dtype=np.float32)
+        measured = Measurement(obs, time_s.copy(), state, info["sensed_accel_b"].copy(), ~done)
+        actions = np.asarray(policy(measured), dtype=np.float32)
         if record_history:
             hist_t.append(time_s.copy())
             hist_x.append(state)
@@ -165,7 +147,7 @@ def rollout(
                 hist_t.append(np.where(ended, time_s, np.nan))
                 hist_x.append(np.where(ended[:, None], venv.state, np.nan))
                 hist_a.append(np.full((n, 2), np.nan, np.float32))
-    stats = list(policy.episode_stats()) if hasattr(policy, "episode_stats") else []
+    stats = list(policy.episode_stats())
     batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths,
                          seeds=np.array(seeds), law_stats=stats)  # fmt: skip
     if record_history:

@@ -1,9 +1,10 @@
 """Guidance laws: what a vehicle does with what it measures.
 
-A law is a batched callable ``law(obs, time_s, state) -> actions`` (see
-:mod:`rventry_env.evaluation.rollout`): the observation, the time since the
-episode's start and the navigation state, never the dispersion draw or the true
-model. Laws with per-episode memory also implement ``reset(n_episodes)``.
+A law implements :class:`~rventry_env.guidance.law.GuidanceLaw`: ``law(measurement) -> actions``,
+batched, where the :class:`~rventry_env.guidance.law.Measurement` holds what a vehicle measures
+(observation, time, navigation state, sensed acceleration, flying mask), never the dispersion
+draw or the true model; ``reset(n_episodes)``, ``episode_stats()`` and ``episodes_per_task``
+complete it (defaults in :class:`~rventry_env.guidance.law.Law`).
 
 * :class:`~rventry_env.guidance.reference_replay.ReferencePolicy` - the open-loop
   replay of the collocation optimum;

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rventry_env.core.backend import NUMPY
-from rventry_env.physics.entry import entry_forces
+from rventry_env.physics.entry import IDX, entry_forces
 from rventry_env.physics.model import EntryModel
 
 
@@ -117,7 +117,7 @@ class AeroScaleEstimator:
         x = np.asarray(state, dtype=float)[idx]
         a = np.asarray(sensed_accel_b, dtype=float)[idx]
         f = entry_forces(tuple(x.T), self.model, NUMPY)
-        sigma = x[:, 11]
+        sigma = x[:, IDX.sigma]
         d_meas = -a[:, 0]
         l_meas = a[:, 1] * np.cos(sigma) + a[:, 2] * np.sin(sigma)  # along the commanded lift direction
         pred = np.stack([f.drag_accel, f.lift_accel], axis=-1)
@@ -141,6 +141,14 @@ class AeroScaleEstimator:
         self.var[idx] = (1.0 - gain) * var
         self.t_last[idx] = t
         self.updates[idx] += 1
+
+    def observe(self, measurement) -> np.ndarray:
+        """Fold in a guidance law's :class:`~rventry_env.guidance.law.Measurement` (a batch of another
+        size starts the filters again); the log-scales (N, 2) after it."""
+        if self.n != measurement.n:
+            self.reset(measurement.n)
+        self.update(measurement.time_s, measurement.navigation_state, measurement.sensed_accel_b)
+        return self.log_scales()
 
     @property
     def drag_accel_scale(self) -> np.ndarray:

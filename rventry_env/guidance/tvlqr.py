@@ -58,7 +58,9 @@ import math
 
 import numpy as np
 
-from rventry_env.envs.task import EntryTask
+from rventry_env.guidance.law import Law, Measurement
+from rventry_env.physics.entry import IDX
+from rventry_env.task import EntryTask
 from rventry_env.physics.model import EntryModel
 
 # deviation scales: km of radius, km of horizontal position (R_e x Euler parameter),
@@ -172,10 +174,10 @@ def sample_plan(plan, dt: float):
     n = max(int(math.floor(plan.tf / dt)), 1)
     t = np.arange(n + 1) * dt
     x = np.atleast_2d(plan.state(np.minimum(t, plan.tf)))
-    return x, np.diff(x[:, 10:12], axis=0) / dt
+    return x, np.diff(x[:, IDX.angles], axis=0) / dt
 
 
-class NeighboringOptimalGuidance:
+class NeighboringOptimalGuidance(Law):
     """TV-LQR tracking of a reference with the environment's own step map; optionally with estimation.
 
     :param reference: the trajectory to track (default: the guidance reference).
@@ -216,10 +218,6 @@ class NeighboringOptimalGuidance:
         else:
             self.gains, self.theta_gains, self.estimator = lqr_gains(a, b, *weights), None, None
 
-    @property
-    def uses_sensed_acceleration(self) -> bool:
-        return self.estimate
-
     def reset(self, n_episodes: int) -> None:
         """New episodes: the estimates start again from their prior."""
         if self.estimator is not None:
@@ -248,16 +246,9 @@ class NeighboringOptimalGuidance:
             u = u - np.einsum("nij,nj->ni", self.theta_gains[k], theta)
         return np.where((time_s < self.reference.tf)[:, None], u, 0.0)
 
-    def __call__(self, obs, time_s, state, sensed_accel_b=None):
-        theta = None
-        if self.estimate:
-            if sensed_accel_b is None:
-                raise ValueError("lqr-est needs the sensed acceleration (info['sensed_accel_b'])")
-            if self.estimator.n != len(state):
-                self.estimator.reset(len(state))
-            self.estimator.update(time_s, state, sensed_accel_b)
-            theta = self.estimator.log_scales()
-        return np.clip(self.rates(time_s, state, theta) / self.u_max, -1.0, 1.0).astype(np.float32)
+    def __call__(self, m: Measurement) -> np.ndarray:
+        theta = self.estimator.observe(m) if self.estimate else None
+        return np.clip(self.rates(m.time_s, m.navigation_state, theta) / self.u_max, -1.0, 1.0).astype(np.float32)
 
 
 __all__ = ["StepLinearization", "lqr_gains", "tracking_weights", "sample_plan", "NeighboringOptimalGuidance"]

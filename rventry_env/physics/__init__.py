@@ -10,7 +10,7 @@ from rventry_env.physics.atmosphere import (
     ScaledAtmosphere,
     TabulatedAtmosphere,
 )
-from rventry_env.physics.entry import CONTROL_NAMES, ENTRY_STATE_NAMES, EntryForces, entry_forces, entry_rhs
+from rventry_env.physics.entry import CONTROL_NAMES, ENTRY_STATE_NAMES, IDX, N_STATE, EntryForces, entry_forces, entry_rhs
 from rventry_env.physics.gravity import J2Gravity, PointMassGravity
 from rventry_env.physics.mach_drag import MachDragCorrection
 from rventry_env.physics.model import EntryModel, scaled_model, with_aero_scales
@@ -28,6 +28,8 @@ __all__ = [
     "TabulatedAtmosphere",
     "CONTROL_NAMES",
     "ENTRY_STATE_NAMES",
+    "IDX",
+    "N_STATE",
     "EntryForces",
     "entry_forces",
     "entry_rhs",

@@ -33,6 +33,24 @@ CONTROL_NAMES = ("u_alpha", "u_sigma")
 N_STATE = len(ENTRY_STATE_NAMES)
 
 
+class StateLayout(NamedTuple):
+    """Where each quantity sits in the entry state (the order of :data:`ENTRY_STATE_NAMES`):
+    ``x[..., IDX.alpha]``, ``x[..., IDX.angles]``. Written once, here; code that slices a state
+    names the slice."""
+
+    r: int = ENTRY_STATE_NAMES.index("r")
+    e_a: slice = slice(ENTRY_STATE_NAMES.index("eA1"), ENTRY_STATE_NAMES.index("etaA") + 1)
+    v: int = ENTRY_STATE_NAMES.index("v")
+    e_b: slice = slice(ENTRY_STATE_NAMES.index("eB1"), ENTRY_STATE_NAMES.index("etaB") + 1)
+    alpha: int = ENTRY_STATE_NAMES.index("alpha")
+    sigma: int = ENTRY_STATE_NAMES.index("sigma")
+    angles: slice = slice(ENTRY_STATE_NAMES.index("alpha"), ENTRY_STATE_NAMES.index("sigma") + 1)
+    translation: slice = slice(0, ENTRY_STATE_NAMES.index("etaB") + 1)
+
+
+IDX = StateLayout()
+
+
 class EntryForces(NamedTuple):
     """Forces and flow quantities at one state (all SI)."""
 
@@ -117,4 +135,4 @@ def entry_rhs(x: Sequence, u: Sequence, model: EntryModel, ns=NUMPY, forces: Ent
     return (*rates.as_tuple(), u[0], u[1])
 
 
-__all__ = ["ENTRY_STATE_NAMES", "CONTROL_NAMES", "N_STATE", "EntryForces", "entry_forces", "entry_rhs"]
+__all__ = ["ENTRY_STATE_NAMES", "CONTROL_NAMES", "N_STATE", "IDX", "StateLayout", "EntryForces", "entry_forces", "entry_rhs"]

@@ -72,7 +72,7 @@ def _load(path):
 
 
 def _solve(args) -> int:
-    from rventry_env.problem import EntryProblem
+    from rventry_env.task.problem import EntryProblem
     from rventry_env.reference.collocation.progress import RichMeshTable
     from rventry_env.reference.data_file import DEFAULT_PATH, GUIDANCE_PATH
     from rventry_env.reference.entry_problem import EntryProblemConfig

@@ -65,7 +65,7 @@ class Reference:
         self._poly = PiecewiseLGR(mesh, float(self.t[0]), float(self.t[-1]), self.x, self.u)
         const = self._summary.get("constants", {})
         prob = const.get("problem", {})
-        if "u_alpha_max" in prob:  # format 1 since the constants moved to rventry_env.problem (rad)
+        if "u_alpha_max" in prob:  # format 1 since the constants moved to rventry_env.task.problem (rad)
             bounds = [prob["u_alpha_max"], prob["u_sigma_max"]]
         else:  # files written before that (deg)
             bounds = [np.radians(b) if b is not None else None for b in (const.get("u_alpha_max_deg"), const.get("u_sigma_max_deg"))]

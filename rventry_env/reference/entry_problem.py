@@ -55,9 +55,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from rventry_env.core.backend import casadi_ns
-from rventry_env.physics.entry import ENTRY_STATE_NAMES, entry_forces, entry_rhs
+from rventry_env.physics.entry import ENTRY_STATE_NAMES, IDX, entry_forces, entry_rhs
 from rventry_env.physics.model import EntryModel, with_aero_scales
-from rventry_env.problem import EntryProblem
+from rventry_env.task.problem import EntryProblem
 from rventry_env.reference.collocation.problem import (
     EndpointConstraint,
     Invariant,
@@ -73,7 +73,7 @@ NORM_MODES = ("projection", "paper", "none")
 class EntryProblemConfig:
     """How the collocation solver poses Example 2: the problem's constants plus solver options.
 
-    :param problem: the Example 2 constants (:class:`rventry_env.problem.EntryProblem`,
+    :param problem: the Example 2 constants (:class:`rventry_env.task.problem.EntryProblem`,
         SI units), the same object the environment reads.
     :param model: the force model (default :class:`EntryModel`).
     :param norm_mode: ``"projection"``, ``"paper"`` or ``"none"`` (module docstring).
@@ -340,8 +340,8 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     x0 = config.initial_state(0.0, 0.0)
     initial_lower = x0.copy()
     initial_upper = x0.copy()
-    initial_lower[10:12] = (0.0, -8 * math.pi)  # alpha(0), sigma(0) free
-    initial_upper[10:12] = (config.alpha_max, 8 * math.pi)
+    initial_lower[IDX.angles] = (0.0, -8 * math.pi)  # alpha(0), sigma(0) free
+    initial_upper[IDX.angles] = (config.alpha_max, 8 * math.pi)
     final_lower = np.full(12, -nan_free)
     final_upper = np.full(12, nan_free)
     final_lower[0] = final_upper[0] = re + config.problem.final_altitude

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.reference.collocation.mesh import Mesh
 from rventry_env.reference.collocation.progress import Progress, RecordingProgress
 from rventry_env.reference.entry_problem import DEG, EntryProblemConfig, entry_problem, position_direction
@@ -113,7 +114,7 @@ def diagnostics(config: EntryProblemConfig, sol) -> dict:
     dense_t = np.linspace(t[0], t[-1], 20001)
     xd = sol.state(dense_t)
     def norm_error(states):
-        norms = [np.linalg.norm(states[:, 1:5], axis=1), np.linalg.norm(states[:, 6:10], axis=1)]
+        norms = [np.linalg.norm(states[:, IDX.e_a], axis=1), np.linalg.norm(states[:, IDX.e_b], axis=1)]
         return np.abs(np.stack(norms) - 1)
 
     norm_nodes, norm_dense = norm_error(x), norm_error(xd)
@@ -136,7 +137,7 @@ def diagnostics(config: EntryProblemConfig, sol) -> dict:
         "min_dynamic_pressure_pa": float(min(f_nodes.dynamic_pressure.min(), f_dense.dynamic_pressure.min())),
         "max_abs_u_alpha_deg_s": float(np.max(np.abs(u_all[:, 0])) / DEG),
         "max_abs_u_sigma_deg_s": float(np.max(np.abs(u_all[:, 1])) / DEG),
-        "alpha_range_deg": [float(x[:, 10].min() / DEG), float(x[:, 10].max() / DEG)],
+        "alpha_range_deg": [float(x[:, IDX.alpha].min() / DEG), float(x[:, IDX.alpha].max() / DEG)],
     }
     if config.norm_mode == "projection":
         out["max_abs_lambda_per_s"] = float(np.max(np.abs(sol.u[:, 2:4])))

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.util.files import save_figure
 
 PANELS = ("altitude", "speed", "c_ae_euler_parameters", "c_ba_euler_parameters", "alpha", "sigma")
@@ -31,15 +32,15 @@ def plot_reference(ref, out_dir: str | Path, n: int = 4000) -> list[Path]:
     x = ref.state(t)
     re = float(ref.summary().get("constants", {}).get("model", {}).get("planet", {}).get("radius", 6378137.0))
     specs = [
-        ("altitude", "Altitude h (km)", [((x[:, 0] - re) / 1e3, (ref.x[:, 0] - re) / 1e3, "h")]),
-        ("speed", "Earth-relative speed v (km/s)", [(x[:, 5] / 1e3, ref.x[:, 5] / 1e3, "v")]),
+        ("altitude", "Altitude h (km)", [((x[:, IDX.r] - re) / 1e3, (ref.x[:, IDX.r] - re) / 1e3, "h")]),
+        ("speed", "Earth-relative speed v (km/s)", [(x[:, IDX.v] / 1e3, ref.x[:, IDX.v] / 1e3, "v")]),
         ("c_ae_euler_parameters", "C_AE Euler parameters",
          [(x[:, i], ref.x[:, i], name) for i, name in zip(range(1, 5), ("e_A1", "e_A2", "e_A3", "eta_A"))]),
         ("c_ba_euler_parameters", "C_BA Euler parameters",
          [(x[:, i], ref.x[:, i], name) for i, name in zip(range(6, 10), ("e_B1", "e_B2", "e_B3", "eta_B"))]),
-        ("alpha", "Angle of attack alpha (deg)", [(np.degrees(x[:, 10]), np.degrees(ref.x[:, 10]), "alpha")]),
+        ("alpha", "Angle of attack alpha (deg)", [(np.degrees(x[:, IDX.alpha]), np.degrees(ref.x[:, IDX.alpha]), "alpha")]),
         ("sigma", "Bank angle sigma (deg, paper's definition)",
-         [(np.degrees(x[:, 11]), np.degrees(ref.x[:, 11]), "sigma")]),
+         [(np.degrees(x[:, IDX.sigma]), np.degrees(ref.x[:, IDX.sigma]), "sigma")]),
     ]  # fmt: skip
     paths = []
     for name, ylabel, curves in specs:

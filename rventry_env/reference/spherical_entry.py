@@ -34,6 +34,7 @@ import math
 
 import numpy as np
 
+from rventry_env.physics.entry import IDX
 from rventry_env.core.backend import NUMPY, casadi_ns
 from rventry_env.physics.gravity import PointMassGravity
 from rventry_env.reference.collocation.problem import (
@@ -176,9 +177,9 @@ def spherical_from_entry_states(x: np.ndarray) -> np.ndarray:
 
     x = np.asarray(x, dtype=float)
     sph = spherical_from_rv_euler(x[:, :10], on_singular="nan", tol=1e-7)
-    theta_u, n2 = lift_up_angle(np.moveaxis(x[:, 6:10], -1, 0))
-    mu = np.where(n2 > 1e-14, wrap_angle(x[:, 11] - theta_u), np.nan)
-    out = np.column_stack([sph, x[:, 10], mu])
+    theta_u, n2 = lift_up_angle(np.moveaxis(x[:, IDX.e_b], -1, 0))
+    mu = np.where(n2 > 1e-14, wrap_angle(x[:, IDX.sigma] - theta_u), np.nan)
+    out = np.column_stack([sph, x[:, IDX.alpha], mu])
     for j in (5, 7):  # azimuth and bank: fill undefined samples from the last defined one
         col = out[:, j]
         good = np.isfinite(col)

@@ -1,0 +1,41 @@
+"""The environment's reward weights: what an RL agent is paid, not what the task asks.
+
+The task (:mod:`rventry_env.task`) says what a flight must achieve; these weights turn
+its running cost, path bounds and terminal errors into a reward. Only the environments
+and training read them; guidance laws never see them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Reward weights. Each step pays -(running cost of Eq. Ex2-Cost over the step);
+    the terminal step also pays -(terminal penalty); path violations are charged
+    each step.
+
+    Terminal penalty = miss_per_km * miss [km] + vertical_per_deg * vertical error [deg]
+    + speed_per_mps * |v - v_f| [m/s] + alpha_per_deg * |alpha(t_f)| [deg].
+    Linear, so a gradient survives far from the target and nothing explodes.
+    Path penalty per second = load_violation * max(0, n/n_max - 1 - tol)
+    + q_violation * max(0, 1 - q/q_min - tol), sampled at every RK4 node, with
+    tol the 1 % margin of :class:`SuccessThresholds` (what counts as a violation).
+    ``failure`` is added when an episode ends without impact (skip-out, non-finite
+    state, stall). ``success_bonus`` (default 0) is *paid* at a successful impact
+    (:class:`SuccessThresholds`): a learner's handle on the threshold-shaped task
+    metric, off in the environment's own definition.
+    """
+
+    miss_per_km: float = 0.2
+    vertical_per_deg: float = 0.2
+    speed_per_mps: float = 0.02
+    alpha_per_deg: float = 0.1
+    load_violation: float = 10.0
+    q_violation: float = 10.0
+    failure: float = 200.0
+    success_bonus: float = 0.0
+
+
+__all__ = ["RewardWeights"]

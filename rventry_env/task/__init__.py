@@ -1,0 +1,25 @@
+"""The entry task, without Gymnasium: what a flight must achieve and what the benchmark draws.
+
+* :class:`EntryProblem` - the paper's Example 2: boundary conditions, cost, path bounds;
+* :class:`EntryTask` - the problem flown in control steps (``dt``, ``substeps``), the
+  success thresholds and the episode-end rules (skip-out ceiling, stall speed);
+* :class:`Dispersion` - the named and custom dispersion sets, and their draws.
+
+The environments, the collocation reference, the guidance laws and the evaluation all read
+these; the reward an RL agent is paid stays with the environment
+(:class:`rventry_env.envs.reward.RewardWeights`).
+"""
+
+from rventry_env.task.definition import EntryTask, SuccessThresholds
+from rventry_env.task.dispersion import NAMED_SETS, Dispersion, apply_state_dispersion, draw_dispersion
+from rventry_env.task.problem import EntryProblem
+
+__all__ = [
+    "EntryProblem",
+    "EntryTask",
+    "SuccessThresholds",
+    "NAMED_SETS",
+    "Dispersion",
+    "apply_state_dispersion",
+    "draw_dispersion",
+]
