@@ -175,9 +175,13 @@ def test_the_tracker_scan_keeps_the_trained_horizon_unless_a_candidate_beats_it(
 
 
 def _weights(out):
+    """The saved network's tensors (by name) and its self-description (widths, members, inputs)."""
     import torch
 
-    return {k: v.numpy() for k, v in torch.load(out / "student.pt", weights_only=True).items()}
+    saved = torch.load(out / "student.pt", weights_only=True)
+    tensors = saved["state_dict"] if "state_dict" in saved else saved
+    about = {k: v for k, v in saved.items() if k != "state_dict"} if "state_dict" in saved else {}
+    return {k: v.numpy() for k, v in tensors.items()}, about
 
 
 def _without_wall(records):
@@ -200,8 +204,9 @@ def test_two_runs_agree_and_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
     finals = {n: _without_wall([json.loads((p / "final.json").read_text())]) for n, p in runs.items()}
     assert finals["a"] == finals["b"] == finals["c"]
     w = {n: _weights(p) for n, p in runs.items()}
-    for k in w["a"]:
-        np.testing.assert_array_equal(w["a"][k], w["b"][k])
-        np.testing.assert_array_equal(w["a"][k], w["c"][k])
+    assert w["a"][1] == w["b"][1] == w["c"][1] and w["a"][0].keys() == w["c"][0].keys() and len(w["a"][0]) >= 4
+    for k in w["a"][0]:
+        np.testing.assert_array_equal(w["a"][0][k], w["b"][0][k])
+        np.testing.assert_array_equal(w["a"][0][k], w["c"][0][k])
     for name in ("student.json", "flight.json"):
         assert len({(p / name).read_text() for p in runs.values()}) == 1
