@@ -149,6 +149,7 @@ class RunSetup:
     expert: str
     expert_settings: tuple  # (name, value) pairs of ReplanningSettings
     first_seed: int  # the seed of round 0's first training vehicle
+    cluster: str | None = None  # a Dask scheduler's address: the expert flies there instead of on local workers
 
     def fit_settings(self) -> dict:
         """Keywords of :func:`fit` (and :func:`fit_commands`) after the data: the [fit] section."""
@@ -207,7 +208,7 @@ def new_network(hidden: tuple[int, ...], members: int, seed: int, stage: str):
     return make_network(hidden, members)
 
 
-def prepare_run(config, out, workers: int, seed: int | None) -> RunSetup:
+def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None = None) -> RunSetup:
     """Read and check the config and the output directory; a bad setting fails here, not in a worker."""
     cfg = load_config(config)
     out = Path(out)
@@ -230,7 +231,7 @@ def prepare_run(config, out, workers: int, seed: int | None) -> RunSetup:
         hidden=tuple(int(h) for h in cfg["student"]["hidden"]), members=int(cfg["student"].get("members", 1)),
         law=law, trackers=trackers, fit_seed=int(cfg["fit"]["seed"] if seed is None else seed), expert=expert,
         expert_settings=tuple(sorted(expert_cfg.items())),
-        first_seed=int(cfg["data"]["train_seed"]) + (0 if seed is None else 1_000 * seed),
+        first_seed=int(cfg["data"]["train_seed"]) + (0 if seed is None else 1_000 * seed), cluster=cluster,
     )  # fmt: skip
 
 
@@ -293,7 +294,7 @@ def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, stud
                        load_relief_margin=run.law["load_relief_margin"], members=run.members)
             for i in range(n)]  # fmt: skip
     tid = bar.add_task(f"round {k}: {n} episodes, beta {beta}", total=n)
-    res = collect(jobs, run.workers, progress=lambda d: bar.advance(tid, d))
+    res = collect(jobs, run.workers, progress=lambda d: bar.advance(tid, d), cluster=run.cluster)
     x = np.concatenate([r["x"] for r in res])
     y = np.concatenate([r["angles"] for r in res])
     buf = io.BytesIO()
@@ -441,13 +442,15 @@ def write_run_record(run: RunSetup, rounds: Rounds, best: Selected, final: dict 
 
 
 def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | None = None, progress_bar: bool = True,
-                 resume: bool = False) -> Path:  # fmt: skip
+                 resume: bool = False, cluster: str | None = None) -> Path:  # fmt: skip
     """Run the config's DAgger rounds, then the ensemble refit, the distillation and the tracker
     choice the config asks for. With ``resume``, the work an earlier run finished in ``out`` is
-    taken as it is (each phase checks its own), and a run started with another config is refused."""
+    taken as it is (each phase checks its own), and a run started with another config is refused.
+    With ``cluster`` (a Dask scheduler's address) the expert's episodes fly on its workers; every
+    episode is seeded, so the run is the same as on local workers."""
     import torch
 
-    run = prepare_run(config, out, workers, seed)
+    run = prepare_run(config, out, workers, seed, cluster)
     check_resumable(run, resume)
     torch.set_num_threads(max(1, workers))
     clock = RunClock()
@@ -477,11 +480,11 @@ def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: 
     scan = []
     for h in horizons:
         metric = select_metric(LearnedGuidance(network, task=task, horizon=h, load_relief_margin=relief), cfg, task)
-        scan.append({**_horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
+        scan.append({**horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
     return scan
 
 
-def _horizon_keys(h: Horizon, prefix: str) -> dict:
+def horizon_keys(h: Horizon, prefix: str) -> dict:
     """A horizon as student.json keys (an unbounded descent rate as null)."""
     return {f"{prefix}_s": h.max_s, f"{prefix}_min_s": h.min_s,
             f"{prefix}_descent_mps": h.descent_mps if math.isfinite(h.descent_mps) else None}  # fmt: skip
@@ -520,7 +523,7 @@ def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, track
     write_json(out / "student.json", {"hidden": list(best.hidden), "members": best.members, "inputs": "observation features "
                "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
                "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
-               **_horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else _horizon_keys(tracker, "tracking")),
+               **horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else horizon_keys(tracker, "tracking")),
                "load_relief_margin": law["load_relief_margin"], "selected_round": best.source,
                **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
 
@@ -612,7 +615,12 @@ def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
                          + next(f"index {i}: {a!r} saved, {b!r} now" for i, (a, b) in enumerate(zip(names, INPUT_NAMES))
                                 if a != b))  # fmt: skip
     network = network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]), int(meta.get("members", 1)))
-    return LearnedGuidance(network, task=task, **student_law(meta, task))
+    law = LearnedGuidance(network, task=task, **student_law(meta, task))
+    run = json.loads((run_dir / "metadata.json").read_text()) if (run_dir / "metadata.json").is_file() else {}
+    law.provenance = {"algorithm": "DAgger (supervised imitation of mpc)", "start": "scratch",
+                      "samples": run.get("selected", {}).get("samples"), "seed": run.get("seed"),
+                      "selected": meta.get("selected_round")}  # fmt: skip
+    return law
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:

@@ -168,12 +168,24 @@ class SB3Policy(Law):
         if env is not None:
             self.task.check_trained(EntryTask(dt=float(env["dt"]), substeps=int(env["substeps"])).record(),
                                     f"the model {path}")  # fmt: skip
-        self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"], self.spec.get("authority_rad"),
-                                self.task)  # fmt: skip
+        self.provenance = self.metadata.get("provenance") or (
+            {"algorithm": f"{self.metadata.get('algorithm', self.spec.get('algorithm', 'ppo'))} (stable-baselines3)",
+             "start": {"residual": "TV-LQR, residual", "direct": "scratch"}.get(self.spec["mode"], self.spec["mode"]),
+             "timesteps": self.metadata.get("timesteps"), "seed": self.metadata.get("seed")}
+            if self.from_run else None)  # fmt: skip
+        if self.spec["mode"] == "student":
+            from rventry_agents.finetune import fine_tuned_law
+
+            self._act = fine_tuned_law(self.model.policy, self.spec["student"], self.task)
+        else:
+            self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"],
+                                    self.spec.get("authority_rad"), self.task)  # fmt: skip
 
     def reset(self, n_episodes: int) -> None:
-        if hasattr(self._act, "reset"):
-            self._act.reset(n_episodes)
+        self._act.reset(n_episodes)
+
+    def episode_stats(self) -> list[dict]:
+        return self._act.episode_stats()
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_mean is None:

@@ -152,6 +152,7 @@ def _document(agent, episodes, dispersion, seed, batch, summary) -> dict:
         "dispersion_set": dispersion,
         "dispersion": Dispersion.parse(dispersion).__dict__,
         "seed": seed,
+        "provenance": batch.provenance,
         "reference": {"cost": float(ref.cost), "tf_s": float(ref.tf)},
         "summary": summary,
         "episodes": batch.records(float(ref.cost)),

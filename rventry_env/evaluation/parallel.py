@@ -182,6 +182,18 @@ def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: st
 
 
 def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) -> None:
+    map_cluster(run_task, [(job, t) for t in tasks], address, done,
+                keys=[f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}" for i, t in enumerate(tasks)])  # fmt: skip
+
+
+def map_cluster(fn: Callable, calls: list[tuple], address: str, done: Callable[[int, Any], None],
+                keys: list[str] | None = None) -> None:  # fmt: skip
+    """:func:`map_local` on a Dask cluster: ``fn(*calls[i])`` for every i on the workers of the
+    scheduler at ``address``; ``done(i, result)`` here as each finishes. ``keys`` name the tasks
+    (default: the function's name and the call's index).
+
+    :raises ValueError: Dask is not installed, or the scheduler cannot be reached.
+    """
     try:
         from distributed import Client, as_completed
     except ImportError:
@@ -190,14 +202,23 @@ def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) 
         client = Client(address, timeout="20s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    keys = keys or [f"rventry-{getattr(fn, '__name__', 'task')}-{i}" for i in range(len(calls))]
     try:
-        futures = [client.submit(run_task, job, t, pure=False, key=f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}")
-                   for i, t in enumerate(tasks)]  # fmt: skip
+        futures = [client.submit(fn, *c, pure=False, key=k) for c, k in zip(calls, keys)]
         index = {f.key: i for i, f in enumerate(futures)}
         for f in as_completed(futures):
             done(index[f.key], f.result())
     finally:
         client.close()
+
+
+def map_tasks(fn: Callable, calls: list[tuple], workers: int, done: Callable[[int, Any], None],
+              cluster: str | None = None) -> None:  # fmt: skip
+    """:func:`map_cluster` when a scheduler address is given, else :func:`map_local`."""
+    if cluster is not None:
+        map_cluster(fn, calls, cluster, done)
+    else:
+        map_local(fn, calls, workers, done)
 
 
 def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
@@ -211,6 +232,7 @@ def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
         dispersion_draw=np.concatenate([b.dispersion_draw for b in batches]),
         seeds=np.concatenate([b.seeds for b in batches]),
         law_stats=[s for b in batches for s in b.law_stats],
+        provenance=batches[0].provenance,
         lengths=np.concatenate([b.lengths for b in batches]),
     )
     if all(b.history_t is not None for b in batches):

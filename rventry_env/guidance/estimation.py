@@ -94,13 +94,21 @@ class AeroScaleEstimator:
 
     def reset(self, n: int) -> None:
         """Forget everything: n vehicles at the prior."""
-        s = self.settings
         self.n = int(n)
-        self.k = np.ones((self.n, 2))  # (k_D, k_L)
-        self.var = np.full((self.n, 2), s.prior_sigma**2)
-        self.t_last = np.full(self.n, np.nan)
-        self.updates = np.zeros(self.n, dtype=int)
-        self.rejected = np.zeros(self.n, dtype=int)  # per vehicle: factor updates refused by scale_bounds
+        self.k = np.empty((self.n, 2))  # (k_D, k_L)
+        self.var = np.empty((self.n, 2))
+        self.t_last = np.empty(self.n)
+        self.updates = np.empty(self.n, dtype=int)
+        self.rejected = np.empty(self.n, dtype=int)  # per vehicle: factor updates refused by scale_bounds
+        self.reset_rows(slice(None))
+
+    def reset_rows(self, rows) -> None:
+        """Forget everything for the vehicles ``rows`` (new episodes, or all): back to the prior."""
+        self.k[rows] = 1.0
+        self.var[rows] = self.settings.prior_sigma**2
+        self.t_last[rows] = np.nan
+        self.updates[rows] = 0
+        self.rejected[rows] = 0
 
     def update(self, time_s, state, sensed_accel_b, rows=None) -> None:
         """Fold in one measurement per vehicle.
