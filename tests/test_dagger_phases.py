@@ -24,37 +24,10 @@ from rventry_agents.dagger import (
 )
 from rventry_agents.imitation import N_FEATURES, network_bytes
 
-SMALL = """
-[student]
-hidden = [16, 16]
-load_relief_margin = 0.02
-[expert]
-agent = "lqr"
-[data]
-dispersion = "standard"
-train_seed = 2_000_000
-[[rounds]]
-episodes = 2
-beta = 1.0
-[[rounds]]
-episodes = 1
-beta = 0.5
-[fit]
-epochs = 3
-batch_size = 512
-learning_rate = 1e-3
-seed = 0
-[select]
-episodes = 2
-seed = 100_000
-dispersion = "standard"
-[final]
-members = 2
-[flight]
-tracking = [[3.0, 2.0]]
-tracking_descent_mps = 2500.0
-"""
-DISTIL = "[distil]\nhidden = [8]\nepochs = 2\nemphasis_below_m = 20_000.0\nemphasis = 3\n"
+from dagger_configs import DISTIL  # noqa: E402  (tests/ is on the path)
+from dagger_configs import SMALL as _SMALL  # noqa: E402
+
+SMALL = _SMALL.replace("[select]\nepisodes = 3", "[select]\nepisodes = 2")  # one selection episode fewer
 
 
 def _run(tmp_path, text=SMALL, seed=None, name="run"):
