@@ -16,8 +16,9 @@ from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
-from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion
-from rventry_env.physics.model import EntryModel, scaled_model
+from rventry_env.envs.uncertainty import FlightState, Sensed
+from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
+from rventry_env.physics.model import EntryModel
 
 _RESET_OPTIONS = {"state", "dispersion"}
 
@@ -188,10 +189,13 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self.task.check_dispersion(dispersion)
         x0 = common.check_state(options["state"], self._radius) if "state" in options else self._nominal
         d = draw_dispersion(self.np_random, dispersion)
+        extras = draw_extras(self.np_random, dispersion, self.task.problem)
+        self._flight = FlightState(1, self.model)
+        self._flight.assign(0, dispersion, extras)
         if not dispersion.is_zero:
             x0 = apply_state_dispersion(x0, d)
             # Python floats, not NumPy scalars: the single env works on floats (overflow raises, and is caught)
-            self._episode_model = scaled_model(self.model, float(1 + d[0]), float(1 + d[1]), float(1 + d[2]))
+            self._episode_model = self._flight.model(float(1 + d[0]), float(1 + d[1]), float(1 + d[2]), single=True)
         else:
             self._episode_model = self.model
         self.dispersion_draw = d
@@ -205,8 +209,11 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self._min_q = self._forces.dynamic_pressure
         self._ended = False
         self._track = Track() if self.render_mode else None
+        self._measure()
         obs, clipped = self._observe()
         info = self._info(False, False, clipped)
+        # the draws, for evaluation only: a guidance law is never given them
+        info["dispersion_draw"] = self._flight.draw_info(d[None], [extras], single=True)
         self._record()
         return obs, info
 
@@ -235,6 +242,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         reward = -(out.cost + out.path_penalty)
         terminated = out.status != FLYING
         truncated = not terminated and self.max_episode_steps is not None and self._steps >= self.max_episode_steps
+        self._measure(out.elapsed)
         info_obs, obs_clipped = self._observe()
         info = self._info(clipped, out.alpha_saturated, obs_clipped)
         if terminated or truncated:
@@ -267,8 +275,25 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         return render_tracks([self._track], p.target_latitude, p.target_longitude)
 
     # ------------------------------------------------------------------ helpers
+    def _measure(self, elapsed=None) -> None:
+        """What the vehicle's sensors and navigation make of the truth (the truth itself where
+        the set has no sensor or navigation errors)."""
+        if self._flight.any_sensing:
+            nav, sensed, feats, _ = self._flight.sense(self._x, self._forces, self._c_ae, self._g0,
+                                                       None if elapsed is None else [elapsed])  # fmt: skip
+            nav_x = tuple(float(c) for c in nav[0])
+            self._nav = nav[0]
+            self._sensed = sensed[0]
+            seen = Sensed(dcm(*nav_x[6:10]), float(feats.dynamic_pressure[0]), float(feats.aero_accel[0]))
+            self._seen = (nav_x, seen, dcm(*nav_x[1:5]))
+        else:
+            self._nav = None
+            self._sensed = None
+            self._seen = (self._x, self._forces, self._c_ae)
+
     def _observe(self):
-        raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, MATH)
+        x, forces, c_ae = self._seen
+        raw = observe(x, forces, c_ae, self._t, self.task, self._target, self._radius, self._g0, MATH)
         obs, clipped = common.clip_observation(np.array(raw, dtype=np.float32), self._obs_low, self._obs_high)
         return obs, bool(clipped)
 
@@ -285,7 +310,8 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             "speed_mps": self._x[5],
             "dynamic_pressure_pa": f.dynamic_pressure,
             "load_factor_g": f.aero_accel / self._g0,
-            "sensed_accel_b": np.array(f.aero_b, dtype=np.float64),
+            "sensed_accel_b": np.array(f.aero_b, dtype=np.float64) if self._sensed is None else self._sensed.copy(),
+            "navigation_state": np.array(self._x, dtype=np.float64) if self._nav is None else self._nav.copy(),
             "cost": self._cost,
             "time_s": self._t,
             "action_clipped": action_clipped,

@@ -74,26 +74,27 @@ class EntryTask:
         p = self.problem
         room_down = p.initial_altitude - p.final_altitude
         room_up = self.ceiling_altitude - p.initial_altitude
-        if dispersion.altitude_m >= min(room_down, room_up):
+        big = dispersion.largest
+        if big("altitude_m") >= min(room_down, room_up):
             raise ValueError(
-                f"dispersion altitude_m = {dispersion.altitude_m:g} m could start the vehicle "
+                f"dispersion altitude_m = {dispersion.altitude_m:g} m ({dispersion.shape}) could start the vehicle "
                 f"{'underground' if room_down <= room_up else 'above the skip-out ceiling'}: the initial altitude "
-                f"is {p.initial_altitude:g} m, so the half-width must stay below {min(room_down, room_up):g} m"
+                f"is {p.initial_altitude:g} m, so the largest draw must stay below {min(room_down, room_up):g} m"
             )
-        if dispersion.speed_mps >= p.initial_speed - self.min_speed:
+        if big("speed_mps") >= p.initial_speed - self.min_speed:
             raise ValueError(
                 f"dispersion speed_mps = {dispersion.speed_mps:g} m/s could start the vehicle below the stall "
-                f"speed ({self.min_speed:g} m/s): the initial speed is {p.initial_speed:g} m/s, so the half-width "
+                f"speed ({self.min_speed:g} m/s): the initial speed is {p.initial_speed:g} m/s, so the largest draw "
                 f"must stay below {p.initial_speed - self.min_speed:g} m/s"
             )
         for name in ("flight_path_deg", "heading_deg"):
-            if getattr(dispersion, name) >= 90.0:
+            if big(name) >= 90.0:
                 raise ValueError(f"dispersion {name} = {getattr(dispersion, name):g} deg must stay below 90 deg")
         alpha_room = math.degrees(min(p.initial_alpha, p.alpha_max - p.initial_alpha))
-        if dispersion.alpha_deg > alpha_room:
+        if big("alpha_deg") > alpha_room:
             raise ValueError(
                 f"dispersion alpha_deg = {dispersion.alpha_deg:g} deg would start alpha outside [0, alpha_max]: "
-                f"alpha(0) is {math.degrees(p.initial_alpha):g} deg, so the half-width must stay within {alpha_room:g} deg"
+                f"alpha(0) is {math.degrees(p.initial_alpha):g} deg, so the largest draw must stay within {alpha_room:g} deg"
             )
 
 

@@ -1,0 +1,181 @@
+"""Per-copy flight-grade draws for the environments: the truth model they define, and what the
+vehicle's sensors and navigation make of the truth.
+
+Shared by :class:`~rventry_env.envs.rv_entry.RvEntryEnv` (one copy) and
+:class:`~rventry_env.envs.vector.RvEntryVectorEnv` (N copies): both keep one
+:class:`FlightState` of N rows, fill row i from copy i's draws, and build from it the truth
+model (per-copy arrays for the batch, row 0 as plain numbers and one profile for the single
+env) and, where the set has sensor or navigation errors, the navigation state and the sensed
+features every observation is made of. The truth state is never changed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+
+from rventry_env.core.backend import NUMPY
+from rventry_env.core.conversions import rv_euler_from_cartesian
+from rventry_env.core.euler_parameters import dcm
+from rventry_env.physics.model import EntryModel, scaled_model
+from rventry_env.physics.sensors import accelerometer, propagate_navigation_error, white_noise
+from rventry_env.physics.uncertainty import MachVaryingAerodynamics, ProfileAtmosphere, ProfileWind
+from rventry_env.task import SCALAR_FIELDS, Dispersion
+from rventry_env.task.flight import GRID_M, GRID_POINTS, GRID_START_M, GRID_STEP_M
+
+
+class Sensed(NamedTuple):
+    """What the observation is built from in place of the true forces (see ``observe``)."""
+
+    c_ba: tuple
+    dynamic_pressure: object
+    aero_accel: object
+
+
+class FlightState:
+    """The flight-grade draws of N copies, and their sensors' and navigation's running errors."""
+
+    def __init__(self, n: int, model: EntryModel):
+        self.n = n
+        self.base = model
+        self._log_base = np.log(model.atmosphere.density(GRID_M, NUMPY))
+        k = GRID_POINTS
+        self.mass = np.ones(n)
+        self.log_factors = np.zeros((n, k))
+        self.wind_east = np.zeros((n, k))
+        self.wind_north = np.zeros((n, k))
+        self.aero = np.zeros((n, 4))
+        self.bias = np.zeros((n, 3))
+        self.scale = np.zeros((n, 3))
+        self.misalignment = np.zeros((n, 3))
+        self.noise = np.zeros(n)
+        self.key = np.zeros(n, dtype=np.uint64)
+        self.step = np.zeros(n, dtype=np.int64)
+        self.dr = np.zeros((n, 3))
+        self.dv = np.zeros((n, 3))
+        self.senses = np.zeros(n, bool)
+        self.any_model = False
+        self.any_wind = False
+        self.any_sensing = False
+
+    def assign(self, i: int, dispersion: Dispersion, extras: dict | None) -> None:
+        """Row ``i`` from one copy's draws (:func:`~rventry_env.task.draw_extras`); zeros for none."""
+        if extras is None:
+            self.mass[i] = 1.0
+            for a in (self.log_factors, self.wind_east, self.wind_north, self.aero, self.bias, self.scale,
+                      self.misalignment, self.dr, self.dv):  # fmt: skip
+                a[i] = 0.0
+            self.noise[i] = 0.0
+            self.senses[i] = False
+            return
+        flight = dispersion.flight
+        self.any_model = True
+        self.mass[i] = 1.0 + extras["mass"]
+        lf = extras["density_perturbation"].copy()
+        if "log_density_msis" in extras:
+            lf += extras["log_density_msis"] - self._log_base
+        self.log_factors[i] = lf
+        self.wind_east[i] = extras["wind_east"]
+        self.wind_north[i] = extras["wind_north"]
+        if flight is not None and flight.has_wind:
+            if self.base.wind is not None:
+                raise ValueError("a dispersion with winds needs a model without a wind of its own")
+            self.any_wind = True
+        self.aero[i] = extras["aero"]
+        self.bias[i] = extras["accel_bias"]
+        self.scale[i] = extras["accel_scale"]
+        self.misalignment[i] = extras["accel_misalignment"]
+        self.noise[i] = 0.0 if flight is None else flight.accel_noise_mps2
+        self.key[i] = extras["noise_key"]
+        self.step[i] = 0
+        self.dr[i] = extras["nav_position"]
+        self.dv[i] = extras["nav_velocity"]
+        self.senses[i] = dispersion.has_sensing
+        self.any_sensing |= bool(self.senses[i])
+
+    def model(self, density, lift, drag, single: bool = False) -> EntryModel:
+        """The truth model: the base with the scale factors and, where any copy draws them, the
+        profiles, the Mach-dependent aerodynamics, the mass (and the wind)."""
+        m = scaled_model(self.base, density, lift, drag)
+        if not self.any_model:
+            return m
+        row = (lambda a: a[0]) if single else (lambda a: a)
+        num = (lambda a: float(a[0])) if single else (lambda a: a)
+        veh = m.vehicle
+        aero = MachVaryingAerodynamics(veh.aerodynamics, num(self.aero[:, 0]), num(self.aero[:, 1]),
+                                       num(self.aero[:, 2]), num(self.aero[:, 3]))  # fmt: skip
+        changes = {
+            "atmosphere": ProfileAtmosphere(m.atmosphere, GRID_START_M, GRID_STEP_M, row(self.log_factors)),
+            "vehicle": dataclasses.replace(veh, mass=num(self.base.vehicle.mass * self.mass), aerodynamics=aero),
+        }
+        if self.any_wind:
+            changes["wind"] = ProfileWind(GRID_START_M, GRID_STEP_M, row(self.wind_east), row(self.wind_north))
+        return m.replace(**changes)
+
+    def draw_info(self, draws9: np.ndarray, extras: list, single: bool = False) -> dict:
+        """The draws of the copies, for evaluation (``info["dispersion_draw"]`` at reset)."""
+        out = {f: draws9[:, j] for j, f in enumerate(SCALAR_FIELDS)}
+        if any(e is not None for e in extras):
+            out.update(
+                mass=self.mass - 1.0, density_log_factor=self.log_factors.copy(), wind_east_mps=self.wind_east.copy(),
+                wind_north_mps=self.wind_north.copy(), aero_mach=self.aero.copy(), accel_bias_mps2=self.bias.copy(),
+                accel_scale=self.scale.copy(), accel_misalignment_rad=self.misalignment.copy(),
+                nav_position_error_m=self.dr.copy(), nav_velocity_error_mps=self.dv.copy(),
+                altitude_grid_m=GRID_M.copy(),
+            )  # fmt: skip
+            climate = [e.get("climate", np.full(5, np.nan)) if e is not None else np.full(5, np.nan) for e in extras]
+            out["climate"] = np.array(climate)  # day of year, local time h, F10.7, F10.7a, Ap
+        if single:
+            out = {k: (v if k == "altitude_grid_m" else (v[0] if np.ndim(v) else v)) for k, v in out.items()}
+            out = {k: (float(v) if np.ndim(v) == 0 else v) for k, v in out.items()}
+        return out
+
+    # ------------------------------------------------------------------ sensing
+    def sense(self, x: tuple, forces, c_ae, g0: float, elapsed=None, active=None):
+        """The navigation state (N, 12), the sensed specific force (N, 3) and the features the
+        observation is built from (:class:`Sensed`, and C_AE of the navigation state).
+
+        :param elapsed: time flown since the last call (N,) (None at a reset: nothing flown).
+        :param active: copies stepped since the last call (their noise sample advances).
+        """
+        n = self.n
+        col = lambda c: np.broadcast_to(np.asarray(c, dtype=float), (n,))  # noqa: E731
+        if elapsed is not None:
+            self.step += np.ones(n, np.int64) if active is None else np.asarray(active, np.int64)
+        noise = white_noise(self.key, self.step) * self.noise[:, None]
+        true_b = tuple(col(c) for c in forces.aero_b)
+        sensed_b = accelerometer(true_b, self.bias, self.scale, self.misalignment, noise)
+        c_ba = tuple(tuple(col(c) for c in row) for row in forces.c_ba)
+        a_e = [np.stack([col(c) for c in row], axis=-1) for row in c_ae]  # a_i in E, (N, 3)
+        b_e = [c_ba[i][0][:, None] * a_e[0] + c_ba[i][1][:, None] * a_e[1] + c_ba[i][2][:, None] * a_e[2] for i in range(3)]
+        if elapsed is not None:
+            err_e = sum((sensed_b[i] - true_b[i])[:, None] * b_e[i] for i in range(3))
+            dt = np.where(self.senses, col(elapsed), 0.0)
+            self.dr, self.dv = propagate_navigation_error(self.dr, self.dv, err_e, dt)
+        r, v = col(x[0]), col(x[5])
+        r_nav = r[:, None] * a_e[0] + self.dr
+        v_nav = v[:, None] * b_e[0] + self.dv
+        nav10 = rv_euler_from_cartesian(r_nav, v_nav, a2=a_e[1], b2=b_e[1])
+        truth = np.stack([col(c) for c in x], axis=-1)
+        nav = np.concatenate([nav10, truth[:, 10:12]], axis=-1)
+        nav = np.where(self.senses[:, None], nav, truth)
+        sensed = np.stack(sensed_b, axis=-1)
+        sensed = np.where(self.senses[:, None], sensed, np.stack(true_b, axis=-1))
+        # air data from the accelerometer: q = |a| m / (S |C|) with the nominal coefficients at
+        # the navigated Mach number; the load factor is the sensed one
+        base = self.base
+        h_nav = nav[:, 0] - base.planet.radius
+        mach = nav[:, 5] / base.atmosphere.speed_of_sound(h_nav, NUMPY)
+        cl, cd = base.vehicle.aerodynamics.coefficients(nav[:, 10], mach, NUMPY)
+        a_mag = np.sqrt(np.sum(sensed * sensed, axis=-1))
+        q_hat = a_mag * base.vehicle.mass / (base.vehicle.reference_area * np.hypot(cl, cd))
+        q = np.where(self.senses, q_hat, col(forces.dynamic_pressure))
+        load = np.where(self.senses, a_mag, col(forces.aero_accel))
+        nav_c_ba = dcm(*(nav[:, j] for j in range(6, 10)))
+        nav_c_ae = dcm(*(nav[:, j] for j in range(1, 5)))
+        return nav, sensed, Sensed(nav_c_ba, q, load), nav_c_ae
+
+
+__all__ = ["FlightState", "Sensed"]
