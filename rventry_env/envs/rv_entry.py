@@ -178,6 +178,14 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             raise RuntimeError("the environment has no state before reset()")
         return np.array(self._x, dtype=np.float64)
 
+    @property
+    def episode_model(self) -> EntryModel:
+        """The episode's truth model (the drawn profiles, aerodynamics and mass), for evaluation
+        such as the attainable ceiling (``rventry oracle``); a guidance law is never given it."""
+        if self._x is None:
+            raise RuntimeError("the environment has no episode before reset()")
+        return self._episode_model
+
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)

@@ -130,6 +130,14 @@ def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: st
 
 
 def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) -> None:
+    map_cluster(run_task, [(job, t) for t in tasks], address, done,
+                keys=[f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}" for i, t in enumerate(tasks)])  # fmt: skip
+
+
+def map_cluster(fn: Callable, calls: list[tuple], address: str, done: Callable[[int, Any], None],
+                keys: list[str] | None = None) -> None:  # fmt: skip
+    """Run ``fn(*calls[i])`` for every i on the Dask scheduler at ``address``; ``done(i, result)``
+    as each finishes (here). ``keys`` name the tasks on the cluster."""
     try:
         from distributed import Client, as_completed
     except ImportError:
@@ -138,9 +146,9 @@ def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) 
         client = Client(address, timeout="20s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    keys = keys or [f"rventry-{getattr(fn, '__name__', 'task')}-{i}" for i in range(len(calls))]
     try:
-        futures = [client.submit(run_task, job, t, pure=False, key=f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}")
-                   for i, t in enumerate(tasks)]  # fmt: skip
+        futures = [client.submit(fn, *c, pure=False, key=k) for c, k in zip(calls, keys)]
         index = {f.key: i for i, f in enumerate(futures)}
         for f in as_completed(futures):
             done(index[f.key], f.result())
@@ -158,6 +166,7 @@ def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
         **{k: np.concatenate([getattr(b, k) for b in batches]) for k in fields_1d},
         dispersion_draw=np.concatenate([b.dispersion_draw for b in batches]),
         seeds=np.concatenate([b.seeds for b in batches]),
+        flight_draw={k: np.concatenate([b.flight_draw[k] for b in batches]) for k in batches[0].flight_draw},
         law_stats=[s for b in batches for s in b.law_stats],
         lengths=np.concatenate([b.lengths for b in batches]),
     )
@@ -182,4 +191,4 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["EvaluationJob", "evaluate", "map_local", "run_task", "concatenate", "split", "default_workers"]
+__all__ = ["EvaluationJob", "evaluate", "map_local", "map_cluster", "run_task", "concatenate", "split", "default_workers"]

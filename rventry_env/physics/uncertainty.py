@@ -6,9 +6,11 @@ batch of N vehicles flies N different profiles in one array operation; see
 :func:`rventry_env.envs.propagation.take_model`), or as one row / plain numbers for one
 vehicle. Profiles live on a uniform altitude grid (``start``, ``step``) and are interpolated
 linearly by :func:`uniform_table`, which evaluates on Python floats (``MATH``), NumPy arrays
-(one row for all, or one row per vehicle) and CasADi symbols (a linear interpolant), so the
-single environment, the vector environment and the collocation transcription share one
-profile part.
+(one row for all, or one row per vehicle) and CasADi symbols, so the single environment, the
+vector environment and the collocation transcription share one profile part. On CasADi the
+profile is a cubic B-spline interpolant through the same knots: the linear one has a kink at
+every knot, and IPOPT's Newton steps stalled on them (the oracle's first draw ran out of
+iterations); between knots the two differ by the profile's curvature, well below its rms.
 
 Where these magnitudes come from and how they are drawn: docs/uncertainty.md.
 """
@@ -35,7 +37,8 @@ def _check_grid(start, step, values, what: str) -> None:
 
 
 def uniform_table(x, start: float, step: float, values, ns):
-    """Linear interpolation of ``values`` on the grid ``start + k step``, constant beyond its ends.
+    """Linear interpolation of ``values`` on the grid ``start + k step``, constant beyond its ends
+    (on CasADi symbols: a cubic B-spline through the same knots, see the module docstring).
 
     :param x: where to evaluate: a float (``ns`` MATH), an array (NUMPY) or a CasADi symbol.
     :param values: (K,) one profile, or (N, K) one per vehicle (NUMPY only; ``x`` then has
@@ -75,10 +78,10 @@ def _casadi_table(start, step, values):
         import casadi as ca
 
         grid = (start + step * np.arange(v.size)).tolist()
-        # flat extension beyond the ends, like the NumPy and float paths
-        grid = [grid[0] - 1e7] + grid + [grid[-1] + 1e7]
-        vals = [v[0]] + v.tolist() + [v[-1]]
-        fn = ca.interpolant(f"profile_{len(_CASADI_TABLES)}", "linear", [grid], vals)
+        # flat beyond the ends, like the NumPy and float paths: repeated end values
+        grid = [grid[0] - 2 * step, grid[0] - step] + grid + [grid[-1] + step, grid[-1] + 2 * step]
+        vals = [v[0], v[0]] + v.tolist() + [v[-1], v[-1]]
+        fn = ca.interpolant(f"profile_{len(_CASADI_TABLES)}", "bspline", [grid], vals)
         if len(_CASADI_TABLES) > 256:
             _CASADI_TABLES.clear()
         _CASADI_TABLES[key] = fn

@@ -10,7 +10,7 @@ these; the reward an RL agent is paid stays with the environment
 (:class:`rventry_env.envs.reward.RewardWeights`).
 """
 
-from rventry_env.task.definition import EntryTask, SuccessThresholds
+from rventry_env.task.definition import EntryTask, PrecisionThresholds, SuccessThresholds
 from rventry_env.task.dispersion import (
     FLIGHT_ERRORS,
     NAMED_SETS,
@@ -27,6 +27,7 @@ __all__ = [
     "EntryProblem",
     "EntryTask",
     "SuccessThresholds",
+    "PrecisionThresholds",
     "NAMED_SETS",
     "SCALAR_FIELDS",
     "FLIGHT_ERRORS",

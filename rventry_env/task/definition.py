@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from rventry_env.task.dispersion import Dispersion
 from rventry_env.task.problem import EntryProblem
 
@@ -30,6 +32,28 @@ class SuccessThresholds:
 
 
 @dataclass(frozen=True)
+class PrecisionThresholds:
+    """The precision tier, reported beside the benchmark's success: what a flight project asks of
+    a precise impact (the paper's Example 2 also asks for alpha(t_f) = 0). An impact counts when
+    every error is within its bound and no path bound was breached beyond the success margin."""
+
+    miss_m: float = 100.0
+    vertical_error_deg: float = 2.0
+    alpha_final_deg: float = 2.0
+    speed_error_mps: float = 25.0
+
+    def met(self, impact, miss_km, vertical_error_deg, alpha_final_deg, speed_error_mps, constraint_violation):
+        """Where each episode meets the tier (arrays or numbers)."""
+        with np.errstate(invalid="ignore"):
+            return (
+                np.asarray(impact, bool) & (np.asarray(miss_km) * 1000.0 <= self.miss_m)
+                & (np.asarray(vertical_error_deg) <= self.vertical_error_deg)
+                & (np.abs(alpha_final_deg) <= self.alpha_final_deg)
+                & (np.abs(speed_error_mps) <= self.speed_error_mps) & ~np.asarray(constraint_violation, bool)
+            )  # fmt: skip
+
+
+@dataclass(frozen=True)
 class EntryTask:
     """Problem, success thresholds, control step and episode-end rules together.
 
@@ -42,6 +66,7 @@ class EntryTask:
 
     problem: EntryProblem = field(default_factory=EntryProblem)
     success: SuccessThresholds = field(default_factory=SuccessThresholds)
+    precision: PrecisionThresholds = field(default_factory=PrecisionThresholds)
     dt: float = 1.0
     substeps: int = 1
     ceiling_altitude: float = 80e3
@@ -77,7 +102,7 @@ class EntryTask:
         big = dispersion.largest
         if big("altitude_m") >= min(room_down, room_up):
             raise ValueError(
-                f"dispersion altitude_m = {dispersion.altitude_m:g} m ({dispersion.shape}) could start the vehicle "
+                f"dispersion altitude_m = {dispersion.altitude_m:g} m could start the vehicle "
                 f"{'underground' if room_down <= room_up else 'above the skip-out ceiling'}: the initial altitude "
                 f"is {p.initial_altitude:g} m, so the largest draw must stay below {min(room_down, room_up):g} m"
             )
@@ -98,4 +123,4 @@ class EntryTask:
             )
 
 
-__all__ = ["EntryTask", "SuccessThresholds"]
+__all__ = ["EntryTask", "SuccessThresholds", "PrecisionThresholds"]

@@ -151,6 +151,12 @@ class Dispersion:
             return "none"
         return next((n for n in NAMED_SETS if Dispersion.named(n) == self), "custom")
 
+    def describe(self) -> dict:
+        """A JSON-friendly description of every field (the flight errors as a dict)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "flight"}
+        out["flight"] = None if self.flight is None else self.flight.describe()
+        return out
+
     @property
     def has_extras(self) -> bool:
         """Whether a reset draws more than the nine scalars (a mass or flight-grade errors)."""
