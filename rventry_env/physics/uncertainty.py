@@ -44,25 +44,50 @@ def uniform_table(x, start: float, step: float, values, ns):
     :param values: (K,) one profile, or (N, K) one per vehicle (NUMPY only; ``x`` then has
         shape (N,)).
     """
-    if ns.name == "casadi":
-        return _casadi_table(start, step, values)(x)
     k_max = np.shape(values)[-1] - 1
+    if ns.name == "casadi":
+        # held at the end values beyond the grid (a B-spline itself falls to zero out there)
+        return _casadi_table(start, step, values)(ns.fmin(ns.fmax(x, start), start + step * k_max))
     if ns.name == "math":
         u = min(max((x - start) / step, 0.0), float(k_max))
         i = min(int(u), k_max - 1)
         w = u - i
         return float(values[i]) * (1.0 - w) + float(values[i + 1]) * w
-    u = np.clip((np.asarray(x, dtype=float) - start) / step, 0.0, float(k_max))
-    i = np.minimum(u.astype(np.intp), k_max - 1)
-    w = u - i
+    return table_gather(values, *table_index(x, start, step, k_max))
+
+
+def table_index(x, start: float, step: float, k_max: int):
+    """(i, w): the grid interval of each ``x`` (NumPy) and the weight of its upper end."""
+    u = (np.asarray(x, dtype=float) - start) * (1.0 / step)
+    np.clip(u, 0.0, float(k_max), out=u)
+    i = u.astype(np.intp)
+    np.minimum(i, k_max - 1, out=i)
+    return i, u - i
+
+
+_ROW_OFFSETS: dict = {}
+
+
+def table_gather(values, i, w):
+    """Linear interpolation in ``values`` (K,) or (N, K) at the intervals ``i`` with weights ``w``."""
     v = np.asarray(values)
     if v.ndim == 1:
         lo, hi = v[i], v[i + 1]
     else:
-        flat = v.reshape(-1)
-        base = np.arange(v.shape[0]) * v.shape[1] + i
-        lo, hi = flat[base], flat[base + 1]
-    return lo * (1.0 - w) + hi * w
+        # a Fortran-ordered table keeps each altitude's values for all vehicles together: vehicles
+        # flying at similar altitudes then read neighbouring memory (2-3x faster at N = 8192)
+        n, k = v.shape
+        fortran = v.flags.f_contiguous and not v.flags.c_contiguous
+        key = (n, k, fortran)
+        offsets = _ROW_OFFSETS.get(key)
+        if offsets is None:
+            offsets = _ROW_OFFSETS[key] = np.arange(n, dtype=np.intp) * (1 if fortran else k)
+        flat = v.reshape(-1, order="F" if fortran else "C")
+        base = i * n + offsets if fortran else offsets + i
+        lo = np.take(flat, base)
+        base += n if fortran else 1
+        hi = np.take(flat, base)
+    return lo + (hi - lo) * w
 
 
 _CASADI_TABLES: dict = {}
@@ -136,8 +161,12 @@ class ProfileWind:
 
     def velocity_a(self, h, e3_a, ns):
         _, c2, c3 = e3_a
-        east = uniform_table(h, self.start, self.step, self.east, ns)
-        north = uniform_table(h, self.start, self.step, self.north, ns)
+        if ns.name == "numpy":  # one look-up of the interval serves both components
+            at = table_index(h, self.start, self.step, np.shape(self.east)[-1] - 1)
+            east, north = table_gather(self.east, *at), table_gather(self.north, *at)
+        else:
+            east = uniform_table(h, self.start, self.step, self.east, ns)
+            north = uniform_table(h, self.start, self.step, self.north, ns)
         cos_lat = ns.sqrt(c2 * c2 + c3 * c3)
         return 0.0 * h, (east * c3 + north * c2) / cos_lat, (north * c3 - east * c2) / cos_lat
 
