@@ -72,7 +72,7 @@ def time_vector(n: int, mode: str, min_vehicle_steps: int, dispersion: str | Non
     return rate
 
 
-def time_sets(n: int, min_vehicle_steps: int, sets=("standard", "flight", "peer")) -> dict:
+def time_sets(n: int, min_vehicle_steps: int, sets=("standard", "flight")) -> dict:
     """Vehicle-steps/s of the vector env per dispersion set, alternating the sets, best of three."""
     best = {s: 0.0 for s in sets}
     for _ in range(3):
