@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from rventry_agents.imitation import (
+    INPUT_NAMES,
     CollectJob,
     Horizon,
     LearnedGuidance,
@@ -53,7 +54,7 @@ SHIPPED_DAGGER = Path(__file__).resolve().parent / "data" / "dagger"  # the run 
 
 def load_config(path=None) -> dict:
     """The DAgger configuration: a TOML file (default ``rventry_agents/dagger.toml``) or a dict."""
-    from rventry_agents.train import read_config
+    from rventry_agents.config import read_config
 
     cfg, where = read_config(path, DEFAULT_CONFIG, ("student", "data", "rounds", "fit", "select"))
     for i, r in enumerate(cfg["rounds"]):
@@ -200,7 +201,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
             key = _select_key(rec)
             if best_key is None or key > best_key:
                 best_key, best = key, (k, blob, members, hidden)
-                _write_selected(out, best, law)
+                _write_selected(out, best, law, task)
     write_json(out / "rounds.json", rounds)
     final = None
     n_final = int(cfg.get("final", {}).get("members", 1))
@@ -226,7 +227,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
                   f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
         if _select_key(final) > best_key:
             best = ("final", (out / "student_final.pt").read_bytes(), n_final, hidden)
-            _write_selected(out, best, law)
+            _write_selected(out, best, law, task)
     selected = final if best[0] == "final" else rounds[best[0]]
     distilled, taken = None, False
     if "distil" in cfg:  # one network fitted to the selected one: one network's cost per decision
@@ -239,12 +240,12 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
         t0 -= distilled["wall_s"] if taken else 0.0  # a distillation taken as it was counts in the run's wall time
         best = ("distilled", (out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]))
         selected = distilled
-        _write_selected(out, best, law, distilled_from=teacher)
+        _write_selected(out, best, law, task, distilled_from=teacher)
     if trackers:  # the selected network's tracker: the trained horizon unless a candidate does better
         scan = choose_tracker(network_from_bytes(best[1], best[3], best[2]), [horizon, *trackers], relief, cfg, task)
         write_json(out / "flight.json", {"student": best[0], "candidates": scan})
         i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
-        _write_selected(out, best, law, tracker=None if i == 0 else trackers[i - 1], distilled_from=teacher)
+        _write_selected(out, best, law, task, tracker=None if i == 0 else trackers[i - 1], distilled_from=teacher)
         chosen = scan[i]
         selected = {**selected, "tracking": chosen}
         print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
@@ -272,8 +273,11 @@ def _tracker_words(rec: dict) -> str:
 
 
 def _select_key(rec: dict) -> tuple[float, float]:
-    """How a round's (or the final ensemble's) record ranks: selection success, then the smaller mean miss."""
-    return rec["select_success_rate"], -rec["select_miss_km_mean"]
+    """How a round's (or the final ensemble's) record ranks on the selection set
+    (:func:`~rventry_env.evaluation.summary.task_metric_key`)."""
+    from rventry_env.evaluation.summary import task_metric_key
+
+    return task_metric_key(rec["select_success_rate"], rec["select_miss_km_mean"])
 
 
 def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: dict, task: EntryTask) -> list[dict]:
@@ -315,7 +319,7 @@ def student_law(student_cfg: dict, task: EntryTask) -> dict:
     return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin}
 
 
-def _write_selected(out: Path, best: tuple, law: dict, tracker: Horizon | None = None,
+def _write_selected(out: Path, best: tuple, law: dict, task: EntryTask, tracker: Horizon | None = None,
                     distilled_from=None) -> None:  # fmt: skip
     """student.pt and student.json for ``best`` = (round, "final" or "distilled"; network bytes;
     members; hidden widths), trained with ``law``; ``tracker``, the tracker horizon chosen after
@@ -323,7 +327,8 @@ def _write_selected(out: Path, best: tuple, law: dict, tracker: Horizon | None =
     network was fitted to."""
     atomic_write(out / "student.pt", best[1])
     write_json(out / "student.json", {"hidden": list(best[3]), "members": best[2], "inputs": "observation features "
-               "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD", "outputs": "alpha and bank commands",
+               "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
+               "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
                **_horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else _horizon_keys(tracker, "tracking")),
                "load_relief_margin": law["load_relief_margin"], "selected_round": best[0],
                **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
@@ -396,14 +401,27 @@ def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> No
     save_figure(fig, path)
 
 
-def load_student(run_dir) -> LearnedGuidance:
-    """The selected student of a finished run, as a guidance law."""
+def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
+    """The selected student of a finished run, as a guidance law for ``task`` (default: the task it
+    was trained on).
+
+    :raises ValueError: ``task`` differs from the training task (each difference named), or the
+        network reads its features in another order than this package builds them.
+    """
     run_dir = Path(run_dir)
     meta = json.loads((run_dir / "student.json").read_text())
-    task = EntryTask()
-    return LearnedGuidance(network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]),
-                                              int(meta.get("members", 1))),
-                           task=task, **student_law(meta, task))  # fmt: skip
+    trained = meta.get("task", EntryTask().record())  # runs before the task was recorded trained on the default
+    if task is None:
+        task = EntryTask()
+    task.check_trained(trained, f"the DAgger student in {run_dir}")
+    names = meta.get("input_features")
+    if names is not None and tuple(names) != INPUT_NAMES:
+        raise ValueError(f"the DAgger student in {run_dir} reads {len(names)} input features in another order than "
+                         f"this package builds; first difference: "
+                         + next(f"index {i}: {a!r} saved, {b!r} now" for i, (a, b) in enumerate(zip(names, INPUT_NAMES))
+                                if a != b))  # fmt: skip
+    network = network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]), int(meta.get("members", 1)))
+    return LearnedGuidance(network, task=task, **student_law(meta, task))
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:
@@ -411,11 +429,12 @@ def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:
     p = Path(path)
     if not (p.is_dir() and (p / "student.json").is_file() and (p / "student.pt").is_file()):
         raise ValueError(f"{p} is not a DAgger run directory (student.json and student.pt)")
-    return load_student(p)
+    return load_student(p, task)
 
 
 def load_shipped(name: str = "learned", task: EntryTask | None = None) -> LearnedGuidance:
-    """The DAgger student shipped with this package, the learned policy (entry points ``learned`` and ``ppo``)."""
+    """The DAgger student shipped with this package (entry point ``dagger``), today's best learned
+    policy (entry point ``learned``)."""
     if not (SHIPPED_DAGGER / "student.pt").is_file():
         raise FileNotFoundError(f"the shipped DAgger student is missing from {SHIPPED_DAGGER}")
-    return load_student(SHIPPED_DAGGER)
+    return load_student(SHIPPED_DAGGER, task)

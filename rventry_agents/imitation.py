@@ -34,7 +34,6 @@ the network is plain torch.
 
 from __future__ import annotations
 
-import io
 import math
 from dataclasses import dataclass
 
@@ -42,18 +41,23 @@ import numpy as np
 
 from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
+from rventry_env.envs.observation import feature_names
 from rventry_env.guidance.estimation import AeroScaleEstimator
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.load_relief import LoadRelief
 from rventry_env.physics import EntryModel
 
-N_OBS = 26
-N_FEATURES = N_OBS + 2  # what is recorded: the observation and the scaled log-estimates
+OBSERVATION_NAMES = feature_names()
+N_OBS = len(OBSERVATION_NAMES)
+# what is recorded: the observation and the scaled log-estimates of the aerodynamic scales
+FEATURE_NAMES = (*OBSERVATION_NAMES, "ln_k_drag_x10", "ln_k_lift_to_drag_x10")
+N_FEATURES = len(FEATURE_NAMES)
 LOG_SCALE_GAIN = 10.0  # ln-scale errors are a few hundredths: x10 puts them on the observation's scale
-# observation features that depend on the current alpha or sigma: alpha, sin/cos sigma, the two
-# lift shares, the load factor
-ANGLE_FEATURES = (11, 12, 13, 14, 15, 25)
+# observation features that depend on the current alpha or sigma, which the student does not see
+ANGLE_FEATURES = tuple(FEATURE_NAMES.index(n) for n in ("alpha", "sin_sigma", "cos_sigma", "lift_up", "lift_right",
+                                                        "load_factor"))  # fmt: skip
 INPUTS = tuple(i for i in range(N_FEATURES) if i not in ANGLE_FEATURES)
+INPUT_NAMES = tuple(FEATURE_NAMES[i] for i in INPUTS)
 N_INPUTS = len(INPUTS)
 
 
@@ -138,45 +142,12 @@ class FeatureTracker:
 
 
 def make_network(hidden: tuple[int, ...] = (256, 256), members: int = 1):
-    """An MLP from the inputs to the commanded angles, standardized on both sides (buffers set
-    from the data); with ``members`` > 1, an ensemble of such MLPs whose commands are the mean of
-    theirs (each fitted with its own seed: :func:`fit`)."""
-    import torch
-    from torch import nn
+    """An MLP from the inputs to the commanded angles (:class:`rventry_agents.networks.Student`),
+    standardized on both sides (buffers set from the data); with ``members`` > 1, an ensemble of
+    such MLPs whose commands are the mean of theirs (each fitted with its own seed: :func:`fit`)."""
+    from rventry_agents.networks import build
 
-    if int(members) < 1:
-        raise ValueError(f"a student needs at least one member network, got members = {members!r}")
-
-    class Student(nn.Module):
-        def __init__(self):
-            super().__init__()
-            self.register_buffer("mean", torch.zeros(N_INPUTS))
-            self.register_buffer("std", torch.ones(N_INPUTS))
-            self.register_buffer("out_mean", torch.zeros(3))
-            self.register_buffer("out_scale", torch.ones(3))
-            layers, width = [], N_INPUTS
-            for h in hidden:
-                layers += [nn.Linear(width, h), nn.Tanh()]
-                width = h
-            layers += [nn.Linear(width, 3)]
-            self.body = nn.Sequential(*layers)
-
-        def forward(self, x):
-            """The commands, standardized; :meth:`commands` gives them in their own units."""
-            return self.body((x - self.mean) / self.std)
-
-        def commands(self, x):
-            return self.forward(x) * self.out_scale + self.out_mean
-
-    class Ensemble(nn.Module):
-        def __init__(self):
-            super().__init__()
-            self.members = nn.ModuleList(Student() for _ in range(int(members)))
-
-        def commands(self, x):
-            return torch.stack([m.commands(x) for m in self.members]).mean(0)
-
-    return Student() if int(members) == 1 else Ensemble()
+    return build(N_INPUTS, hidden, members)
 
 
 class LearnedGuidance(Law):
@@ -262,19 +233,19 @@ class DAggerLaw(Law):
 
 
 def network_bytes(network) -> bytes:
-    import torch
+    """A student network as self-describing bytes (architecture, input names, weights)."""
+    from rventry_agents.networks import save_bytes
 
-    buf = io.BytesIO()
-    torch.save(network.state_dict(), buf)
-    return buf.getvalue()
+    return save_bytes(network, INPUT_NAMES)
 
 
-def network_from_bytes(data: bytes, hidden: tuple[int, ...], members: int = 1):
-    import torch
+def network_from_bytes(data: bytes, hidden: tuple[int, ...] | None = None, members: int | None = None):
+    """A student network from :func:`network_bytes` (``hidden`` and ``members``, when given, are
+    checked; a bare state dict of an older run needs them); refused, with the features named, when
+    it reads its inputs in another order than this package builds them."""
+    from rventry_agents.networks import load_bytes
 
-    net = make_network(hidden, members)
-    net.load_state_dict(torch.load(io.BytesIO(data), weights_only=True))
-    return net
+    return load_bytes(data, INPUT_NAMES, hidden, members)
 
 
 @dataclass(frozen=True)
@@ -294,29 +265,24 @@ class CollectJob:
     members: int = 1  # the student's member networks
 
 
-_EXPERT = {}
-
-
 def collect_episode(job: CollectJob) -> dict:
     """Fly one DAgger episode (a worker's unit of work): features, expert labels and the outcome."""
     import torch
 
-    from rventry_env.evaluation.agents import load_agent
+    from rventry_env.evaluation.parallel import cached_law
     from rventry_env.evaluation.rollout import rollout
 
     torch.set_num_threads(1)
-    key = (job.expert, job.task, job.expert_settings)
-    if key not in _EXPERT:  # built once per process (mpc: its transcription)
-        options = {}
-        if job.expert_settings:
-            from rventry_env.guidance.replanning import ReplanningSettings
+    options = ()
+    if job.expert_settings:
+        from rventry_env.guidance.replanning import ReplanningSettings
 
-            options["settings"] = ReplanningSettings(**dict(job.expert_settings))
-        _EXPERT[key] = load_agent(job.expert, job.task, **options)
+        options = (("settings", ReplanningSettings(**dict(job.expert_settings))),)
+    expert = cached_law(job.expert, job.task, options)
     student = None if job.student is None else LearnedGuidance(network_from_bytes(job.student, job.hidden, job.members),
                                                                 task=job.task, horizon=job.horizon,
                                                                 load_relief_margin=job.load_relief_margin)  # fmt: skip
-    law = DAggerLaw(_EXPERT[key], student, job.beta, seed=job.seed, task=job.task, horizon=job.horizon)
+    law = DAggerLaw(expert, student, job.beta, seed=job.seed, task=job.task, horizon=job.horizon)
     b = rollout(law, seeds=[job.seed], dispersion=job.dispersion, task=job.task)
     return {
         "x": np.concatenate(law.x).astype(np.float32),
@@ -369,7 +335,9 @@ def fit_commands(network, x: np.ndarray, commands: np.ndarray, epochs: int, batc
     network's: :func:`network_commands`) instead of angles."""
     import torch
 
-    if hasattr(network, "members"):
+    from rventry_agents.networks import Ensemble
+
+    if isinstance(network, Ensemble):
         per_member = [fit_commands(m, x, commands, epochs, batch_size, lr, seed + k, weight_decay)
                       for k, m in enumerate(network.members)]  # fmt: skip
         network.eval()
@@ -406,7 +374,9 @@ def fit_commands(network, x: np.ndarray, commands: np.ndarray, epochs: int, batc
 
 
 __all__ = [
+    "FEATURE_NAMES",
     "INPUTS",
+    "INPUT_NAMES",
     "N_FEATURES",
     "CollectJob",
     "DAggerLaw",

@@ -2,7 +2,9 @@
 
 Two loaders are registered with ``rventry evaluate`` through entry points:
 
-* ``ppo`` (group ``rventry.agents``): the policy shipped in ``rventry_agents/data/ppo``;
+* ``ppo`` and ``ppo-residual`` (group ``rventry.agents``): the PPO-trained policy shipped in
+  ``rventry_agents/data/ppo``, the PPO residual on TV-LQR; ``ppo-plain``, ``recurrent-ppo-plain`` and
+  ``sac-plain``: the plain-RL baselines;
 * ``sb3`` (group ``rventry.agent_files``): any saved model, given as a path.
 
 A training run of this package writes, beside ``model.zip``, ``policy.json`` (how
@@ -89,7 +91,7 @@ def _load_sb3(path: Path, algorithm: str | None = None):
     (or sb3-contrib recurrent) algorithm with a continuous-action policy."""
     from stable_baselines3 import A2C, DDPG, PPO, SAC, TD3
 
-    from rventry_agents.train import algorithm_class
+    from rventry_agents.config import algorithm_class
 
     if algorithm is not None:
         return algorithm_class(algorithm).load(path, device="cpu")
@@ -119,9 +121,11 @@ class SB3Policy(Law):
     :param model_path: the ``.zip`` written by ``model.save``, or a run directory holding ``model.zip``.
     :param normalize_path: the ``VecNormalize`` pickle; default: the one that belongs to the model
         (required for a model of an rventry training run).
+    :param task: the task to fly (default: the run's training task); a run's model is refused,
+        with each difference named, on a task other than the one it was trained on.
     """
 
-    def __init__(self, model_path: str | Path, normalize_path: str | Path | None = None):
+    def __init__(self, model_path: str | Path, normalize_path: str | Path | None = None, task: EntryTask | None = None):
         from stable_baselines3.common.base_class import BaseAlgorithm
 
         path = Path(model_path)
@@ -152,9 +156,15 @@ class SB3Policy(Law):
             if vn.norm_obs:  # statistics exist even when they were not used
                 self.obs_mean, self.obs_var = vn.obs_rms.mean.copy(), vn.obs_rms.var.copy()
                 self.clip_obs, self.epsilon = vn.clip_obs, vn.epsilon
-        meta = path.with_name("metadata.json")
-        self.metadata = json.loads(meta.read_text()) if meta.is_file() else {}
-        self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"], self.spec.get("authority_rad"))
+        meta = next((d / "metadata.json" for d in (path.parent, path.parent.parent) if (d / "metadata.json").is_file()), None)
+        self.metadata = json.loads(meta.read_text()) if meta is not None else {}
+        self.task = EntryTask() if task is None else task
+        env = self.metadata.get("config", {}).get("env")
+        if env is not None:
+            self.task.check_trained(EntryTask(dt=float(env["dt"]), substeps=int(env["substeps"])).record(),
+                                    f"the model {path}")  # fmt: skip
+        self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"], self.spec.get("authority_rad"),
+                                self.task)  # fmt: skip
 
     def reset(self, n_episodes: int) -> None:
         if hasattr(self._act, "reset"):
@@ -171,10 +181,10 @@ class SB3Policy(Law):
 
 
 def load_shipped(name: str = "ppo-residual", task: EntryTask | None = None) -> SB3Policy:
-    """The PPO residual on TV-LQR shipped with this package (entry point ``ppo-residual``)."""
+    """The PPO residual on TV-LQR shipped with this package (entry points ``ppo`` and ``ppo-residual``)."""
     if not (SHIPPED_PPO / "model.zip").is_file():
         raise FileNotFoundError(f"the shipped PPO residual is missing from {SHIPPED_PPO}")
-    return SB3Policy(SHIPPED_PPO)
+    return SB3Policy(SHIPPED_PPO, task=task)
 
 
 def load_baseline(name: str, task: EntryTask | None = None) -> SB3Policy:
@@ -184,12 +194,12 @@ def load_baseline(name: str, task: EntryTask | None = None) -> SB3Policy:
     run = SHIPPED_BASELINES / BASELINE_AGENTS[name]
     if not (run / "model.zip").is_file():
         raise FileNotFoundError(f"the baseline {name} is not shipped: no {run / 'model.zip'}")
-    return SB3Policy(run)
+    return SB3Policy(run, task=task)
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> SB3Policy:
     """A saved SB3 model or run directory (entry point ``rventry.agent_files``)."""
-    return SB3Policy(path)
+    return SB3Policy(path, task=task)
 
 
 __all__ = [

@@ -32,7 +32,7 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     :param dest: where to put it.
     """
     from rventry_agents.sb3_policy import SHIPPED_PPO
-    from rventry_agents.train import algorithm_class
+    from rventry_agents.config import algorithm_class
 
     run_dir = Path(run_dir)
     if (run_dir / "student.json").exists():

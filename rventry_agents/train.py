@@ -25,49 +25,20 @@ import math
 import shlex
 import sys
 import time
-import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rventry_agents.config import ALGORITHMS, algorithm_class, check_algorithm, read_config
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import Dispersion, EntryTask
 from rventry_env.util.files import save_figure, write_json
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
 BASELINES = Path(__file__).resolve().parent / "baselines"
-ALGORITHMS = ("ppo", "recurrent_ppo", "sac")
 # the config each algorithm's command reads when none is given
 DEFAULT_CONFIGS = {"ppo": DEFAULT_CONFIG, "recurrent_ppo": BASELINES / "recurrent_ppo.toml", "sac": BASELINES / "sac.toml"}
-
-
-def read_config(path: str | Path | dict | None, default: Path, sections: tuple[str, ...]) -> tuple[dict, str]:
-    """A training configuration: a TOML file (``default`` when None) or an already-loaded dict,
-    with every one of ``sections``; returns it and where it came from, for messages."""
-    if isinstance(path, dict):
-        cfg, where = path, "config"
-    else:
-        where = Path(path) if path is not None else default
-        if where.is_dir():
-            raise IsADirectoryError(f"the training config {where} is a directory; give a TOML file")
-        if not where.is_file():
-            raise FileNotFoundError(f"no training config at {where}")
-        try:
-            with open(where, "rb") as f:
-                cfg = tomllib.load(f)
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"{where} is not valid TOML: {exc}") from None
-    for section in sections:
-        if section not in cfg:
-            raise ValueError(f"{where}: missing section [{section}]")
-    return cfg, str(where)
-
-
-def check_algorithm(algorithm: str) -> str:
-    if algorithm not in ALGORITHMS:
-        raise ValueError(f"unknown algorithm {algorithm!r}; known: {', '.join(ALGORITHMS)}")
-    return algorithm
 
 
 def load_config(path: str | Path | dict | None = None, algorithm: str = "ppo") -> dict:
@@ -75,17 +46,6 @@ def load_config(path: str | Path | dict | None = None, algorithm: str = "ppo") -
     :data:`DEFAULT_CONFIGS`) or an already-loaded dict, with a section of the algorithm's keyword arguments."""
     check_algorithm(algorithm)
     return read_config(path, DEFAULT_CONFIGS[algorithm], ("env", "normalize", algorithm, "policy", "train"))[0]
-
-
-def algorithm_class(algorithm: str):
-    """The stable-baselines3 (or sb3-contrib) class of ``algorithm``."""
-    if check_algorithm(algorithm) == "recurrent_ppo":
-        from sb3_contrib import RecurrentPPO
-
-        return RecurrentPPO
-    import stable_baselines3
-
-    return getattr(stable_baselines3, algorithm.upper())
 
 
 def discount(cfg: dict, algorithm: str) -> float:
@@ -167,9 +127,11 @@ def live_policy(model, vecnorm, cfg: dict, task: EntryTask):
     return make_policy(Predictor(model, vecnorm.normalize_obs), mode, authority, task)
 
 
-def task_metric_key(rec: dict) -> tuple[float, float]:
-    """How evaluations are ranked: success rate first, then the smaller mean miss."""
-    return (rec["success_rate"] or 0.0, -(rec["miss_km"] if rec["miss_km"] is not None else np.inf))
+def evaluation_key(rec: dict) -> tuple[float, float]:
+    """How a training evaluation ranks (:func:`~rventry_env.evaluation.summary.task_metric_key`)."""
+    from rventry_env.evaluation.summary import task_metric_key
+
+    return task_metric_key(rec["success_rate"], rec["miss_km"])
 
 
 def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None, algorithm: str,
@@ -195,7 +157,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
             if resumed is not None:
                 self.resumes = [*resumed.get("resumes", []), int(resumed["timesteps"])]
                 self.history = list(resumed["history"])
-                self.best_key = max(map(task_metric_key, self.history))
+                self.best_key = max(map(evaluation_key, self.history))
                 self.next_eval = int(resumed["timesteps"]) + int(t["eval_every"])
                 self.wall_before = float(resumed["wall_s"])
 
@@ -231,7 +193,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
                       "impact_rate"):  # fmt: skip
                 if rec[k] is not None:
                     self.logger.record(f"task/{k}", rec[k])
-            key = task_metric_key(rec)
+            key = evaluation_key(rec)
             if key > self.best_key:
                 self.best_key = key
                 self.model.save(out / "model.zip")
@@ -414,7 +376,7 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
     wall = evaluator.wall_before + time.time() - start
     model.save(out / "final_model.zip")
     venv.save(str(out / "final_vecnormalize.pkl"))
-    best = max(evaluator.history, key=task_metric_key)
+    best = max(evaluator.history, key=evaluation_key)
     meta = {
         "command": " ".join(shlex.quote(a) for a in sys.argv),
         "algorithm": algorithm,

@@ -336,3 +336,54 @@ def test_load_relief_counts_each_episode_flying_not_frozen():
     assert np.all(pair.max_load_factor_g <= 12.0)
     bare = rollout(LearnedGuidance(shipped.network, horizon=shipped.horizon), seeds=[0], dispersion="standard")
     assert bare.law_stats == [] and bare.max_load_factor_g[0] > alone.max_load_factor_g[0]
+
+
+def test_a_saved_network_rebuilds_itself_and_refuses_features_in_another_order():
+    import torch
+
+    from rventry_agents.imitation import INPUT_NAMES, network_bytes, network_from_bytes
+    from rventry_agents.networks import Ensemble, Student, load_bytes
+
+    net = make_network((8, 4), members=2)
+    blob = network_bytes(net)
+    back = network_from_bytes(blob)  # no widths, no member count: the bytes carry them
+    assert isinstance(back, Ensemble) and back.hidden == (8, 4) and back.n_members == 2
+    x = torch.zeros(3, len(INPUT_NAMES))
+    with torch.no_grad():
+        np.testing.assert_array_equal(back.commands(x), net.commands(x))
+    assert isinstance(network_from_bytes(network_bytes(make_network((4,)))), Student)
+    with pytest.raises(ValueError, match="hidden = \\(8, 4\\), not the \\(16,\\)"):
+        network_from_bytes(blob, (16,))
+    swapped = list(INPUT_NAMES)
+    swapped[0], swapped[1] = swapped[1], swapped[0]  # a package that builds speed before altitude
+    with pytest.raises(ValueError, match="'altitude' \\(index 0 saved, 1 now\\)"):
+        load_bytes(blob, tuple(swapped))
+
+
+def test_the_shipped_student_refuses_a_task_it_was_not_trained_on():
+    import math
+
+    from rventry_agents.dagger import load_shipped
+    from rventry_env.task import EntryProblem
+
+    assert load_shipped("dagger", EntryTask()).task == EntryTask()
+    with pytest.raises(ValueError, match=r"dt: trained 1\.0, here 0\.5.*problem\.alpha_max: trained"):
+        load_shipped("dagger", EntryTask(dt=0.5, problem=EntryProblem(alpha_max=math.radians(20.0))))
+
+
+def test_a_shipped_sb3_policy_refuses_a_task_it_was_not_trained_on():
+    from rventry_agents.sb3_policy import load_shipped
+
+    with pytest.raises(ValueError, match=r"substeps: trained 1, here 4"):
+        load_shipped("ppo", EntryTask(substeps=4))
+
+
+def test_task_records_name_every_difference():
+    import json
+
+    from rventry_env.task import EntryProblem
+
+    rec = json.loads(json.dumps(EntryTask().record()))  # through JSON, as a run stores it
+    assert EntryTask().differences(rec) == []
+    diffs = EntryTask(substeps=2, problem=EntryProblem(q_min=10e3)).differences(rec)
+    assert diffs == ["substeps: trained 1, here 2", "problem.q_min: trained 12000.0, here 10000.0"]

@@ -64,13 +64,16 @@ def features(task: EntryTask, radius: float) -> tuple[Feature, ...]:
     )
 
 
+def feature_names() -> tuple[str, ...]:
+    """The observation features' names, in index order (the order never depends on the task)."""
+    return tuple(f.name for f in features(EntryTask(), 6378137.0))
+
+
 def feature_index(name: str) -> int:
     """Index of a feature by name (the order never depends on the task)."""
-    from rventry_env.task import EntryTask as _Task
-
-    names = [f.name for f in features(_Task(), 6378137.0)]
+    names = feature_names()
     if name not in names:
-        raise KeyError(f"no observation feature {name!r}; features are {names}")
+        raise KeyError(f"no observation feature {name!r}; features are {list(names)}")
     return names.index(name)
 
 
@@ -135,6 +138,7 @@ __all__ = [
     "Feature",
     "features",
     "feature_index",
+    "feature_names",
     "observe",
     "observation_box",
 ]

@@ -4,7 +4,7 @@ The classical laws are built in. Other packages add theirs through entry points,
 so this library never imports them by name:
 
 * group ``rventry.agents``: ``name = "package.module:loader"``, called as
-  ``loader(name, task)``; the learning agents register ``ppo`` there;
+  ``loader(name, task)``; the learning agents register ``learned``, ``dagger``, ``ppo`` and their baselines there;
 * group ``rventry.agent_files``: loaders tried in turn for an agent given as a
   path (a saved model), called as ``loader(path, task)``.
 """

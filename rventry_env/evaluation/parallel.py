@@ -50,14 +50,20 @@ class EvaluationJob:
 _LAWS: dict = {}
 
 
-def _law(job: EvaluationJob):
-    """The law of ``job``, built once per process."""
-    key = (job.agent, job.task, job.options)
+def cached_law(agent: str, task: EntryTask, options: tuple = ()):
+    """The law ``agent`` for ``task`` with ``options`` ((name, value) pairs), built once per
+    process: a worker that flies many tasks builds ``mpc``'s transcription once."""
+    key = (agent, task, options)
     if key not in _LAWS:
         from rventry_env.evaluation.agents import load_agent
 
-        _LAWS[key] = load_agent(job.agent, job.task, **dict(job.options))
+        _LAWS[key] = load_agent(agent, task, **dict(options))
     return _LAWS[key]
+
+
+def _law(job: EvaluationJob):
+    """The law of ``job``, built once per process."""
+    return cached_law(job.agent, job.task, job.options)
 
 
 def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:

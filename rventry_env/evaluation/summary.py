@@ -73,6 +73,12 @@ def rate_interval(hits, confidence: float = 0.95) -> list[float]:
     return [float(ci.low), float(ci.high)]
 
 
+def task_metric_key(success_rate: float | None, mean_miss_km: float | None) -> tuple[float, float]:
+    """How evaluations rank on the task metric (training selections, scans): the success rate
+    first, then the smaller mean miss; a missing figure ranks last."""
+    return (success_rate or 0.0, -(mean_miss_km if mean_miss_km is not None else np.inf))
+
+
 def load_relief_summary(stats: list[dict]) -> dict | None:
     """For a law with load relief: how many steps it capped the alpha rate, and in how many episodes."""
     if not stats or "load_relief_steps" not in stats[0]:
@@ -94,6 +100,7 @@ def replanning_summary(stats: list[dict]) -> dict | None:
     return {
         "replans": int(sum(s["replans"] for s in stats)),
         "replan_failures": int(sum(s["replan_failures"] for s in stats)),
+        "replan_timeouts": int(sum(s.get("replan_timeouts", 0) for s in stats)),
         "episodes_with_a_failure": int(sum(1 for s in stats if s["replan_failures"])),
         "solves": int(times.size),
         "solve_time_s": {**pct, "max": _f(resolves.max())} if pct else None,

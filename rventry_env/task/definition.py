@@ -9,7 +9,7 @@ not the task's.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -90,6 +90,36 @@ class EntryTask:
                 f"ceiling_altitude ({self.ceiling_altitude:g} m) must lie above the initial altitude "
                 f"({self.problem.initial_altitude:g} m)"
             )
+
+    def record(self) -> dict:
+        """What a policy trained on this task depends on, JSON-ready: the control step, the
+        substeps and every problem constant (bounds, rate limits, target, boundary conditions)."""
+        problem = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self.problem).items()}
+        return {"dt": self.dt, "substeps": self.substeps, "problem": problem}
+
+    def differences(self, record: dict) -> list[str]:
+        """Where this task differs from a :meth:`record` (a policy's training task), one
+        ``"name: trained X, here Y"`` each; empty when they agree."""
+        here = self.record()
+        out = []
+        for key in ("dt", "substeps"):
+            if key in record and record[key] != here[key]:
+                out.append(f"{key}: trained {record[key]!r}, here {here[key]!r}")
+        for key, value in record.get("problem", {}).items():
+            mine = here["problem"].get(key, "(no such constant)")
+            if mine != value:
+                out.append(f"problem.{key}: trained {value!r}, here {mine!r}")
+        return out
+
+    def check_trained(self, record: dict, who: str) -> None:
+        """Refuse to fly a policy ``who`` trained on a task other than this one, naming each difference.
+
+        :raises ValueError: listing the differences (:meth:`differences`).
+        """
+        diffs = self.differences(record)
+        if diffs:
+            raise ValueError(f"{who} was trained on another task than the one given: " + "; ".join(diffs)
+                             + "; fly it on its own task, or train it on this one")  # fmt: skip
 
     def check_dispersion(self, dispersion: "Dispersion") -> None:
         """Refuse a dispersion that can start a vehicle underground, above the ceiling or without speed.
