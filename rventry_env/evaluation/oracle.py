@@ -62,28 +62,10 @@ class OracleSettings:
     load_margin: float = 0.05
 
     def mesh(self):
-        from rventry_env.reference.collocation import Mesh
-        from rventry_env.reference.pipeline import end_clustered_mesh
+        """The LGR mesh in normalized time (the re-planning law's construction)."""
+        from rventry_env.guidance.replanning import replanning_mesh
 
-        if self.end_fraction == 0:
-            return Mesh.uniform(self.mesh_intervals, self.mesh_degree)
-        return end_clustered_mesh(self.mesh_intervals, self.mesh_degree, self.end_fraction, self.end_intervals,
-                                  self.end_degree, 0.5)  # fmt: skip
-
-
-class _ReferenceGuess:
-    t0 = 0.0
-
-    def __init__(self, reference, n_controls: int):
-        self.reference, self.n_controls = reference, n_controls
-        self.tf = reference.tf
-
-    def state(self, t):
-        return self.reference.state(t)
-
-    def control(self, t):
-        u = np.atleast_2d(self.reference.control(t))
-        return np.hstack([u, np.zeros((u.shape[0], self.n_controls - u.shape[1]))])
+        return replanning_mesh(self)
 
 
 def draw_episode(dispersion, seed: int, task: EntryTask):
@@ -97,6 +79,7 @@ def draw_episode(dispersion, seed: int, task: EntryTask):
 
 def solve_draw(x0: np.ndarray, model, task: EntryTask, settings: OracleSettings):
     """Example 2 from ``x0`` with the force model ``model``: the collocation solution."""
+    from rventry_env.guidance.replanning import _ReferenceGuess
     from rventry_env.reference import load_reference
     from rventry_env.reference.collocation import CompiledProblem, SolverOptions, initial_point, solve_from, transcribe
     from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
