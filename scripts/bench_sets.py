@@ -6,8 +6,12 @@ For each set and law this runs what ``rventry evaluate --agent LAW --dispersion 
 ``out/oracle_SET.json`` (``rventry oracle --dispersion SET --episodes 50 --json out/oracle_SET.json``)
 when it is there.
 
+``--effects`` instead flies the laws on the ``flight`` set's parts one at a time (its scalar
+dispersions alone, the climatology alone, the density perturbation alone, the winds alone, the
+Mach-dependent aerodynamics alone, the sensors and navigation alone): which effect breaks which law.
+
 Run: ``python scripts/bench_sets.py [--sets flight peer peer-0.1] [--laws ...] [--episodes 200]
-[--mpc-episodes 20] [--workers 2] --json out/bench_sets.json``
+[--mpc-episodes 20] [--workers 2] [--effects] --json out/bench_sets.json``
 """
 
 from __future__ import annotations
@@ -27,8 +31,11 @@ def main():
     ap.add_argument("--episodes", type=int, default=200)
     ap.add_argument("--mpc-episodes", type=int, default=20)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--effects", action="store_true", help="the flight set's effects one at a time")
     ap.add_argument("--json", required=True)
     args = ap.parse_args()
+    if args.effects:
+        return effects(args)
 
     from rventry_env.evaluation.cli import run_agent
     from rventry_env.util.files import write_json
@@ -53,6 +60,48 @@ def main():
         out["sets"][s] = {"laws": rows, "oracle": ceiling}
         write_json(args.json, out)
         print(table(s, rows, ceiling))
+
+
+def effect_sets() -> dict:
+    """The flight set's parts, each alone (dicts of Dispersion fields)."""
+    import dataclasses
+
+    from rventry_env.task import FLIGHT_ERRORS as F
+    from rventry_env.task import Dispersion, FlightErrors
+
+    flight = Dispersion.parse("flight")
+    sensing = {k: getattr(F, k) for k in ("accel_bias_mps2", "accel_scale", "accel_misalignment_rad",
+                                          "accel_noise_mps2", "nav_position_m", "nav_velocity_mps")}  # fmt: skip
+    return {
+        "entry state, C_L/C_D, mass": dataclasses.replace(flight, flight=None),
+        "NRLMSIS climatology": Dispersion(flight=FlightErrors(climatology=True)),
+        "density perturbation": Dispersion(flight=FlightErrors(density_bands=F.density_bands)),
+        "winds": Dispersion(flight=FlightErrors(wind_mean_mps=F.wind_mean_mps, wind_bands=F.wind_bands)),
+        "Mach-dependent C_L/C_D": Dispersion(flight=FlightErrors(lift_mach=F.lift_mach, drag_mach=F.drag_mach)),
+        "sensors and navigation": Dispersion(flight=FlightErrors(**sensing)),
+    }
+
+
+def effects(args) -> None:
+    from rventry_env.evaluation.cli import run_agent
+    from rventry_env.util.files import write_json
+
+    out: dict = {"episodes": args.episodes, "effects": {}}
+    lines = ["| effect alone | " + " | ".join(f"`{law}`" for law in args.laws) + " |",
+             "|---|" + "---|" * len(args.laws)]  # fmt: skip
+    for name, d in effect_sets().items():
+        cells = []
+        for law in args.laws:
+            n = args.mpc_episodes if law == "mpc" else args.episodes
+            _, summary = run_agent(law, n, d.describe() | {"flight": d.flight}, 0, history=False, workers=args.workers)
+            out["effects"].setdefault(name, {})[law] = {k: summary[k] for k in ("episodes", "success_rate",
+                                                       "success_rate_ci", "precision_success_rate", "miss_m")}  # fmt: skip
+            c = summary["success_rate_ci"]
+            cells.append(f"{summary['success_rate']:.2f} [{c[0]:.2f}, {c[1]:.2f}]")
+            print(f"{name:28s} {law:10s} {n:4d} ep: success {summary['success_rate']:.2f}", flush=True)
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        write_json(args.json, out)
+    print("\n".join(lines))
 
 
 def table(name: str, rows: dict, ceiling: dict | None) -> str:

@@ -92,10 +92,13 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     v = 7138 m/s, eB = (0, 0, sqrt(2)/2, sqrt(2)/2); alpha and sigma (free in the
     paper) default to the shipped collocation reference's initial values.
     Dispersions (constructor ``dispersion=`` or ``reset(options={"dispersion": ...})``,
-    a :class:`~rventry_env.task.Dispersion`, a dict of its fields or
-    ``"standard"``) draw uniformly from ``self.np_random``: density and C_L/C_D
-    scale factors, initial altitude, speed, flight-path angle, heading, alpha,
-    sigma. ``reset(options={"state": x})`` starts from any valid 12-state.
+    a :class:`~rventry_env.task.Dispersion`, a dict of its fields or a set's name:
+    ``"standard"``, ``"wide"``, ``"flight"``, ``"peer"``, ``"peer-0.1"``) draw from
+    ``self.np_random``: density and C_L/C_D scale factors, initial altitude, speed,
+    flight-path angle, heading, alpha, sigma (uniform or clipped Gaussian), and for the
+    flight-grade sets the mass, density and wind profiles in altitude, Mach-dependent
+    C_L/C_D errors, accelerometer and navigation errors (docs/uncertainty.md).
+    ``reset(options={"state": x})`` starts from any valid 12-state.
 
     ## Episode End
 
@@ -112,14 +115,17 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     ``sensed_accel_b`` (what an accelerometer measures: the aerodynamic specific
     force in B components, m/s^2, so ``-sensed[0]`` is the drag acceleration and
     ``sensed[1:]`` the lift's; the navigation state plus this is all a guidance law
-    may know), ``cost`` (running cost J so far), ``time_s``, ``action_clipped``,
+    may know), ``navigation_state`` (the 12-state the vehicle's navigation gives: the
+    truth unless the dispersion has sensor or navigation errors; the observation is
+    built from it), ``cost`` (running cost J so far), ``time_s``, ``action_clipped``,
     ``alpha_saturated``. The last step also: ``miss_km``, ``vertical_error_deg``,
     ``speed_error_mps``, ``alpha_final_deg``, ``max_load_factor_g``,
     ``min_dynamic_pressure_pa``, ``constraint_violation`` (load > 12 g or q < 12 kPa
     by more than 1 %), ``terminal_penalty``, ``failure`` ("" on impact) and
     ``is_success``: impact with miss <= 5 km, vertical error <= 5 deg,
     |speed error| <= 100 m/s and no constraint violation
-    (:class:`~rventry_env.task.SuccessThresholds`).
+    (:class:`~rventry_env.task.SuccessThresholds`). At reset, ``dispersion_draw``: the
+    episode's draw, for evaluation only (a guidance law is never given it).
 
     ## Arguments
 
