@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from rventry_env.validation import identify_record
-from rventry_env.validation.aliases import admissible, alias_groups, sparsest_equivalent
-from rventry_env.validation.effects import Structure
-from rventry_env.validation.simulate import parse_effects, simulate_record
+from rventry_env.validation.search.aliases import admissible, alias_groups, sparsest_equivalent
+from rventry_env.validation.search.effects import Structure
+from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
 
 def _run(tmp_path, specs, noise=(20.0, 0.2), duration=200.0, rate=1.0, seed=0, **kw):
@@ -141,3 +141,41 @@ def test_a_wrong_j2_is_never_accepted(tmp_path):
     j2_row = next(r for r in rep["ranking"] if r["effect"] == "j2_gravity")
     assert not j2_row["credible"]
     assert rep["unexplained"] is True  # and the wrong-signed J2 the record holds is not explained away
+
+
+def _member_prediction(ident, member):
+    """The replay of an alias member, from the accepted fit's entry state."""
+    from rventry_env.validation.search.effects import build_model
+
+    final = ident.final
+    st = final.structure
+    values = {k: v for k, v in final.parameters().items()
+              if k not in ("mass_scale", "cd_scale", "cl_scale") and not k.startswith("dlnrho_")}  # fmt: skip
+    params = dict(member["parameters"])
+    level = params.pop("density_level_factor", None)
+    if level is not None:
+        params.update({f"dlnrho_{k / 1e3:.1f}km": np.log(level) for k in st.density_knots})
+    values.update(params)
+    model = build_model(ident.setup, Structure(tuple(member["effects"]), st.density_knots, st.mach_knots), values)
+    n0 = final.extra["n_initial"]
+    return ident.replay.predict(model, final.values[None, :n0])[..., 0]
+
+
+@pytest.mark.parametrize("spec, answer", [("drag_coefficient=1.05", "drag_coefficient"), ("mass=0.95", "mass")])
+def test_every_listed_alias_member_flies_the_accepted_trajectory(tmp_path, spec, answer):
+    path = simulate_record(tmp_path / "rec.csv", parse_effects([spec]), noise=(20.0, 0.2), duration=200.0, rate=0.5,
+                           seed=3)  # fmt: skip
+    ident = identify_record(path)
+    rep = ident.report
+    assert rep["effects"] == [answer], rep["steps"]
+    members = rep["aliases"][0]["members"]
+    accepted = _member_prediction(ident, {"effects": rep["effects"], "parameters": rep["parameters"]})
+    scale = np.nanmax(np.abs(accepted[:, :3]))
+    for m in members:
+        pred = _member_prediction(ident, m)
+        assert np.nanmax(np.abs(pred - accepted)[:, :3]) < 1e-9 * scale, m  # positions, to round-off
+        assert np.nanmax(np.abs(pred - accepted)[:, 3:]) < 1e-6, m  # velocities, m/s
+    # the mass member of C_D x 1.05 is the mass x 1/1.05 (not x 1.05); of a light vehicle, the mass itself
+    mass = next(m for m in members if "mass" in m["effects"])
+    truth = 1 / 1.05 if answer == "drag_coefficient" else 0.95
+    assert mass["parameters"]["mass_scale"] == pytest.approx(truth, rel=0.01)

@@ -8,7 +8,7 @@ import pytest
 
 from rventry_env.cli import main as rventry_main
 from rventry_env.validation import identify_record
-from rventry_env.validation.simulate import parse_effects, simulate_record
+from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
 
 def _strict_json(path):
@@ -83,7 +83,7 @@ def test_progress_lines_do_not_wrap(tmp_path, capfd):
 
 
 def test_residual_plot_lines_break_at_gaps():
-    from rventry_env.validation.plots import with_gap_breaks
+    from rventry_env.validation.report.plots import with_gap_breaks
 
     t = np.array([0.0, 1, 2, 3, 50, 51, 52])
     y = np.array([1.0, 2, np.nan, 4, 5, 6, 7])

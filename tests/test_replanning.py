@@ -264,3 +264,12 @@ def test_evaluation_results_do_not_depend_on_the_machines_speed(monkeypatch):
     assert PlanSolver(EntryTask(), EntryModel(), replace(COARSE, max_wall_s=1.5)).ipopt_options["max_wall_time"] == 1.5
     with pytest.raises(ValueError, match="max_wall_s must be None"):
         ReplanningSettings(max_wall_s=0.0)
+
+
+@pytest.mark.slow
+def test_mpc_with_load_relief_reports_its_capped_steps_and_lands():
+    b = rollout(ReplanningGuidance(settings=replace(COARSE, load_relief_margin=0.02)), 1)
+    assert b.is_success[0] and b.max_load_factor_g[0] <= 12.0 * 0.98 + 0.05
+    assert set(b.law_stats[0]) >= {"replans", "load_relief_steps"}
+    with pytest.raises(ValueError, match="load_relief_margin must be None"):
+        ReplanningSettings(load_relief_margin=1.5)

@@ -110,7 +110,7 @@ sys.meta_path.insert(0, Block())
 
 
 @pytest.mark.parametrize("module", ["rventry_env", "rventry_env.core", "rventry_env.physics", "rventry_env.task",
-                                    "rventry_env.reference", "rventry_env.validation.record_replay",
+                                    "rventry_env.reference", "rventry_env.validation.replay.record_replay",
                                     "rventry_env.guidance", "rventry_env.guidance.estimation",
                                     "rventry_env.guidance.replanning", "rventry_env.guidance.tvlqr"])
 def test_the_physics_imports_without_gymnasium(module):

@@ -17,7 +17,7 @@ import pytest
 
 from rventry_env.cli import main as rventry_main
 from rventry_env.validation.record import load_record, record_text
-from rventry_env.validation.simulate import simulate_record
+from rventry_env.validation.synthetic.simulate import simulate_record
 
 OLD_REPORT = '{"effect": "from an earlier run"}\n'
 RNG_SEED = 20240

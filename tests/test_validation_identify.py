@@ -13,7 +13,7 @@ import pytest
 
 from rventry_env.cli import main as rventry_main
 from rventry_env.validation import identify_record, load_model
-from rventry_env.validation.simulate import parse_effects, simulate_record
+from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
 DURATION, RATE, H_MAX = 200.0, 0.5, 2.0
 

@@ -17,10 +17,10 @@ from rventry_env.physics import (
     Vehicle,
 )
 from rventry_env.validation import identified_model, load_model, save_model
-from rventry_env.validation.effects import Structure, build_model, structure_parameters
-from rventry_env.validation.model_io import model_from_dict, model_to_dict
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.replay_setup import replay_setup
+from rventry_env.validation.replay.replay_setup import replay_setup
+from rventry_env.validation.report.model_io import model_from_dict, model_to_dict
+from rventry_env.validation.search.effects import Structure, build_model, structure_parameters
 
 FULL = EntryModel(
     gravity=J2Gravity(j2=1.1e-3),
@@ -92,3 +92,46 @@ def test_env_flies_the_identified_model():
     flown = cartesian_from_rv_euler(env.unwrapped.state[:10])[0]
     assert np.linalg.norm(flown - fly(FULL)) < 0.05  # RK4 at 1 s against DOP853: centimetres
     assert np.linalg.norm(flown - fly(EntryModel())) > 50.0  # the identified effects move the vehicle
+
+
+def _old_outputs(tmp_path):
+    report, model = tmp_path / "r.json", tmp_path / "m.json"
+    report.write_text('{"old": "report"}')
+    model.write_text('{"old": "model"}')
+    return report, model
+
+
+def test_outputs_are_one_set_a_failed_report_replaces_nothing(tmp_path):
+    from types import SimpleNamespace
+
+    from rventry_env.validation.report.outputs import write_outputs
+
+    report, model = _old_outputs(tmp_path)
+    bad = SimpleNamespace(model=FULL, report={"effect": "wind", "unserialisable": object()})
+    with pytest.raises(TypeError):
+        write_outputs(bad, report, model)
+    assert report.read_text() == '{"old": "report"}' and model.read_text() == '{"old": "model"}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "r.json"]  # no staged file left behind
+    good = SimpleNamespace(model=FULL, report={"effect": "wind"})
+    write_outputs(good, report, model)
+    assert json.loads(report.read_text())["model_file"] == str(model)
+    assert load_model(model) == FULL
+
+
+def test_output_set_puts_every_old_file_back_when_a_move_fails(tmp_path):
+    from rventry_env.util.files import OutputError
+    from rventry_env.validation.report.outputs import OutputSet
+
+    report, model = _old_outputs(tmp_path)
+    blocked = tmp_path / "plots" / "residuals.png"
+    blocked.parent.mkdir()
+    with OutputSet() as out:
+        out.stage(model).write_text("new model")
+        out.stage(report).write_text("new report")
+        out.stage(blocked).write_text("new plot")
+        blocked.mkdir()  # the last destination turns into a folder: its move fails after the others
+        with pytest.raises(OutputError, match="no output was replaced"):
+            out.commit()
+    assert report.read_text() == '{"old": "report"}' and model.read_text() == '{"old": "model"}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "plots", "r.json"]
+    assert [p.name for p in blocked.parent.iterdir()] == ["residuals.png"] and blocked.is_dir()

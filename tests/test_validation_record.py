@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from rventry_env.validation.controls import control_schedule
 from rventry_env.validation.record import RecordError, load_record, write_record
-from rventry_env.validation.replay_setup import replay_setup
+from rventry_env.validation.replay.controls import control_schedule
+from rventry_env.validation.replay.replay_setup import replay_setup
 
 R_E = 6378137.0
 

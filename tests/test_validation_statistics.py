@@ -5,7 +5,13 @@ import math
 import numpy as np
 import pytest
 
-from rventry_env.validation.statistics import bic, bic_effective, difference_noise, effective_size, whiteness
+from rventry_env.validation.search.statistics import (
+    bic,
+    bic_effective,
+    difference_noise,
+    effective_size,
+    whiteness,
+)
 
 
 def test_difference_noise_recovers_sigma_under_a_smooth_signal():

@@ -21,12 +21,12 @@ from rventry_env.physics import (
     Vehicle,
     entry_rhs,
 )
-from rventry_env.validation import truth
-from rventry_env.validation.controls import control_schedule
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.record_replay import Replay
-from rventry_env.validation.replay_setup import replay_setup
-from rventry_env.validation.simulate import Scenario
+from rventry_env.validation.replay.controls import control_schedule
+from rventry_env.validation.replay.record_replay import Replay
+from rventry_env.validation.replay.replay_setup import replay_setup
+from rventry_env.validation.synthetic import truth
+from rventry_env.validation.synthetic.simulate import Scenario
 
 WORLDS_AND_MODELS = {
     "no effect": (truth.TruthWorld(), EntryModel()),

@@ -139,7 +139,7 @@ def oracle(dispersion, seeds, task: EntryTask | None = None, settings: OracleSet
            cluster: str | None = None, progress=None) -> dict:  # fmt: skip
     """The oracle over ``seeds``: per-draw records and the summary (``flyable_fraction`` and its
     95 % Wilson interval, J per draw)."""
-    from rventry_env.evaluation.parallel import map_cluster, map_local
+    from rventry_env.evaluation.parallel import map_tasks
 
     task = EntryTask() if task is None else task
     settings = OracleSettings() if settings is None else settings
@@ -153,11 +153,7 @@ def oracle(dispersion, seeds, task: EntryTask | None = None, settings: OracleSet
         if progress is not None:
             progress(1)
 
-    calls = [(dispersion, s, task, settings) for s in seeds]
-    if cluster is not None:
-        map_cluster(oracle_draw, calls, cluster, done, keys=[f"rventry-oracle-{s}" for s in seeds])
-    else:
-        map_local(oracle_draw, calls, workers, done)
+    map_tasks(oracle_draw, [(dispersion, s, task, settings) for s in seeds], workers, done, cluster=cluster)
     return {"summary": summarize_oracle(records), "draws": records}
 
 

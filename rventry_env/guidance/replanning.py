@@ -25,8 +25,9 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   a drag error is density (which sets q) rather than C_D.
 * **A budget.** IPOPT stops after ``max_iterations`` iterations: the deterministic budget, so
   an episode's result does not depend on the machine's load. A wall-time cap ``max_wall_s``
-  is an option for flight-like runs (off by default: on a busy machine it fired on 2 of 644
-  re-solves and changed the miss figures); a solve it stops is counted (``replan_timeouts``).
+  is an option for flight-like runs (off by default: a 2 s cap stopped 83 of 650 solves on a
+  machine shared with three other jobs and changed the miss figures); a solve it stops is
+  counted (``replan_timeouts``).
   A failed or unfinished solve keeps the previous plan, and is counted.
 * **Freeze.** No new plan within ``freeze_s`` of the planned impact: the last plan is
   tracked into the ground.
@@ -38,10 +39,17 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   alpha to zero inside the step of impact only at that step's end, so the lift of the last step
   or two is the price: nominally, aiming at 1 / 0.5 / 0.2 deg leaves 0.91 / 0.45 / 0.18 deg and
   moves the vertical-impact error from 0.48 to 1.26 / 1.71 / 1.98 deg (J/J* 0.952 to 1.013 /
-  1.056 / 1.084). Solving the last plan
-  again with its duration a whole number of steps, so that the impact falls on a step's end,
-  did not work: fixing the last minute's duration from 58.23 s to 58 s took 137 IPOPT iterations
-  and quadrupled the plan's cost.
+  1.056 / 1.084). Solving the last plan again with its duration a whole number of steps, so
+  that the impact falls on a step's end, did not work: fixing the last minute's duration from
+  58.23 s to 58 s took 137 IPOPT iterations and more than tripled the plan's cost.
+* **Load relief between plans** (``load_relief_margin``, off by default until the defaults are
+  chosen again on a flight-grade set). The tracked rates pass through
+  :class:`~rventry_env.guidance.load_relief.LoadRelief`, which caps the alpha rate where the load
+  factor predicted one control step ahead, calibrated on the accelerometer, would pass
+  ``a_max (1 - margin)``: closed-loop feedback on the load, which the plans alone do not have
+  between solves. Looking three steps ahead with the asked rate held, or with alpha held after
+  one step, was too cautious: it capped the pull-up, and the optimum replayed through a density
+  step ended 8-15 deg from vertical.
 * **Final re-planning** (off by default). With ``final_replan_s`` set, the interval shortens
   to it once the planned time to go is under ``final_window_s``. The law itself does not need
   it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
@@ -92,6 +100,7 @@ class ReplanningSettings:
     final_window_s: float = 120.0
     terminal_alpha: bool = False
     terminal_alpha_deg: float = 0.5
+    load_relief_margin: float | None = None
 
     def __post_init__(self):
         if self.max_wall_s is not None and not (
@@ -106,6 +115,8 @@ class ReplanningSettings:
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        if self.load_relief_margin is not None and not (0.0 <= self.load_relief_margin < 1.0):
+            raise ValueError(f"load_relief_margin must be None (off) or in [0, 1), got {self.load_relief_margin!r}")
         for name, hi in (("end_fraction", 0.5), ("q_margin", 0.5), ("load_margin", 0.5)):
             v = getattr(self, name)
             if not (0.0 <= v < hi):
@@ -309,6 +320,11 @@ class ReplanningGuidance(Law):
         self.u_max = np.array([p.u_alpha_max, p.u_sigma_max])
         self.estimator = AeroScaleEstimator(self.model, 1, estimator_settings)
         self.nominal = self.solver.nominal_plan(self.task)
+        self.relief = None
+        if self.settings.load_relief_margin is not None:
+            from rventry_env.guidance.load_relief import LoadRelief
+
+            self.relief = LoadRelief(self.model, self.task, self.settings.load_relief_margin)
         self.reset(1)
 
     def reset(self, n_episodes: int) -> None:
@@ -318,6 +334,8 @@ class ReplanningGuidance(Law):
         self.tracks: list[_Track | None] = [None] * self.n
         self.last_replan = np.full(self.n, -np.inf)
         self.logs = [_EpisodeLog() for _ in range(self.n)]
+        if self.relief is not None:
+            self.relief.reset(self.n)
 
     # ------------------------------------------------------------------ planning
     def _track(self, t_start: float, sol, theta: np.ndarray) -> _Track:
@@ -399,7 +417,10 @@ class ReplanningGuidance(Law):
         if self.settings.terminal_alpha:
             u[:, 0] = np.minimum(u[:, 0], alpha_rate_bound(state, self.task, self.model.planet.radius,
                                                            tolerance=math.radians(self.settings.terminal_alpha_deg)))
-        return np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
+        rates = np.clip(u / self.u_max, -1.0, 1.0)
+        if self.relief is not None:
+            rates = self.relief(rates, state, m.sensed_accel_b, count=m.flying)
+        return rates.astype(np.float32)
 
     def episode_stats(self) -> list[dict]:
         """Per episode: ``replans``, ``replan_failures``, solve-time percentiles (s) and IPOPT iterations."""
@@ -417,6 +438,9 @@ class ReplanningGuidance(Law):
                 "replan_failure_events": [list(f) for f in log.failures],
                 "solve_times_s": [round(float(x), 5) for x in t],
             })  # fmt: skip
+        if self.relief is not None:
+            for rec, k in zip(out, self.relief.steps):
+                rec["load_relief_steps"] = int(k)
         return out
 
 

@@ -3,16 +3,16 @@
 Rooms (one-way dependencies, physics knows nothing of this package):
 
 * :mod:`~rventry_env.validation.record` reads and validates a flight record;
-* :mod:`~rventry_env.validation.replay_setup`, :mod:`~rventry_env.validation.controls`,
-  :mod:`~rventry_env.validation.record_replay` fly it with the rv-Euler entry model;
-* :mod:`~rventry_env.validation.effects`, :mod:`~rventry_env.validation.aliases`,
-  :mod:`~rventry_env.validation.sensitivity`, :mod:`~rventry_env.validation.fit`,
-  :mod:`~rventry_env.validation.statistics`, :mod:`~rventry_env.validation.identify`
+* :mod:`~rventry_env.validation.replay.replay_setup`, :mod:`~rventry_env.validation.replay.controls`,
+  :mod:`~rventry_env.validation.replay.record_replay` fly it with the rv-Euler entry model;
+* :mod:`~rventry_env.validation.search.effects`, :mod:`~rventry_env.validation.search.aliases`,
+  :mod:`~rventry_env.validation.replay.sensitivity`, :mod:`~rventry_env.validation.search.fit`,
+  :mod:`~rventry_env.validation.search.statistics`, :mod:`~rventry_env.validation.identify`
   trace the residual to an effect and build the identified model;
-* :mod:`~rventry_env.validation.outliers`, :mod:`~rventry_env.validation.consistency`,
-  :mod:`~rventry_env.validation.adequacy` reject bad rows, check the sidecar against the record,
+* :mod:`~rventry_env.validation.intake.outliers`, :mod:`~rventry_env.validation.intake.consistency`,
+  :mod:`~rventry_env.validation.search.adequacy` reject bad rows, check the sidecar against the record,
   and test what remains against the noise;
-* :mod:`~rventry_env.validation.truth`, :mod:`~rventry_env.validation.simulate`
+* :mod:`~rventry_env.validation.synthetic.truth`, :mod:`~rventry_env.validation.synthetic.simulate`
   make synthetic records through an independent Cartesian truth model;
 * :mod:`~rventry_env.validation.apollo4` ships the Apollo 4 flight record.
 
@@ -53,7 +53,7 @@ def identified_model(source):
     :param source: an :class:`~rventry_env.validation.identify.Identification`, a report dict,
         or the path of a report JSON (``rventry identify --json``) or model JSON (``--model-out``).
     """
-    from rventry_env.validation.model_io import load_model, model_from_dict
+    from rventry_env.validation.report.model_io import load_model, model_from_dict
 
     if hasattr(source, "model") and hasattr(source, "report"):
         return source.model
@@ -63,17 +63,17 @@ def identified_model(source):
 
 
 def save_model(model, path):
-    """Write an :class:`~rventry_env.physics.EntryModel` to JSON (:mod:`~rventry_env.validation.model_io`)."""
-    from rventry_env.validation.model_io import save_model as _save
+    """Write an :class:`~rventry_env.physics.EntryModel` to JSON (:mod:`~rventry_env.validation.report.model_io`)."""
+    from rventry_env.validation.report.model_io import save_model as _save
 
     return _save(model, path)
 
 
 def load_model(path):
     """Read an :class:`~rventry_env.physics.EntryModel` from a model or report JSON."""
-    from rventry_env.validation.model_io import load_model as _load
+    from rventry_env.validation.report.model_io import load_model as _load
 
     return _load(path)
 
 
-__all__ = ["identify_record", "identified_model", "save_model", "load_model"]
+__all__ = ["identified_model", "identify_record", "load_model", "save_model"]

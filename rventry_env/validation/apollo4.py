@@ -129,10 +129,10 @@ def density_comparison(altitude: np.ndarray, density: np.ndarray, model: EntryMo
 
 
 __all__ = [
+    "PUBLISHED_RMS_ALTITUDE_M",
     "RECORD_NAME",
     "SIDECAR",
-    "PUBLISHED_RMS_ALTITUDE_M",
     "convert",
-    "record_path",
     "density_comparison",
+    "record_path",
 ]

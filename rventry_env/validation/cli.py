@@ -75,6 +75,10 @@ def register(subparsers) -> None:
     s.add_argument("--seed", type=seed_type, default=0, help="noise seed [0]")
     s.add_argument("--observe", choices=("ecef", "reduced"), default="ecef",
                    help="full ECEF state, or altitude and speed plus a sidecar [ecef]")  # fmt: skip
+    s.add_argument("--noise-tails", choices=("normal", "student-t3"), default="normal",
+                   help="noise distribution, both with the given standard deviation [normal]")  # fmt: skip
+    s.add_argument("--start-scatter", type=number_list(non_negative_float, 2, 2), metavar="SECONDS,METRES",
+                   help="the first SECONDS of positions (altitudes) scatter by a further METRES")  # fmt: skip
     s.set_defaults(func=_simulate)
 
 
@@ -88,11 +92,10 @@ def _record_path(text: str) -> Path:
 
 
 def _identify(args: argparse.Namespace) -> int:
-    from rventry_env.util.files import check_writable, write_json
+    from rventry_env.util.files import check_writable
     from rventry_env.validation.identify import identify
-    from rventry_env.validation.model_io import save_model
-    from rventry_env.validation.plots import write_plots
     from rventry_env.validation.record import load_record, load_sidecar
+    from rventry_env.validation.report.outputs import write_outputs
 
     # every destination first: an unwritable one fails now, not after the run
     check_writable(args.json, args.model_out, folders=(args.plots,) if args.plots else ())
@@ -107,13 +110,8 @@ def _identify(args: argparse.Namespace) -> int:
         record, vehicle=vehicle, start=args.start, threshold=args.threshold, h_max=args.h_max,
         max_effects=args.max_effects, progress=not args.quiet, noise=args.noise, **kwargs,
     )  # fmt: skip
+    write_outputs(ident, args.json, args.model_out, args.plots)
     rep = ident.report
-    if args.plots:
-        rep["plots"] = [str(p) for p in write_plots(ident, args.plots)]
-    if args.model_out:
-        save_model(ident.model, args.model_out)
-        rep["model_file"] = str(args.model_out)
-    write_json(args.json, rep, indent=2)
     try:
         _print_summary(rep)
         sys.stdout.flush()
@@ -174,7 +172,7 @@ def _print_summary(rep: dict) -> None:
 
 def _simulate(args: argparse.Namespace) -> int:
     from rventry_env.util.files import check_writable
-    from rventry_env.validation.simulate import parse_effects, simulate_record
+    from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
     specs = [e for e in args.effect if e.strip().lower() != "none"]
     noise = args.noise if len(args.noise) == 2 else (args.noise[0], args.noise[0] / 100.0)
@@ -183,7 +181,8 @@ def _simulate(args: argparse.Namespace) -> int:
     check_writable(out, out.with_name(out.stem + ".truth.json"),
                    out.with_suffix(".json") if args.observe == "reduced" else None)  # fmt: skip
     out = simulate_record(out, effects, noise=noise, duration=args.duration, rate=args.rate, seed=args.seed,
-                          observe=args.observe)  # fmt: skip
+                          observe=args.observe, noise_tails=args.noise_tails,
+                          start_scatter=tuple(args.start_scatter) if args.start_scatter else None)  # fmt: skip
     print(f"wrote {out} ({', '.join(specs) or 'no effect'}; noise {noise[0]:g} m, {noise[1]:g} m/s)",
           file=sys.stderr)  # fmt: skip
     return 0

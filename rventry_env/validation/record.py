@@ -541,14 +541,14 @@ def write_record(path: str | Path, t: np.ndarray, columns: dict[str, np.ndarray]
 
 __all__ = [
     "ECEF_COLUMNS",
-    "REDUCED_COLUMNS",
     "KNOWN_COLUMNS",
-    "RecordError",
+    "REDUCED_COLUMNS",
     "FlightRecord",
-    "row_norm",
+    "RecordError",
     "load_record",
     "load_sidecar",
-    "sidecar_path",
     "record_text",
+    "row_norm",
+    "sidecar_path",
     "write_record",
 ]

@@ -22,18 +22,11 @@ import numpy as np
 
 DIFF_ORDER = 4
 MIN_DIFFERENCES = 20
+MAD_TO_SIGMA = 1.4826  # the standard deviation of normal noise per median absolute deviation
 
 
-def difference_noise(t: np.ndarray, y: np.ndarray, order: int = DIFF_ORDER) -> float:
-    """Noise standard deviation of one channel from its ``order``-th differences, or NaN.
-
-    Only runs of consecutive finite samples at one spacing are differenced (gaps
-    and irregular steps break a run).
-
-    :param t: sample times (s).
-    :param y: samples, NaN in gaps.
-    :param order: difference order.
-    """
+def _differences(t: np.ndarray, y: np.ndarray, order: int) -> np.ndarray | None:
+    """``order``-th differences over runs of consecutive finite samples at one spacing (None if too few)."""
     t = np.asarray(t, float)
     y = np.asarray(y, float)
     diffs = []
@@ -55,15 +48,51 @@ def difference_noise(t: np.ndarray, y: np.ndarray, order: int = DIFF_ORDER) -> f
                 diffs.append(np.diff(run, n=order))
         start = end
     if not diffs:
-        return math.nan
+        return None
     d = np.concatenate(diffs)
-    if d.size < MIN_DIFFERENCES:
+    return d if d.size >= MIN_DIFFERENCES else None
+
+
+def difference_noise(t: np.ndarray, y: np.ndarray, order: int = DIFF_ORDER) -> float:
+    """Noise standard deviation of one channel from its ``order``-th differences, or NaN.
+
+    Only runs of consecutive finite samples at one spacing are differenced (gaps
+    and irregular steps break a run).
+
+    :param t: sample times (s).
+    :param y: samples, NaN in gaps.
+    :param order: difference order.
+    """
+    d = _differences(t, y, order)
+    if d is None:
         return math.nan
     dev = np.abs(d - np.median(d))
-    robust = 1.4826 * np.median(dev)
+    robust = MAD_TO_SIGMA * np.median(dev)
     # rms rather than the MAD itself: a third less scatter; the clip keeps single outliers out
     kept = d[dev <= 5.0 * robust] if robust > 0 else d
     return float(np.sqrt(np.mean(kept**2)) / math.sqrt(math.comb(2 * order, order)))
+
+
+def robust_difference_noise(t: np.ndarray, y: np.ndarray, order: int = DIFF_ORDER) -> float:
+    """The noise's robust scale from its ``order``-th differences: 1.4826 MAD / sqrt(C(2k, k)), or NaN.
+
+    For normal noise it is the standard deviation. For heavy-tailed noise (Student's t) it is
+    the scale of the bulk, not inflated by the tails, and it is what :func:`robust_scale` of a
+    residual is compared with in the adequacy test.
+    """
+    d = _differences(t, y, order)
+    if d is None:
+        return math.nan
+    return float(robust_scale(d) / math.sqrt(math.comb(2 * order, order)))
+
+
+def robust_scale(x: np.ndarray) -> float:
+    """1.4826 x the median absolute deviation from the median of the finite values (NaN if none)."""
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    if not x.size:
+        return math.nan
+    return float(MAD_TO_SIGMA * np.median(np.abs(x - np.median(x))))
 
 
 def bic(rss_by_group, n_by_group, n_params: int) -> float:
@@ -150,4 +179,5 @@ def whiteness(residual: np.ndarray, lags: int | None = None) -> dict:
     }
 
 
-__all__ = ["difference_noise", "bic", "bic_effective", "effective_size", "whiteness"]
+__all__ = ["bic", "bic_effective", "difference_noise", "effective_size", "robust_difference_noise", "robust_scale",
+           "whiteness"]

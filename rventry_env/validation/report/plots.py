@@ -133,17 +133,69 @@ def plot_density(ident, path: Path) -> Path | None:
     return save_figure(fig, path)
 
 
-def write_plots(ident, folder: str | Path) -> list[Path]:
-    """Write every plot of an identification into ``folder`` (each file whole or not at all)."""
+def plot_trace(ident, path: Path) -> Path:
+    """The residual trace: each attributed channel's correction over its axis, the band shaded,
+    and the residual before and after the trace."""
+    plt = _pyplot()
+    rep = ident.report
+    attribution = rep["attribution"]
+    fig, axes = plt.subplots(len(attribution) + 1, 1, figsize=(8, 2.8 * (len(attribution) + 1)))
+    for ax, a in zip(axes, attribution):
+        scale = 1e-3 if a["axis"] == "altitude" else 1.0
+        unit = "km" if a["axis"] == "altitude" else "s"
+        s = np.linspace(a["knots"][0], a["knots"][-1], 300)
+        for label, coef in a["coefficients"].items():
+            g = np.interp(s, a["knots"], coef)
+            ax.plot(s * scale, g, label=f"{a['channel']} {label}" if label != "value" else a["channel"])
+            ax.plot(np.asarray(a["knots"]) * scale, coef, "o", ms=3, color=ax.lines[-1].get_color())
+        ax.axvspan(a["band"][0] * scale, a["band"][1] * scale, color="C1", alpha=0.15, label="band")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xlabel(f"{a['axis']} ({unit})")
+        ax.set_ylabel(a["size_unit"])
+        ax.legend(fontsize=8)
+        m = a.get("mach_in_band")
+        ax.set_title(f"{a['channel']} over {a['axis']}: peak {a['size']:+.3g}" + (f", Mach {m[0]:.1f}-{m[1]:.1f}"
+                     if m else ""), fontsize=10)  # fmt: skip
+    ax = axes[-1]
+    t = ident.replay.t_obs
+    trace = ident.extra.get("trace") or {}
+    kind = rep["record"]["kind"]
+    for resid, label, color in ((ident.final.residual, "after identification", "C3"),
+                                (trace.get("residual_after_trace"), "after the trace", "C0")):  # fmt: skip
+        if resid is None:
+            continue
+        e = np.linalg.norm(resid[:, :3], axis=1) if kind == "ecef" else resid[:, 0]
+        ax.plot(*with_gap_breaks(t, e), lw=0.7, color=color, label=label)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("position error (m)" if kind == "ecef" else "altitude error (m)")
+    ax.legend(fontsize=8)
+    ax.set_title("replayed - measured", fontsize=10)
+    return save_figure(fig, path)
+
+
+def write_plots(ident, folder: str | Path, stage=None) -> list[Path]:
+    """Write every plot of an identification into ``folder`` (each file whole or not at all).
+
+    :param stage: ``stage(destination) -> path`` where to render a plot instead (an
+        :meth:`~rventry_env.validation.report.outputs.OutputSet.stage`); default: the destination.
+    :return: the destinations.
+    """
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"--plots {folder}: exists and is not a folder")
     folder.mkdir(parents=True, exist_ok=True)
-    out = [plot_residuals(ident, folder / "residuals.png"), plot_ranking(ident, folder / "ranking.png")]
-    d = plot_density(ident, folder / "density.png")
-    if d is not None:
-        out.append(d)
+    stage = stage or (lambda dest: dest)
+    plots = [("residuals.png", plot_residuals), ("ranking.png", plot_ranking)]
+    if ident.report.get("density_check"):
+        plots.append(("density.png", plot_density))
+    if ident.report.get("attribution"):
+        plots.append(("trace.png", plot_trace))
+    out = []
+    for name, plot in plots:
+        dest = folder / name
+        plot(ident, stage(dest))
+        out.append(dest)
     return out
 
 
-__all__ = ["plot_residuals", "plot_ranking", "plot_density", "write_plots"]
+__all__ = ["plot_density", "plot_ranking", "plot_residuals", "plot_trace", "write_plots"]

@@ -78,4 +78,4 @@ def load_model(path: str | Path) -> physics.EntryModel:
     return model_from_dict(data)
 
 
-__all__ = ["FORMAT", "model_to_dict", "model_from_dict", "save_model", "load_model"]
+__all__ = ["FORMAT", "load_model", "model_from_dict", "model_to_dict", "save_model"]

@@ -1,6 +1,6 @@
 """Noise of a record, observation groups, and how far the initial state may move.
 
-See :mod:`rventry_env.validation.statistics` for the estimators themselves.
+See :mod:`rventry_env.validation.search.statistics` for the estimators themselves.
 """
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from rventry_env.validation.record_replay import Replay
-from rventry_env.validation.statistics import difference_noise
+from rventry_env.validation.replay.record_replay import Replay
+from rventry_env.validation.search.statistics import difference_noise, robust_difference_noise
 
 # observation groups: name, unit suffix, columns; each group has its own noise level
 GROUPS = {
@@ -47,6 +47,15 @@ def record_noise(replay: Replay, kind: str) -> tuple[dict, dict]:
     return out, kind_of
 
 
+def record_robust_noise(replay: Replay, kind: str) -> dict:
+    """Per-group robust noise scale from the record's differences (1.4826 MAD; NaN where not possible)."""
+    out = {}
+    for name, _, cols in GROUPS[kind]:
+        est = [e for e in (robust_difference_noise(replay.t_obs, replay.y[:, c]) for c in cols) if np.isfinite(e)]
+        out[name] = float(np.median(est)) if est else math.nan
+    return out
+
+
 def init_bounds(replay: Replay, kind: str, noise: dict) -> np.ndarray | None:
     """Half-widths within which the initial state may move: :data:`INIT_BOUND_SIGMAS` noise levels.
 
@@ -76,4 +85,4 @@ def is_noise(kind_text: str) -> bool:
     return kind_text == "noise"
 
 
-__all__ = ["is_noise", "GROUPS", "PROVISIONAL_SIGMA", "INIT_BOUND_SIGMAS", "record_noise", "init_bounds"]
+__all__ = ["GROUPS", "INIT_BOUND_SIGMAS", "PROVISIONAL_SIGMA", "init_bounds", "is_noise", "record_noise"]

@@ -6,11 +6,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rventry_env.validation.effects import EARTH_J2, Structure
-from rventry_env.validation.fit import FitResult, OutputErrorProblem, j2_free_param
-from rventry_env.validation.record_replay import Replay
-from rventry_env.validation.replay_setup import ReplaySetup
-from rventry_env.validation.statistics import bic_effective, effective_size, whiteness
+from rventry_env.validation.replay.record_replay import Replay
+from rventry_env.validation.replay.replay_setup import ReplaySetup
+from rventry_env.validation.search.effects import EARTH_J2, Structure
+from rventry_env.validation.search.fit import FitResult, OutputErrorProblem, j2_free_param
+from rventry_env.validation.search.statistics import bic_effective, effective_size, whiteness
 
 BIC_THRESHOLD = 10.0  # "very strong" evidence on the Kass-Raftery scale
 CATCH_UP = 10.0  # knot refinement stops when it trails the best rival by this many last gains

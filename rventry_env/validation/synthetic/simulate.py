@@ -3,7 +3,7 @@
 ``rventry simulate-record --effect NAME[=VALUE] ... --noise POS_M,VEL_MPS --out RECORD.csv``
 
 The vehicle flies a scripted glide (angle of attack and conventional bank as
-smooth functions of time) through :mod:`rventry_env.validation.truth`, which
+smooth functions of time) through :mod:`rventry_env.validation.synthetic.truth`, which
 contains the requested effects. The record is written in the format of
 docs/conventions.md *without* a sidecar, so the identification is told nothing:
 it sees a CAV-H flight under the default Earth and atmosphere. The effects and the noise are
@@ -22,10 +22,17 @@ Effect values (defaults in brackets):
 * ``mach_drag=A`` C_D multiplied by exp(A (1 - exp((M - 22) / 5))): 1 at Mach 22, the
   start of the scripted glide, and growing toward lower Mach [0.15];
 * ``time_offset=DT`` the observations' time tags are DT seconds early: the row of time t
-  holds the state at t + DT (the controls keep their own time) [0.5].
+  holds the state at t + DT (the controls keep their own time) [0.5];
+* ``lift_band=S,LO,HI`` / ``drag_band=S,LO,HI`` C_L (C_D) multiplied by S between LO and HI km
+  altitude, with 1 km edges [0.8,50,53 / 1.15,50,53: the bottom of the scripted glide];
+* ``mach_lift=S,M`` C_L multiplied by S below Mach M (1-Mach edge; the truth's speed of sound is
+  300 m/s) [0.85,21];
+* ``wind_shear=W[,H]`` an eastward wind W tanh((h - H) / 2 km) that reverses at H km [60,54];
+* ``side_force=Y`` a force out of the vertical plane, Y times the drag [0.02].
 
-The last two are outside the identification's candidate set in shape (a smooth Mach law
-against a piecewise-linear correction) or altogether (a clock error).
+``mach_drag`` and ``time_offset`` are outside the identification's candidate set in shape (a smooth Mach law
+against a piecewise-linear correction) or altogether (a clock error); the last five are outside it
+altogether, for the residual trace (:mod:`rventry_env.validation.trace`).
 """
 
 from __future__ import annotations
@@ -37,8 +44,8 @@ from pathlib import Path
 import numpy as np
 
 from rventry_env.util.files import write_json
-from rventry_env.validation import truth
 from rventry_env.validation.record import write_record
+from rventry_env.validation.synthetic import truth
 
 GENERATED_BY = "rventry simulate-record"
 DEFAULT_VALUES = {
@@ -51,6 +58,12 @@ DEFAULT_VALUES = {
     "us76_density": "",
     "mach_drag": "0.15",
     "time_offset": "0.5",
+    # outside the candidate set: for the residual trace
+    "lift_band": "0.8,50,53",
+    "drag_band": "1.15,50,53",
+    "mach_lift": "0.85,21",
+    "wind_shear": "60,54",
+    "side_force": "0.02",
 }
 SIMULATED_EFFECTS = tuple(DEFAULT_VALUES)
 
@@ -125,6 +138,22 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
                 raise ValueError("--effect wind takes EAST or EAST,NORTH (m/s)")
             w = replace(w, wind_east=values[0], wind_north=values[1] if len(values) > 1 else 0.0)
             continue
+        if name in ("lift_band", "drag_band"):
+            if len(values) != 3 or values[0] <= 0 or not values[1] < values[2]:
+                raise ValueError(f"--effect {name} takes SCALE,LOW_KM,HIGH_KM (scale > 0, low < high)")
+            w = replace(w, band_channel=name.split("_")[0], band_scale=values[0], band_low=values[1] * 1e3,
+                        band_high=values[2] * 1e3)  # fmt: skip
+            continue
+        if name == "mach_lift":
+            if len(values) != 2 or values[1] <= 0:
+                raise ValueError("--effect mach_lift takes SCALE,MACH (C_L x SCALE below MACH > 0)")
+            w = replace(w, mach_lift_scale=values[0], mach_lift_below=values[1])
+            continue
+        if name == "wind_shear":
+            if len(values) > 2:
+                raise ValueError("--effect wind_shear takes PEAK_MPS[,REVERSAL_KM]")
+            w = replace(w, wind_shear=values[0], shear_altitude=(values[1] * 1e3 if len(values) > 1 else w.shear_altitude))
+            continue
         if len(values) != 1:
             raise ValueError(f"--effect {name} takes one value")
         v = values[0]
@@ -140,6 +169,8 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
             w = replace(w, cd_scale=v) if name == "drag_coefficient" else replace(w, mass=w.mass * v)
         elif name == "mach_drag":
             w = replace(w, mach_drag_amplitude=v)
+        elif name == "side_force":
+            w = replace(w, side_force=v)
         elif name == "time_offset":
             if abs(v) > 10.0:
                 raise ValueError(f"--effect time_offset: at most 10 s, got {v:g}")
@@ -155,6 +186,8 @@ def simulate_record(
     seed: int = 0,
     scenario: Scenario | None = None,
     observe: str = "ecef",
+    noise_tails: str = "normal",
+    start_scatter: tuple[float, float] | None = None,
 ) -> Path:
     """Fly the truth model and write a record.
 
@@ -168,6 +201,11 @@ def simulate_record(
     :param scenario: initial state and scripted controls.
     :param observe: ``"ecef"`` (full state) or ``"reduced"`` (altitude, speed, and a
         sidecar with the entry state).
+    :param noise_tails: ``"normal"``, or ``"student-t3"``: Student's t with 3 degrees of freedom
+        scaled to the same standard deviation (heavy tails).
+    :param start_scatter: ``(seconds, metres)``: the samples of the first ``seconds`` scatter by
+        a further ``metres`` (one standard deviation, normal) in every position or altitude
+        component, like a record digitised from a figure whose start is crowded.
     :return: the record path.
     """
     effects = effects or {}
@@ -202,7 +240,25 @@ def simulate_record(
     if np.any(h < 0):
         t_ground = t[np.argmax(h < 0)]
         raise ValueError(f"the truth flight reaches the ground at t = {t_ground:.0f} s; shorten it")
+    if noise_tails not in ("normal", "student-t3"):
+        raise ValueError(f"noise_tails must be 'normal' or 'student-t3', got {noise_tails!r}")
+    if start_scatter is not None and not (len(start_scatter) == 2 and all(math.isfinite(x) and x >= 0
+                                                                         for x in start_scatter)):  # fmt: skip
+        raise ValueError(f"start_scatter: two finite numbers >= 0 (seconds, metres), got {start_scatter!r}")
     rng = np.random.default_rng(seed)
+
+    def draw(sd: float, shape) -> np.ndarray:
+        if noise_tails == "normal":
+            return rng.normal(0.0, sd, shape)
+        return sd * rng.standard_t(3, shape) / math.sqrt(3.0)  # variance of t(3) is 3
+
+    def scatter(shape) -> np.ndarray:
+        out = np.zeros(shape)
+        if start_scatter is not None and start_scatter[1] > 0:
+            early = t <= start_scatter[0]
+            out[early] = rng.normal(0.0, start_scatter[1], out[early].shape)
+        return out
+
     ctrl = np.array([sc.controls(ti) for ti in t])
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -210,14 +266,14 @@ def simulate_record(
     if stale.is_file() and GENERATED_BY in stale.read_text():
         stale.unlink()  # a sidecar this command wrote for an earlier record of that name
     if observe == "ecef":
-        r_m = r + rng.normal(0.0, noise[0], r.shape)
-        v_m = v + rng.normal(0.0, noise[1], v.shape)
+        r_m = r + draw(noise[0], r.shape) + scatter(r.shape)
+        v_m = v + draw(noise[1], v.shape)
         cols = {n: c for n, c in zip(("x_m", "y_m", "z_m"), r_m.T)}
         cols.update({n: c for n, c in zip(("vx_mps", "vy_mps", "vz_mps"), v_m.T)})
     elif observe == "reduced":
         cols = {
-            "altitude_m": h + rng.normal(0.0, noise[0], h.shape),
-            "speed_rel_mps": np.linalg.norm(v, axis=1) + rng.normal(0.0, noise[1], h.shape),
+            "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
+            "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
         }
         sidecar = {
             "generated_by": GENERATED_BY,
@@ -238,6 +294,8 @@ def simulate_record(
         "effects": effects,
         "noise": {"position_m" if observe == "ecef" else "altitude_m": noise[0],
                   "velocity_mps" if observe == "ecef" else "speed_mps": noise[1]},
+        "noise_tails": noise_tails,
+        "start_scatter": None if start_scatter is None else {"seconds": start_scatter[0], "metres": start_scatter[1]},
         "seed": seed,
         "scenario": asdict(sc),
         "truth_world": asdict(world),
@@ -247,4 +305,4 @@ def simulate_record(
     return out
 
 
-__all__ = ["DEFAULT_VALUES", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "truth_world", "simulate_record"]
+__all__ = ["DEFAULT_VALUES", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record", "truth_world"]

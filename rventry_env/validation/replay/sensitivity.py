@@ -3,7 +3,7 @@
 For one set of effects, the replay's step is built symbolically from the one copy of the physics
 (:func:`~rventry_env.physics.entry_rhs` on CasADi symbols, the force-model parts taking symbolic
 parameters) and the same RK4 stages, Euler-parameter projection and control handling as
-:class:`~rventry_env.validation.record_replay.Replay`. Forward-mode automatic differentiation
+:class:`~rventry_env.validation.replay.record_replay.Replay`. Forward-mode automatic differentiation
 (``jtimes``) carries the sensitivity matrix S = dx/d(theta) through every step along with the
 state, so the Jacobian of the discrete replay is exact (not a finite difference of it), and
 costs about three replays whatever the number of parameters. ``mapaccum`` runs the steps in
@@ -21,7 +21,7 @@ from rventry_env.core.backend import casadi_ns
 from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.physics import entry_rhs
-from rventry_env.validation.record_replay import N_RV, Replay, hermite_weights
+from rventry_env.validation.replay.record_replay import N_RV, Replay, hermite_weights
 
 
 class SensitivityReplay:
@@ -31,9 +31,13 @@ class SensitivityReplay:
     :param build: ``build(values) -> EntryModel`` for a dict of parameter values (CasADi
         symbols here).
     :param names: the free model parameters, in order.
+    :param forcing: an extra specific force added to the model's (the residual trace,
+        :mod:`~rventry_env.validation.trace.forcing`): ``forcing.n_inputs`` known values per RK4
+        stage (``forcing.stage_inputs``, ``(3 n_inputs, N)``; ``forcing.end_inputs`` at the last
+        node) and ``forcing.forces(x, model, values, inputs, theta_u, ns) -> (model, forces)``.
     """
 
-    def __init__(self, replay: Replay, build, names: tuple):
+    def __init__(self, replay: Replay, build, names: tuple, forcing=None):
         import casadi as ca
 
         self.replay = replay
@@ -45,27 +49,38 @@ class SensitivityReplay:
         x = ca.SX.sym("x", N_RV)
         p = ca.SX.sym("p", n_p)
         h = ca.SX.sym("h")
-        u = ca.SX.sym("u", 6)
+        self.forcing = forcing
+        q = 0 if forcing is None else forcing.n_inputs
+        u = ca.SX.sym("u", 6 + 3 * q)
         s = ca.SX.sym("S", N_RV, self.n_sens)
-        model = build({name: p[i] for i, name in enumerate(self.names)})
+        values = {name: p[i] for i, name in enumerate(self.names)}
+        model = build(values)
 
-        def f(xx, alpha, mu):
+        def f(xx, alpha, mu, inputs=()):
             theta_u, _ = lift_up_angle((xx[6], xx[7], xx[8], xx[9]), ns)
-            d = entry_rhs((*[xx[i] for i in range(N_RV)], alpha, mu + theta_u), (0.0, 0.0), model, ns)
+            full = (*[xx[i] for i in range(N_RV)], alpha, mu + theta_u)
+            if forcing is None:
+                d = entry_rhs(full, (0.0, 0.0), model, ns)
+            else:
+                m2, forces = forcing.forces(full, model, values, inputs, theta_u, ns)
+                d = entry_rhs(full, (0.0, 0.0), m2, ns, forces=forces)
             return ca.vertcat(*d[:N_RV])
 
-        k1 = f(x, u[0], u[3])
-        k2 = f(x + 0.5 * h * k1, u[1], u[4])
-        k3 = f(x + 0.5 * h * k2, u[1], u[4])
-        k4 = f(x + h * k3, u[2], u[5])
+        def w(stage):  # the forcing's known inputs at one RK4 stage
+            return [u[6 + stage * q + i] for i in range(q)]
+
+        k1 = f(x, u[0], u[3], w(0))
+        k2 = f(x + 0.5 * h * k1, u[1], u[4], w(1))
+        k3 = f(x + 0.5 * h * k2, u[1], u[4], w(1))
+        k4 = f(x + h * k3, u[2], u[5], w(2))
         xn = x + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
         xn = ca.vertcat(xn[0], xn[1:5] / ca.norm_2(xn[1:5]), xn[5], xn[6:10] / ca.norm_2(xn[6:10]))
         seeds = ca.vertcat(s, ca.horzcat(ca.SX.zeros(n_p, n_init), ca.SX.eye(n_p)))
         z = ca.vertcat(x, p)
         step = ca.Function("step", [x, s, h, u, p], [xn, ca.jtimes(xn, z, seeds), k1, ca.jtimes(k1, z, seeds)])
         self._steps = step.mapaccum("replay", replay.grid.n_steps, [0, 1], [0, 1])
-        ue = ca.SX.sym("ue", 2)
-        fe = f(x, ue[0], ue[1])
+        ue = ca.SX.sym("ue", 2 + q)
+        fe = f(x, ue[0], ue[1], [ue[2 + i] for i in range(q)])
         self._end = ca.Function("end", [x, s, ue, p], [fe, ca.jtimes(fe, z, seeds)])
         # observations and their derivatives at the samples
         if replay.record.kind == "ecef":
@@ -95,7 +110,11 @@ class SensitivityReplay:
         s0[:, :n_init] = rp.init.jacobian(offsets)
         g = rp.grid
         p = np.asarray(params, float).reshape(-1, 1) if len(params) else np.zeros((0, 1))
-        xn, sn, k1, sk1 = self._steps(x0, s0, g.h[None, :], rp.stage_controls, p)
+        stage, end = rp.stage_controls, rp.end_controls
+        if self.forcing is not None and self.forcing.n_inputs:
+            stage = np.concatenate([stage, self.forcing.stage_inputs])
+            end = np.concatenate([end, self.forcing.end_inputs])
+        xn, sn, k1, sk1 = self._steps(x0, s0, g.h[None, :], stage, p)
         n = g.n_steps
         xs = np.empty((n + 1, N_RV))
         xs[0] = x0
@@ -107,7 +126,7 @@ class SensitivityReplay:
         fs[:-1] = np.asarray(k1).T
         sf = np.empty_like(ss)
         sf[:-1] = np.asarray(sk1).reshape(N_RV, n, ns_).transpose(1, 0, 2)
-        fe, sfe = self._end(xs[-1], ss[-1], rp.end_controls, p)
+        fe, sfe = self._end(xs[-1], ss[-1], end, p)
         fs[-1] = np.asarray(fe).ravel()
         sf[-1] = np.asarray(sfe)
         k = g.step

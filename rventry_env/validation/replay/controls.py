@@ -188,4 +188,4 @@ def control_schedule(record: FlightRecord, lift_to_drag: float | None, needs_alp
 
 LONG_GAP_FACTOR = 3.0  # a control interval this many times its typical sampling step is reported
 
-__all__ = ["Interpolant", "ControlSchedule", "control_schedule"]
+__all__ = ["ControlSchedule", "Interpolant", "control_schedule"]

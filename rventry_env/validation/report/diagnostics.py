@@ -9,18 +9,14 @@ the residual is summarised in thirds of the record.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from rventry_env.core.backend import NUMPY
-from rventry_env.physics import DensityCorrection, EntryModel
-from rventry_env.physics.atmosphere import piecewise_linear
-from rventry_env.validation.effects import Structure, build_model
-from rventry_env.validation.fit import FitResult
+from rventry_env.physics import EntryModel
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.record_replay import Replay
-from rventry_env.validation.selection import FitContext
+from rventry_env.validation.replay.record_replay import Replay
+from rventry_env.validation.search.effects import Structure, build_model, log_density_ratio
+from rventry_env.validation.search.fit import FitResult
+from rventry_env.validation.search.selection import FitContext
 
 
 def _rms(x: np.ndarray):
@@ -59,43 +55,6 @@ def error_metrics(residual: np.ndarray, kind: str) -> dict:
     }
 
 
-def log_density_ratio(altitude: np.ndarray, density: np.ndarray, model: EntryModel) -> np.ndarray:
-    """ln(rho_record / rho_model) at the record's altitudes."""
-    return np.log(density / np.asarray(model.atmosphere.density(altitude, NUMPY), float))
-
-
-def measured_density_correction(altitude: np.ndarray, density: np.ndarray, model: EntryModel,
-                                n_knots: int = 6) -> DensityCorrection:  # fmt: skip
-    """The :class:`DensityCorrection` of ``model``'s atmosphere that best matches measured densities.
-
-    Linear least squares of ln(rho_record / rho_model) on the piecewise-linear
-    (hat-function) basis of the correction, knots spread evenly over the
-    measured altitudes (fewer if there are few measurements).
-
-    :param altitude: altitudes of the measurements (m).
-    :param density: measured densities (kg/m^3).
-    :param model: the model whose atmosphere is corrected.
-    :param n_knots: most knots.
-    """
-    lr = log_density_ratio(altitude, density, model)
-    n = int(max(2, min(n_knots, len(altitude) // 4)))
-    knots = tuple(float(k) for k in np.linspace(np.min(altitude), np.max(altitude), n))
-    # hat function i: the correction with log factor 1 at knot i, 0 elsewhere
-    hats = [piecewise_linear(altitude, knots, tuple(float(i == j) for j in range(n)), NUMPY)
-            for i in range(n)]  # fmt: skip
-    basis = np.stack(hats, axis=1)
-    coef, *_ = np.linalg.lstsq(basis, lr, rcond=None)
-    return DensityCorrection(model.atmosphere, knots, tuple(float(c) for c in coef))
-
-
-def base_atmosphere(model: EntryModel):
-    """The atmosphere without an identified density correction."""
-    atm = model.atmosphere
-    while isinstance(atm, DensityCorrection):
-        atm = atm.base
-    return atm
-
-
 def window_errors(t: np.ndarray, residual: np.ndarray, kind: str, n_windows: int = 3) -> list[dict]:
     """rms of the position (altitude) error in consecutive time windows (thirds by default)."""
     edges = np.linspace(t[0], t[-1], n_windows + 1)
@@ -110,11 +69,6 @@ def window_errors(t: np.ndarray, residual: np.ndarray, kind: str, n_windows: int
     return out
 
 
-def with_atmosphere(setup, atmosphere):
-    """A copy of a :class:`~rventry_env.validation.replay_setup.ReplaySetup` whose model has ``atmosphere``."""
-    return dataclasses.replace(setup, model=setup.model.replace(atmosphere=atmosphere))
-
-
 def fixed_state_errors(replay: Replay, model: EntryModel, kind: str) -> dict:
     """Errors of a replay from the declared (or first measured) initial state, nothing fitted."""
     pred = replay.predict(model, np.zeros((1, replay.init.size)))[..., 0]
@@ -124,7 +78,7 @@ def fixed_state_errors(replay: Replay, model: EntryModel, kind: str) -> dict:
 def run_diagnostics(
     record: FlightRecord, ctx: FitContext, base: FitResult, current: FitResult, chosen, kind: str, first: dict
 ) -> dict:
-    """Checks on what remains (see :mod:`rventry_env.validation.diagnostics`)."""
+    """Checks on what remains (see :mod:`rventry_env.validation.report.diagnostics`)."""
     replay, setup = ctx.replay, ctx.setup
     t = replay.t_obs
     out = {"windows": {"before": window_errors(t, base.residual, kind),
@@ -169,9 +123,5 @@ __all__ = [
     "error_metrics",
     "fixed_state_errors",
     "run_diagnostics",
-    "log_density_ratio",
-    "measured_density_correction",
-    "base_atmosphere",
     "window_errors",
-    "with_atmosphere",
 ]

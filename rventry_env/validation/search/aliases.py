@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from rventry_env.validation.effects import EFFECT_NAMES, Structure
+from rventry_env.validation.search.effects import EFFECT_NAMES, Structure
 
 # identifiable coordinates of the uniform aerodynamic part: ln k_D and ln k_L
 _D, _L = 0, 1
@@ -233,8 +233,8 @@ def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: 
                 continue
             params = {}
             for e, a in zip(sub, coef):
-                if e == "mass":
-                    params["mass_scale"] = math.exp(-a)
+                if e == "mass":  # its direction is already (-1, -1): the mass factor is exp(+a)
+                    params["mass_scale"] = math.exp(a)
                 elif e == "drag_coefficient":
                     params["cd_scale"] = math.exp(a)
                 elif e == "lift_coefficient":
@@ -284,11 +284,11 @@ def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: 
 
 __all__ = [
     "LEVEL_CAUSES",
-    "lift_capable",
-    "directions",
-    "same_span",
     "admissible",
-    "sparsest_equivalent",
-    "identifiable",
     "alias_groups",
+    "directions",
+    "identifiable",
+    "lift_capable",
+    "same_span",
+    "sparsest_equivalent",
 ]

@@ -267,13 +267,13 @@ def replay_setup(
 
 
 __all__ = [
-    "START_MODELS",
     "SIDECAR_KEYS",
+    "START_MODELS",
     "EntryState",
     "ReplaySetup",
     "check_keys",
-    "vehicle_from_dict",
     "entry_state_from_dict",
     "noise_from_dict",
     "replay_setup",
+    "vehicle_from_dict",
 ]

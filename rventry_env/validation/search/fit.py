@@ -2,7 +2,7 @@
 
 The residual is (replayed - measured) / sigma on every measured value. Its Jacobian is exact:
 the derivative of the discrete RK4 replay, propagated step by step by CasADi's forward-mode
-automatic differentiation (:mod:`~rventry_env.validation.sensitivity`); one evaluation gives the
+automatic differentiation (:mod:`~rventry_env.validation.replay.sensitivity`); one evaluation gives the
 residual and the Jacobian together, and the solver's Jacobian call is served from that cache.
 ``scipy.optimize.least_squares`` (trust-region reflective) keeps every parameter inside its
 physical bounds, and a fit that ends on one is reported as such (:attr:`FitResult.extra`).
@@ -15,8 +15,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rventry_env.physics import EntryModel
-from rventry_env.validation.effects import EARTH_J2, Param, Structure, build_model, structure_parameters
-from rventry_env.validation.statistics import bic
+from rventry_env.validation.search.effects import (
+    EARTH_J2,
+    Param,
+    Structure,
+    build_model,
+    structure_parameters,
+)
+from rventry_env.validation.search.statistics import bic
 
 BAD_RESIDUAL = 1e4  # stands in for a diverged replay (normalized units), so the solver backs off
 BOUND_REL = 1e-4  # a parameter within this fraction of its range from a bound is on the bound
@@ -117,7 +123,7 @@ class OutputErrorProblem:
         pnames = tuple(p.name for p in self.params)
         key = (structure.key(), pnames)
         if key not in engines:
-            from rventry_env.validation.sensitivity import SensitivityReplay
+            from rventry_env.validation.replay.sensitivity import SensitivityReplay
 
             engines[key] = SensitivityReplay(replay, lambda v: build_model(setup, structure, v), pnames)
         self.engine = engines[key]

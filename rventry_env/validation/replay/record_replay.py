@@ -11,7 +11,7 @@ Two evaluations share the grid, the controls and the interpolation:
 * :meth:`Replay.predict` flies any :class:`~rventry_env.physics.EntryModel` (NumPy, batched
   over a trailing axis), through :func:`~rventry_env.physics.entry_rhs` and the project's
   :func:`~rventry_env.core.integrate.rk4_step`;
-* :mod:`~rventry_env.validation.sensitivity` builds the same step from the same ``entry_rhs``
+* :mod:`~rventry_env.validation.replay.sensitivity` builds the same step from the same ``entry_rhs``
   in CasADi and propagates its exact derivatives, which is what the fits use.
 
 The angle of attack and the paper's bank angle sigma are not integrated: they are set from the
@@ -34,9 +34,9 @@ from rventry_env.core.conversions import (
 )
 from rventry_env.core.integrate import rk4_step
 from rventry_env.physics import EntryModel, entry_rhs
-from rventry_env.validation.controls import ControlSchedule
 from rventry_env.validation.record import FlightRecord, RecordError
-from rventry_env.validation.replay_setup import ReplaySetup
+from rventry_env.validation.replay.controls import ControlSchedule
+from rventry_env.validation.replay.replay_setup import ReplaySetup
 
 N_RV = 10  # rv-Euler parameters integrated (alpha and sigma come from the record)
 MAX_RK4_STEPS = 50_000  # a bound on the work of one replay
@@ -288,4 +288,4 @@ class Replay:
             return self.observe(self.states(model, self.init.rv_euler(offsets)), model)
 
 
-__all__ = ["InitialState", "initial_state", "Grid", "make_grid", "hermite_weights", "MAX_RK4_STEPS", "Replay"]
+__all__ = ["MAX_RK4_STEPS", "Grid", "InitialState", "Replay", "hermite_weights", "initial_state", "make_grid"]

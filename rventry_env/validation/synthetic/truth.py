@@ -28,8 +28,8 @@ force-model part.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -66,6 +66,14 @@ class TruthWorld:
         growing (for A > 0) toward lower Mach.
     :param mach_drag_centre: the Mach number where that factor is 1.
     :param mach_drag_width: its e-folding width in Mach.
+    :param band_channel: ``"lift"`` or ``"drag"``: that coefficient multiplied by ``band_scale``
+        between the altitudes ``band_low`` and ``band_high`` (m), with 1 km tanh edges (an
+        effect outside the candidate set).
+    :param mach_lift_scale: C_L multiplied by this below Mach ``mach_lift_below`` (1-Mach tanh edge).
+    :param wind_shear: an eastward wind ``wind_shear`` tanh((h - shear_altitude) / shear_width)
+        (m/s): it reverses at ``shear_altitude``.
+    :param side_force: a force out of the vertical plane, this fraction of the drag, toward the
+        right of the velocity (v x up).
     """
 
     radius: float = 6378137.0
@@ -88,6 +96,16 @@ class TruthWorld:
     mach_drag_amplitude: float = 0.0
     mach_drag_centre: float = 22.0
     mach_drag_width: float = 5.0
+    band_channel: str = ""
+    band_scale: float = 1.0
+    band_low: float = 0.0
+    band_high: float = 0.0
+    mach_lift_scale: float = 1.0
+    mach_lift_below: float = 0.0
+    wind_shear: float = 0.0
+    shear_altitude: float = 54e3
+    shear_width: float = 2e3
+    side_force: float = 0.0
 
 
 # U.S. Standard Atmosphere 1976 below 86 km: layers in geopotential altitude (m') with their
@@ -177,13 +195,17 @@ def cav_h_coefficients(alpha: float, mach: float) -> tuple[float, float]:
 
 def wind_ecef(r: np.ndarray, world: TruthWorld) -> np.ndarray:
     """Horizontal wind (m/s) in ECEF from its east and north components at position ``r``."""
-    if not (world.wind_east or world.wind_north):
+    if not (world.wind_east or world.wind_north or world.wind_shear):
         return np.zeros(3)
     up = r / np.linalg.norm(r)
     east = np.cross([0.0, 0.0, 1.0], up)
     east /= np.linalg.norm(east)
     north = np.cross(up, east)
-    return world.wind_east * east + world.wind_north * north
+    w_east = world.wind_east
+    if world.wind_shear:
+        h = np.linalg.norm(r) - world.radius
+        w_east = w_east + world.wind_shear * math.tanh((h - world.shear_altitude) / world.shear_width)
+    return w_east * east + world.wind_north * north
 
 
 def lift_direction(r: np.ndarray, v: np.ndarray, v_air: np.ndarray, bank: float) -> np.ndarray:
@@ -220,10 +242,27 @@ def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world:
     if world.mach_drag_amplitude:
         shape = 1.0 - math.exp((mach - world.mach_drag_centre) / world.mach_drag_width)
         cd *= math.exp(world.mach_drag_amplitude * shape)
+    if world.band_channel:
+        inside = 0.5 * (math.tanh((h - world.band_low) / 1e3) - math.tanh((h - world.band_high) / 1e3))
+        factor = 1.0 + (world.band_scale - 1.0) * inside
+        if world.band_channel == "lift":
+            cl *= factor
+        elif world.band_channel == "drag":
+            cd *= factor
+        else:
+            raise ValueError(f"band_channel must be 'lift' or 'drag', got {world.band_channel!r}")
+    if world.mach_lift_below:
+        below = 0.5 * (1.0 - math.tanh(mach - world.mach_lift_below))
+        cl *= 1.0 + (world.mach_lift_scale - 1.0) * below
     k = q * world.area / world.mass
     drag = -k * world.cd_scale * cd * v_air / speed_air
     lift = k * world.cl_scale * cl * lift_direction(r, v, v_air, bank)
-    return gravity_ecef(r, world) + drag + lift - 2.0 * np.cross(w, v) - np.cross(w, np.cross(w, r))
+    out = gravity_ecef(r, world) + drag + lift - 2.0 * np.cross(w, v) - np.cross(w, np.cross(w, r))
+    if world.side_force:
+        up_dir = lift_direction(r, v, v_air, 0.0)
+        side = np.cross(v_air / speed_air, up_dir)
+        out = out + world.side_force * k * world.cd_scale * cd * side
+    return out
 
 
 def ecef_from_spherical(
@@ -279,14 +318,14 @@ def fly(
 
 __all__ = [
     "EARTH_J2",
-    "us76_density",
     "TruthWorld",
-    "gravity_ecef",
-    "density",
-    "cav_h_coefficients",
-    "wind_ecef",
-    "lift_direction",
     "acceleration",
+    "cav_h_coefficients",
+    "density",
     "ecef_from_spherical",
     "fly",
+    "gravity_ecef",
+    "lift_direction",
+    "us76_density",
+    "wind_ecef",
 ]

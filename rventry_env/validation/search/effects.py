@@ -20,7 +20,7 @@ effect                parameters                           physical bounds      
 The bounds are physical, not numerical: a fit that ends on one is not explaining the record, it
 is being stretched to absorb something else, and is never accepted. J2 is a known constant, so
 ``j2_gravity`` has no free parameter: it is tested at its known value (and the value the record
-would prefer is checked against it, :mod:`~rventry_env.validation.selection`).
+would prefer is checked against it, :mod:`~rventry_env.validation.search.selection`).
 
 ``mach_drag`` is the *variation* of C_D with Mach: its factor is 1 at the highest Mach number
 the record flies (a declared C_D is the value at the top of the flight, like Apollo's trim C_D for
@@ -30,11 +30,11 @@ nested.
 ``cl_scale`` multiplies the *declared* lift (the sidecar's aerodynamics): a model started
 drag-only has cl_scale = 0, so "lift missing altogether" is the same effect as "lift 20 % low",
 only further from the start. Which of these the data can tell apart is the business of
-:mod:`~rventry_env.validation.aliases`.
+:mod:`~rventry_env.validation.search.aliases`.
 
 Parameter values may be NumPy arrays or CasADi symbols: the physics parts are plain component
 arithmetic, so the same :func:`build_model` serves the reported model and the symbolic replay
-whose exact sensitivities the fits use (:mod:`~rventry_env.validation.sensitivity`).
+whose exact sensitivities the fits use (:mod:`~rventry_env.validation.replay.sensitivity`).
 """
 
 from __future__ import annotations
@@ -45,9 +45,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rventry_env.core.backend import NUMPY
 from rventry_env.physics import DensityCorrection, EntryModel, HorizontalWind, J2Gravity, ScaledAerodynamics
+from rventry_env.physics.atmosphere import piecewise_linear
 from rventry_env.physics.mach_drag import MachDragCorrection
-from rventry_env.validation.replay_setup import ReplaySetup
+from rventry_env.validation.replay.replay_setup import ReplaySetup
 
 EFFECT_NAMES = (
     "j2_gravity",
@@ -105,7 +107,7 @@ class Structure:
     density_knots: tuple = ()
     mach_knots: tuple = ()
 
-    def with_effect(self, name: str, density_knots=None, mach_knots=None) -> "Structure":
+    def with_effect(self, name: str, density_knots=None, mach_knots=None) -> Structure:
         return Structure(
             self.effects + (name,),
             self.density_knots if density_knots is None else tuple(density_knots),
@@ -120,9 +122,10 @@ class Structure:
         )
 
 
-KNOT_COUNTS = (2, 3, 4, 6, 8)
+KNOT_COUNTS = (2, 3, 4, 6, 8, 12, 16, 24, 32)
 MACH_KNOT_COUNTS = (2, 3, 4)
-MIN_KNOT_SPACING = 2e3  # m: finer than this a density correction is not resolved by a trajectory
+MIN_KNOT_SPACING = 1e3  # m: finer than this a density correction is not resolved by a trajectory
+SAMPLES_PER_KNOT = 10  # a profile gets at most one knot per this many samples
 
 
 def density_knots(altitudes: np.ndarray, n_knots: int = 2) -> tuple:
@@ -142,10 +145,17 @@ def density_knots(altitudes: np.ndarray, n_knots: int = 2) -> tuple:
 
 
 def knot_counts(altitudes: np.ndarray) -> tuple:
-    """Knot counts worth trying: those of :data:`KNOT_COUNTS` not finer than :data:`MIN_KNOT_SPACING`."""
+    """Knot counts worth trying, up to what the record resolves.
+
+    Those of :data:`KNOT_COUNTS` whose spacing over the altitudes flown is at least
+    :data:`MIN_KNOT_SPACING` and with at least :data:`SAMPLES_PER_KNOT` samples per knot: a long
+    dense record may bend its profile every kilometre (a density wave of a few kilometres), a
+    short or sparse one stays coarse. BIC picks among them (:meth:`FitContext.fit_profile`).
+    """
     h = altitudes[np.isfinite(altitudes)]
     span = float(np.max(h) - np.min(h))
-    return tuple(n for n in KNOT_COUNTS if n == 2 or span / (n - 1) >= MIN_KNOT_SPACING)
+    return tuple(n for n in KNOT_COUNTS
+                 if n == 2 or (span / (n - 1) >= MIN_KNOT_SPACING and n * SAMPLES_PER_KNOT <= h.size))  # fmt: skip
 
 
 def mach_knots(mach: np.ndarray, n_knots: int = 2) -> tuple:
@@ -254,19 +264,52 @@ def build_model(setup: ReplaySetup, structure: Structure, values: dict | None = 
     return m.replace(**parts)
 
 
+def log_density_ratio(altitude: np.ndarray, density: np.ndarray, model: EntryModel) -> np.ndarray:
+    """ln(rho_record / rho_model) at the record's altitudes."""
+    return np.log(density / np.asarray(model.atmosphere.density(altitude, NUMPY), float))
+
+
+def measured_density_correction(altitude: np.ndarray, density: np.ndarray, model: EntryModel,
+                                n_knots: int = 6) -> DensityCorrection:  # fmt: skip
+    """The :class:`DensityCorrection` of ``model``'s atmosphere that best matches measured densities.
+
+    Linear least squares of ln(rho_record / rho_model) on the piecewise-linear
+    (hat-function) basis of the correction, knots spread evenly over the
+    measured altitudes (fewer if there are few measurements).
+
+    :param altitude: altitudes of the measurements (m).
+    :param density: measured densities (kg/m^3).
+    :param model: the model whose atmosphere is corrected.
+    :param n_knots: most knots.
+    """
+    lr = log_density_ratio(altitude, density, model)
+    n = int(max(2, min(n_knots, len(altitude) // 4)))
+    knots = tuple(float(k) for k in np.linspace(np.min(altitude), np.max(altitude), n))
+    # hat function i: the correction with log factor 1 at knot i, 0 elsewhere
+    hats = [piecewise_linear(altitude, knots, tuple(float(i == j) for j in range(n)), NUMPY)
+            for i in range(n)]  # fmt: skip
+    basis = np.stack(hats, axis=1)
+    coef, *_ = np.linalg.lstsq(basis, lr, rcond=None)
+    return DensityCorrection(model.atmosphere, knots, tuple(float(c) for c in coef))
+
+
 __all__ = [
-    "EFFECT_NAMES",
     "EARTH_J2",
-    "PHYSICAL_BOUNDS",
+    "EFFECT_NAMES",
     "KNOT_COUNTS",
     "MACH_KNOT_COUNTS",
+    "MIN_KNOT_SPACING",
+    "SAMPLES_PER_KNOT",
+    "PHYSICAL_BOUNDS",
     "Param",
     "Structure",
-    "density_knots",
-    "knot_counts",
-    "mach_knots",
-    "mach_knot_counts",
-    "effect_parameters",
-    "structure_parameters",
     "build_model",
+    "density_knots",
+    "effect_parameters",
+    "knot_counts",
+    "log_density_ratio",
+    "mach_knot_counts",
+    "mach_knots",
+    "measured_density_correction",
+    "structure_parameters",
 ]

@@ -1,0 +1,175 @@
+"""The JSON report of an identification, assembled from what the phases found.
+
+:func:`build_report` takes the record's flight, its intake, the search state and the adequacy
+test and lays them out in the keys documented in ``docs/validation.md``; it computes nothing
+the phases have not, except summaries (error metrics, whiteness) of their fits.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rventry_env.validation.record import RecordError
+from rventry_env.validation.report.diagnostics import error_metrics
+from rventry_env.validation.report.model_io import model_to_dict
+from rventry_env.validation.search.aliases import identifiable
+from rventry_env.validation.search.effects import EARTH_J2, PHYSICAL_BOUNDS
+from rventry_env.validation.search.fit import FitResult
+from rventry_env.validation.search.statistics import whiteness
+
+
+def residual_whiteness(fit: FitResult, sigma: np.ndarray) -> dict:
+    """Whiteness of a fit's residual in noise units."""
+    return whiteness(fit.residual / sigma[None, :])
+
+
+def fit_summary(fit: FitResult, kind: str, sigma: np.ndarray) -> dict:
+    """One candidate's fit for the report: effects, BIC, credibility, parameters, errors."""
+    n0 = fit.extra["n_initial"]
+    out = {
+        "effects": list(fit.effects),
+        "bic": fit.bic,
+        "credible": fit.credible,
+        "parameters": fit.parameters(),
+        "stderr": {k: float(s) for k, s in zip(fit.names[n0:], fit.stderr[n0:])},
+        "at_bound": fit.extra["at_bound"],
+        "initial_state_at_bound": fit.extra["initial_state_at_bound"],
+        "implausible": fit.extra["implausible"],
+        "errors": error_metrics(fit.residual, kind),
+        "whiteness": residual_whiteness(fit, sigma),
+        "replays": fit.nfev,
+    }
+    if "j2_check" in fit.extra:
+        out["j2_check"] = fit.extra["j2_check"]
+    return out
+
+
+def statement(chosen, adeq: dict, aliases: list) -> str:
+    """The report's plain-words answer: what was identified, its aliases, and what remains."""
+    if chosen:
+        head = f"Identified: {' + '.join(chosen)}."
+    else:
+        head = "No candidate effect is supported by the record."
+    if aliases:
+        others = [" + ".join(m["effects"]) + (" (tied)" if m["tied"] else "") for m in aliases[0]["members"]
+                  if sorted(m["effects"]) != sorted(chosen)]  # fmt: skip
+        if others:
+            head += f" The record cannot tell it from: {'; '.join(others)} (see aliases)."
+    if adeq["unexplained"] and chosen:
+        head += " The named effects are the best the candidate set offers; they may stand in for the missing one."
+    return head + " " + adeq["statement"]
+
+
+def answer_parameters(current: FitResult, chosen) -> tuple[dict, dict]:
+    """The answer's parameters and standard errors (the known J2 with its record-preferred stderr)."""
+    n0 = current.extra["n_initial"]
+    params = current.parameters()
+    stderr = {k: float(s) for k, s in zip(current.names[n0:], current.stderr[n0:])}
+    if "j2_gravity" in chosen:
+        params["j2"] = EARTH_J2
+        stderr["j2"] = current.extra.get("j2_check", {}).get("stderr")
+    return params, stderr
+
+
+def noise_section(screened, current: FitResult) -> dict:
+    """What the noise was taken to be, where it came from, and the rms after the fit."""
+    names = screened.group_names
+    return {
+        "declared": screened.declared,
+        "difference_estimate": {g: (screened.estimate[g] if np.isfinite(screened.estimate[g]) else None)
+                                for g in names},
+        "difference_estimate_is": screened.estimate_is,
+        "robust_difference_estimate": {g: (v if np.isfinite(v) else None) for g, v in screened.robust_estimate.items()},
+        "weights": {g: screened.sigma[g] for g in names},
+        "weights_from": screened.weights_from,
+        "after_fit_rms": {g: (math.sqrt(current.rss_by_group[i] / current.n_by_group[i])
+                              if current.n_by_group[i] else None) for i, g in enumerate(names)},
+    }  # fmt: skip
+
+
+def record_section(record, replay, controls) -> dict:
+    """The record as replayed: samples, span, RK4 steps, and every note on it."""
+    return {
+        "path": str(record.path) if record.path else None,
+        "kind": record.kind,
+        "samples": len(replay.rows),
+        "values": int(np.count_nonzero(np.isfinite(replay.y))),
+        "t_start_s": replay.t0,
+        "t_end_s": float(replay.t_obs[-1]),
+        "rk4_steps": int(replay.grid.n_steps),
+        "notes": list(record.notes) + list(controls.notes) + list(replay.notes),
+    }
+
+
+def build_report(record, replay, controls, setup, screened, ctx, state, adeq: dict, aliases: list,
+                 threshold: float, max_effects: int, elapsed: float, trace: dict | None = None) -> dict:  # fmt: skip
+    """The identification report (see ``docs/validation.md`` for every key).
+
+    :param trace: the residual trace (:mod:`~rventry_env.validation.trace.attribution`), when the
+        residual is not noise.
+    """
+    current, base, chosen = state.current, state.base, state.chosen
+    kind = record.kind
+    sigma = ctx.sigma
+    n0 = current.extra["n_initial"]
+    table = state.steps[0]["tried"]
+    params, stderr = answer_parameters(current, chosen)
+    bound = screened.bound
+    return {
+        "effect": chosen[0] if chosen else ("unexplained" if adeq["unexplained"] else "none"),
+        "effects": list(chosen),
+        "unexplained": adeq["unexplained"],
+        "statement": statement(chosen, adeq, aliases) + (" " + trace["statement"] if trace else ""),
+        "attribution": trace["attribution"] if trace else [],
+        "trace": None if trace is None else {k: v for k, v in trace.items() if k != "residual_after_trace"},
+        "parameters": params,
+        "parameter_stderr": stderr,
+        "fixed_parameters": {"j2": EARTH_J2} if "j2_gravity" in chosen else {},
+        "identifiable": identifiable(current.parameters(), chosen, setup.start_lift_scale) if chosen else None,
+        "aliases": aliases,
+        "adequacy": adeq,
+        "initial_state_offsets": {k: float(v) for k, v in zip(current.names[:n0], current.values[:n0])},
+        "initial_state_bound": None if bound is None else dict(zip(current.names[:n0], map(float, bound))),
+        "initial_state_at_bound": current.extra["initial_state_at_bound"],
+        "ranking": [{k: r[k] for k in ("effect", "bic", "delta_bic", "credible", "at_bound",
+                                       "initial_state_at_bound", "implausible")} for r in table],  # fmt: skip
+        "margin_to_runner_up": table[1]["delta_bic"] if len(table) > 1 else None,
+        "improvement_over_baseline": table[0]["improvement_over_current"] if table else None,
+        "bic_threshold": threshold,
+        "max_effects": max_effects,
+        "physical_bounds": PHYSICAL_BOUNDS,
+        "aliases_not_fitted": state.aliases_skipped,
+        "steps": state.steps,
+        "before": error_metrics(base.residual, kind),
+        "after": error_metrics(current.residual, kind),
+        "whiteness": {"before": residual_whiteness(base, sigma), "after": residual_whiteness(current, sigma)},
+        "noise": noise_section(screened, current),
+        "rejected_outliers": screened.rejected,
+        "entry_state_check": screened.entry_check or None,
+        "record": record_section(record, replay, controls),
+        "start_model": setup.start,
+        "density_knots_m": list(current.structure.density_knots) if "density_profile" in chosen else None,
+        "mach_knots": list(current.structure.mach_knots) if "mach_drag" in chosen else None,
+        "knot_trials": state.knot_trials,
+        "candidates": {n: fit_summary(f, kind, sigma) for n, f in state.first.items()},
+        "model": model_to_dict(current.model),
+        "elapsed_s": elapsed,
+        "replays": ctx.nfev,
+    }
+
+
+def check_finite(report: dict) -> None:
+    """Fail loudly if a headline figure is not a finite number (never write NaN as a result)."""
+    for key in ("before", "after"):
+        for k, v in report[key].items():
+            if v is None or not math.isfinite(v):
+                raise RecordError(f"the replay produced no finite {k.replace('_', ' ')} ({key}); "
+                                  "check the record's units and the entry state")  # fmt: skip
+    for k, v in report["parameters"].items():
+        if not math.isfinite(v):
+            raise RecordError(f"the fit produced a non-finite parameter {k}")
+
+
+__all__ = ["build_report", "check_finite", "fit_summary", "residual_whiteness", "statement"]

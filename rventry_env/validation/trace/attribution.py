@@ -1,0 +1,490 @@
+"""Trace what the identified model leaves unexplained to a force channel, a band and a size.
+
+When the final residual is not noise, the effect the record needs is outside the candidate set.
+The trace asks a weaker question the record can still answer: *which force, over which part of
+the flight, and how large*. Each channel of :mod:`~rventry_env.validation.trace.forcing` (drag,
+vertical lift, lateral lift, horizontal wind) gets a piecewise-linear correction over altitude
+and, separately, over time. For every knot count the replay's exact Jacobian with respect to all
+channels' coefficients, the entry state and the identified effects' parameters is taken once at
+the identified fit (one replay with sensitivities); every channel and every pair of channels is
+then a Gauss-Newton fit on its columns. The knot count of each channel is chosen by BIC
+(counted on the effective sample size, like the candidates), and the best single channel or pair
+is kept only if it beats the identified model by the BIC threshold. It is then refined by full
+Gauss-Newton iterations (a fresh Jacobian each), so the size and band are those of a converged fit.
+
+The result names the channel(s), the axis, the *band* (where the correction is at least half its
+peak), the *size* (its peak, signed, in the channel's unit), the Mach numbers flown in the band,
+and the rivals within the threshold (what the record cannot tell apart from it). The named
+physical effects follow from the channel and where it acts (:func:`points_to`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from rventry_env.core.backend import NUMPY
+from rventry_env.validation.replay.sensitivity import SensitivityReplay
+from rventry_env.validation.search.effects import WIND_MAX_MPS, build_model
+from rventry_env.validation.search.statistics import bic, bic_effective, effective_size, whiteness
+from rventry_env.validation.trace.forcing import CHANNELS, UNITS, ChannelForcing, channel_parameters
+
+KNOT_COUNTS = (2, 3, 4, 6, 8, 12, 16)
+MIN_ALTITUDE_SPACING = 1e3  # m between knots of an altitude profile
+MIN_TIME_SPACING = 10.0  # s between knots of a time profile
+VALUES_PER_PARAMETER = 8  # a fit needs at least this many measured values per parameter
+REFINE_ITERATIONS = 4
+REFINE_LEADERS = 2  # corrections per axis refined to convergence after the one-step screening
+AERO_MAX = 1.0  # an aerodynamic correction beyond 100 % of the drag is not a correction
+BAND_FRACTION = 0.5  # the band: where the correction is at least this fraction of its peak
+
+
+def _span(replay, axis: str) -> tuple[float, float]:
+    if axis == "time":
+        return float(replay.t0), float(replay.t_obs[-1])
+    h = replay.record.altitude()[replay.rows]
+    h = h[np.isfinite(h)]
+    return float(np.min(h)), float(np.max(h))
+
+
+def knot_counts(replay, axis: str, n_values: int) -> list[int]:
+    """Knot counts the record resolves on an axis: not closer than the minimum spacing, enough values."""
+    lo, hi = _span(replay, axis)
+    spacing = MIN_TIME_SPACING if axis == "time" else MIN_ALTITUDE_SPACING
+    most = n_values // (VALUES_PER_PARAMETER * 2 * len(CHANNELS))  # every channel of a pair fitted at once
+    return [k for k in KNOT_COUNTS if k == 2 or ((hi - lo) / (k - 1) >= spacing and k <= most)]
+
+
+def _knots(replay, axis: str, n: int) -> tuple:
+    lo, hi = _span(replay, axis)
+    if hi - lo < 1e-6:
+        lo, hi = lo - 1.0, hi + 1.0
+    return tuple(float(k) for k in np.linspace(lo, hi, n))
+
+
+def _stage_times(replay) -> np.ndarray:
+    g = replay.grid.nodes
+    h = np.diff(g)
+    return np.stack([g[:-1], g[:-1] + 0.5 * h, g[1:]])
+
+
+class _Linearized:
+    """One replay with sensitivities at the identified fit, all channels' corrections at zero."""
+
+    def __init__(self, ctx, final, axis: str, n_knots: int, channels=CHANNELS, engines: dict | None = None,
+                 residual: np.ndarray | None = None):  # fmt: skip
+        replay, setup = ctx.replay, ctx.setup
+        self.axis, self.knots = axis, _knots(replay, axis, n_knots)
+        self.n0 = final.extra["n_initial"]
+        self.effect_names = tuple(final.names[self.n0:])
+        forcing = ChannelForcing(tuple(channels), axis, self.knots, _stage_times(replay), float(replay.grid.nodes[-1]))
+        self.names = self.effect_names + tuple(forcing.names)
+        key = ("trace", final.structure.key(), self.effect_names, axis, self.knots, tuple(channels))
+        engines = {} if engines is None else engines
+        if key not in engines:
+            st = final.structure
+            engines[key] = SensitivityReplay(replay, lambda v: build_model(setup, st, v), self.names, forcing)
+        self.engine = engines[key]
+        self.channels = tuple(channels)
+        self.sigma = ctx.sigma
+        self.mask = np.isfinite(replay.y)
+        self.y_obs = replay.y
+        self.group_of = np.broadcast_to(ctx.groups, replay.y.shape)[self.mask]
+        self.theta0 = np.concatenate([final.values, np.zeros(len(forcing.names))])
+        if residual is None:  # the Jacobian at the identified fit
+            self.r, self.jac = self.evaluate(self.theta0)
+            ctx.nfev += 1
+        else:  # the residual there is known (the corrections are zero): no replay needed
+            self.r, self.jac = residual, None
+
+    def evaluate(self, theta: np.ndarray):
+        with np.errstate(all="ignore"):
+            y, j = self.engine.evaluate(theta[: self.n0], theta[self.n0:])
+        r = ((y - self.y_obs) / self.sigma[None, :])[self.mask]
+        jac = (j / self.sigma[None, :, None])[self.mask]
+        return r, jac
+
+    def columns(self, channels) -> list[int]:
+        """The entry state, the identified effects, and the channels' coefficients."""
+        base = list(range(self.n0 + len(self.effect_names)))
+        names = {n for c in channels for n in channel_parameters(c, len(self.knots))}
+        return base + [i for i, n in enumerate(self.names, start=self.n0) if n in names]
+
+    def step(self, r, jac, cols):
+        a = jac[:, cols]
+        scale = np.linalg.norm(a, axis=0)
+        scale[scale == 0] = 1.0
+        step, *_ = np.linalg.lstsq(a / scale, -r, rcond=None)
+        step = step / scale
+        return step, r + a @ step
+
+
+def _rss_by_group(r_norm: np.ndarray, sigma_entries: np.ndarray, group_of: np.ndarray, n_groups: int):
+    e = r_norm * sigma_entries
+    return [float(np.sum(e[group_of == g] ** 2)) for g in range(n_groups)], [
+        int(np.count_nonzero(group_of == g)) for g in range(n_groups)
+    ]
+
+
+def _residual_matrix(lin: _Linearized, r_norm: np.ndarray) -> np.ndarray:
+    out = np.full(lin.y_obs.shape, np.nan)
+    out[lin.mask] = r_norm
+    return out
+
+
+def _profile_grid(lo: float, hi: float, n: int = 201) -> np.ndarray:
+    return np.linspace(lo, hi, n)
+
+
+def _band(s: np.ndarray, g: np.ndarray) -> tuple[float, float, float]:
+    """Peak (signed) of a profile and the contiguous band around it where |g| >= BAND_FRACTION |peak|."""
+    i = int(np.argmax(np.abs(g)))
+    peak = float(g[i])
+    keep = np.abs(g) >= BAND_FRACTION * abs(peak)
+    a = i
+    while a > 0 and keep[a - 1]:
+        a -= 1
+    b = i
+    while b < len(g) - 1 and keep[b + 1]:
+        b += 1
+    return peak, float(s[a]), float(s[b])
+
+
+def _mach_in(ctx, axis: str, lo: float, hi: float) -> tuple[list | None, dict | None]:
+    """Mach numbers flown within a band, and whether the band is a Mach range (below or above a Mach number).
+
+    A band is "below Mach M" when every sample outside it flies faster than every sample in it
+    (within 0.05 Mach): then the record cannot tell a correction tied to the band from one tied
+    to Mach.
+    """
+    rec, replay = ctx.replay.record, ctx.replay
+    h = rec.altitude()[replay.rows]
+    v = rec.speed()[replay.rows]
+    s = replay.t_obs if axis == "time" else h
+    ok = np.isfinite(h) & np.isfinite(v)
+    inside = ok & (s >= lo - 1e-9) & (s <= hi + 1e-9)
+    if not np.any(inside):
+        return None, None
+    m = np.full(len(h), np.nan)
+    m[ok] = v[ok] / np.asarray(ctx.setup.model.atmosphere.speed_of_sound(h[ok], NUMPY), float)
+    m_in, m_out = m[inside], m[ok & ~inside]
+    rng = [float(np.min(m_in)), float(np.max(m_in))]
+    bound = None
+    if m_out.size and np.min(m_out) >= rng[1] - 0.05:
+        bound = {"below": rng[1]}
+    elif m_out.size and np.max(m_out) <= rng[0] + 0.05:
+        bound = {"above": rng[0]}
+    return rng, bound
+
+
+def _describe(ctx, lin: _Linearized, theta: np.ndarray, cov: np.ndarray, channels) -> list[dict]:
+    """One attribution entry per channel: band, size, profile, Mach in the band."""
+    lo, hi = lin.knots[0], lin.knots[-1]
+    s = _profile_grid(lo, hi)
+    k = len(lin.knots)
+    out = []
+    for c in channels:
+        names = channel_parameters(c, k)
+        idx = [lin.n0 + lin.names.index(n) for n in names]
+        coef = theta[idx]
+        sub = cov[np.ix_(idx, idx)] if cov is not None else None
+        parts = [("", coef)] if c != "wind" else [("east", coef[:k]), ("north", coef[k:])]
+        if c == "wind":
+            g_e, g_n = np.interp(s, lin.knots, coef[:k]), np.interp(s, lin.knots, coef[k:])
+            g = np.hypot(g_e, g_n)
+        else:
+            g = np.interp(s, lin.knots, coef)
+        peak, a, b = _band(s, g)
+        stderr = None
+        if sub is not None:
+            se = np.sqrt(np.clip(np.diag(sub), 0, None))
+            stderr = float(np.max(se))
+        entry = {
+            "channel": c,
+            "axis": lin.axis,
+            "band": [a, b],
+            "band_unit": "m" if lin.axis == "altitude" else "s",
+            "size": peak,
+            "size_unit": UNITS[c],
+            "knots": list(lin.knots),
+            "coefficients": {label or "value": [float(x) for x in v] for label, v in parts},
+            "coefficient_stderr_max": stderr,
+            "mach_in_band": None,
+            "mach_range_of_band": None,
+            "whole_span": [float(lo), float(hi)],
+        }
+        entry["mach_in_band"], entry["mach_range_of_band"] = _mach_in(ctx, lin.axis, a, b)
+        if c == "wind":
+            i = int(np.argmax(g))
+            entry["direction"] = {"east_mps": float(np.interp(s[i], lin.knots, coef[:k])),
+                                  "north_mps": float(np.interp(s[i], lin.knots, coef[k:]))}  # fmt: skip
+            signs = np.sign(np.interp(s, lin.knots, coef[:k])), np.sign(np.interp(s, lin.knots, coef[k:]))
+            entry["reverses"] = bool(any(np.any(x > 0) and np.any(x < 0) for x in signs))
+        out.append(entry)
+    return out
+
+
+def _fmt_band(entry: dict) -> str:
+    a, b = entry["band"]
+    if entry["axis"] == "altitude":
+        return f"{a / 1e3:.1f}-{b / 1e3:.1f} km altitude"
+    return f"t = {a:.0f}-{b:.0f} s"
+
+
+def _mach_text(entry: dict) -> str:
+    m = entry.get("mach_in_band")
+    return f" (Mach {m[0]:.1f}-{m[1]:.1f})" if m else ""
+
+
+def points_to(attribution: list[dict], rivals: list[dict]) -> list[str]:
+    """The physical effects a trace points to, in plain words (most specific first)."""
+    if not attribution:
+        return []
+    by = {e["channel"]: e for e in attribution}
+    out = []
+    whole = attribution[0]["whole_span"]
+    span = whole[1] - whole[0]
+
+    def local(e):
+        return (e["band"][1] - e["band"][0]) < 0.8 * span
+
+    together = False
+    if "drag" in by and "vertical_lift" in by:
+        d, v = by["drag"], by["vertical_lift"]
+        together = d["band"][0] <= v["band"][1] and v["band"][0] <= d["band"][1]  # the bands overlap
+    if together:
+        if d["size"] * v["size"] > 0:
+            out.append(f"the air density over {_fmt_band(d)}{_mach_text(d)}: drag and lift change together "
+                       f"(drag x {1 + d['size']:.3f}), as a density the atmosphere model lacks would make them")  # fmt: skip
+        else:
+            out.append(f"a trim (angle-of-attack) change over {_fmt_band(d)}{_mach_text(d)}: drag and lift move in "
+                       "opposite directions")  # fmt: skip
+    for c, e in by.items():
+        where = f"{_fmt_band(e)}{_mach_text(e)}"
+        mach = e.get("mach_range_of_band") or {}
+        if "below" in mach:
+            mach_words = f"below Mach {mach['below']:.1f}"
+        elif "above" in mach:
+            mach_words = f"above Mach {mach['above']:.1f}"
+        else:
+            mach_words = ""
+        if c == "drag" and not together:
+            size = f"C_D x {1 + e['size']:.3f} at the peak"
+            if mach_words:
+                out.append(f"a drag coefficient that changes {mach_words} ({size}, over {where}): C_D varying with "
+                           "Mach in a shape the mach_drag candidate cannot take")  # fmt: skip
+            elif e["axis"] == "altitude" and local(e):
+                out.append(f"a drag change confined to {where} ({size}) and not to a Mach range: a drag coefficient "
+                           "varying with Reynolds number (altitude) or with the angle of attack flown there")  # fmt: skip
+            elif e["axis"] == "altitude":
+                out.append(f"a drag change over the altitudes flown ({size}) that the candidates cannot shape: C_D "
+                           "varying with flight condition")  # fmt: skip
+            else:
+                out.append(f"a drag change tied to time over {where} ({size}): a configuration or mass change "
+                           "(ablation, a jettison) rather than the atmosphere")  # fmt: skip
+        elif c == "vertical_lift" and not together:
+            size = f"L/D {e['size']:+.3f} along the lift"
+            if mach_words:
+                out.append(f"a lift coefficient that changes {mach_words} ({size}, over {where}): C_L varying with "
+                           "Mach, not the atmosphere (which would move the drag too)")  # fmt: skip
+            elif local(e):
+                out.append(f"a lift change confined to {where} ({size}) and not to a Mach range: an aerodynamic "
+                           "coefficient varying with Reynolds number (altitude) or the angle of attack flown there, "
+                           "not the atmosphere (which would move the drag too)")  # fmt: skip
+            else:
+                out.append(f"a lift change over the whole flight ({size}) with a shape the constant "
+                           "lift_coefficient cannot take: C_L varying with Mach or angle of attack")  # fmt: skip
+        elif c == "lateral_lift":
+            out.append(f"a force across the lift over {where} (L/D {e['size']:+.3f} out of the plane of symmetry): a "
+                       "bank-angle "
+                       "bias or error in the bank record, or a side force (sideslip, an asymmetric shape)")  # fmt: skip
+        elif c == "wind":
+            kind = "that reverses with altitude (a shear)" if e.get("reverses") else "that varies along the flight"
+            if e["axis"] == "time":
+                kind += " (traced over time: a horizontal force or wind not tied to altitude)"
+            out.append(f"a horizontal wind {kind}, peak {abs(e['size']):.0f} m/s over {where}; the uniform wind "
+                       "candidate cannot take its shape")  # fmt: skip
+    axes = {e["axis"] for e in attribution}
+    tied_to_mach = any(e.get("mach_range_of_band") for e in attribution)
+    if axes == {"time"} and not tied_to_mach and not any(r["axis"] == "altitude" for r in rivals):
+        out.append("the correction is tied to time, not to altitude: look for an event or a timing error in the "
+                   "record (a control or clock offset) as well")  # fmt: skip
+    return out
+
+
+def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
+    """Trace the residual of ``final`` to a force channel (see the module docstring).
+
+    :param ctx: the fit context of the record.
+    :param final: the identified fit.
+    :param threshold: the BIC margin the trace must beat the identified model by.
+    :return: the trace: ``attribution`` (a list of channel, axis, band, size, ...), the rivals,
+        the fits tried, what the record would look like with it, and the effects it points to.
+    """
+    n_groups = int(np.max(ctx.groups)) + 1
+    n_values = int(np.count_nonzero(np.isfinite(ctx.replay.y)))
+    sigma_entries = np.broadcast_to(ctx.sigma, ctx.replay.y.shape)[np.isfinite(ctx.replay.y)]
+    combos = [(c,) for c in CHANNELS] + list(itertools.combinations(CHANNELS, 2))
+    fits = []  # (label channels, axis, k, lin, step, r_new, n_params)
+    engines = ctx.engines
+    for axis in ("altitude", "time"):
+        counts = knot_counts(ctx.replay, axis, n_values)
+        best_prev, worse = math.inf, 0
+        for k in counts:
+            say(f"trace: {axis}, {k} knots")
+            lin = _Linearized(ctx, final, axis, k, CHANNELS, engines)
+            best_here = math.inf
+            for combo in combos:
+                cols = lin.columns(combo)
+                step, r_new = lin.step(lin.r, lin.jac, cols)
+                rss, nval = _rss_by_group(r_new, sigma_entries, lin.group_of, n_groups)
+                b = bic(rss, nval, len(cols))
+                fits.append({"channels": combo, "axis": axis, "knots": k, "lin": lin, "cols": cols, "step": step,
+                             "r": r_new, "rss": rss, "n": nval, "k_params": len(cols), "bic_white": b})  # fmt: skip
+                best_here = min(best_here, b)
+            # knots by BIC: stop once two finer counts in a row bring nothing
+            if best_here < best_prev:
+                best_prev, worse = best_here, 0
+            else:
+                worse += 1
+                if worse >= 2:
+                    break
+    base_rss, base_n = final.rss_by_group, final.n_by_group
+    best_raw = min(fits, key=lambda f: f["bic_white"])
+    lag1 = whiteness(_residual_matrix(best_raw["lin"], best_raw["r"]))["lag1_autocorrelation"]
+    n_eff = effective_size(sum(base_n), lag1)
+    b_final = bic_effective(base_rss, base_n, final.n_params, n_eff)
+    for f in fits:
+        f["bic"] = bic_effective(f["rss"], f["n"], f["k_params"], n_eff)
+    # per channel set and axis, the knot count BIC prefers
+    chosen = {}
+    for f in fits:
+        key = (f["channels"], f["axis"])
+        if key not in chosen or f["bic"] < chosen[key]["bic"]:
+            chosen[key] = f
+    ranked = sorted(chosen.values(), key=lambda f: f["bic"])
+    # the leaders of the one-step screening, refined to convergence: a large residual is not linear
+    leaders = [f for axis in ("altitude", "time") for f in [g for g in ranked if g["axis"] == axis][:REFINE_LEADERS]]
+    # a pair is compared with its members alone, refined alike (only the leading pair of an axis)
+    leaders += [chosen[((c,), f["axis"])] for f in list(leaders)[::REFINE_LEADERS]
+                if len(f["channels"]) == 2 for c in f["channels"]]
+    leaders = list({id(f): f for f in leaders}.values())
+    for f in leaders:
+        say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
+        theta, r = _refine(ctx, f, final)
+        rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
+        f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True)
+        f["outside"] = _outside_bounds(f["lin"], theta, f["channels"])
+    ranked = sorted(chosen.values(), key=lambda f: f["bic"])
+    eligible = [f for f in ranked if f.get("refined") and not f["outside"]]
+    # a pair must beat each of its members alone (same axis) by the threshold too
+    eligible = [f for f in eligible if len(f["channels"]) == 1
+                or all(f["bic"] < chosen[((c,), f["axis"])]["bic"] - threshold for c in f["channels"])]  # fmt: skip
+    table = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"], "bic_gain": b_final - f["bic"],
+              "refined": bool(f.get("refined")), "outside_bounds": f.get("outside") or []} for f in ranked]  # fmt: skip
+    out = {
+        "method": "piecewise-linear corrections over altitude and over time per force channel, knots by BIC, "
+        "fitted with the entry state and the identified effects (exact Jacobian of the replay)",
+        "effective_samples": n_eff,
+        "bic_threshold": threshold,
+        "tried": table,
+        "added_to_model": False,
+    }
+    best = eligible[0] if eligible else None
+    gain = b_final - best["bic"] if best else -math.inf
+    if best is None or not gain > threshold:
+        what = (f"the best ({' + '.join(best['channels'])} over {best['axis']}) gains {gain:.1f} in BIC, not more "
+                f"than {threshold:g}") if best else "every leading correction is outside its physical bounds"
+        out.update({"attribution": [], "rivals": [], "points_to": [],
+                    "statement": f"No force channel explains the residual: {what}."})  # fmt: skip
+        return out
+    lin, cols, theta = best["lin"], best["cols"], best["theta"]
+    r, jac = lin.evaluate(theta)
+    ctx.nfev += 1
+    a = jac[:, cols]
+    dof = max(len(r) - len(cols), 1)
+    cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
+    cov = np.zeros((len(theta), len(theta)))
+    cov[np.ix_(cols, cols)] = cov_c
+    attribution = _describe(ctx, lin, theta, cov, best["channels"])
+    resid = _residual_matrix(lin, r) * ctx.sigma[None, :]
+    rivals = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"],
+               "bic_behind": f["bic"] - best["bic"]}
+              for f in ranked if f is not best and f["bic"] - best["bic"] < threshold]  # fmt: skip
+    pts = points_to(attribution, rivals)
+    from rventry_env.validation.report.diagnostics import error_metrics
+
+    names = " + ".join(best["channels"])
+    bands = "; ".join(f"{e['channel']} {e['size']:+.3g} {e['size_unit']} over {_fmt_band(e)}" for e in attribution)
+    out.update({
+        "attribution": attribution,
+        "bic_gain": gain,
+        "rivals": rivals,
+        "after_trace": error_metrics(resid, ctx.replay.record.kind),
+        "residual_after_trace": resid,  # for the plot; not written to the report
+        "points_to": pts,
+        "statement": f"Traced to {names} over {best['axis']}: {bands}. It points to: " + "; ".join(pts) + ".",
+    })  # fmt: skip
+    return out
+
+
+def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Newton from the screening step, a fresh Jacobian each iteration, halving a step that does not help.
+
+    The refinement replays only the fit's own channels (fewer sensitivity columns than the
+    screening's all-channel replay); ``f["lin"]`` and ``f["cols"]`` become that replay's.
+    """
+    screen = f["lin"]
+    screened = dict(zip(screen.names, screen.theta0[screen.n0:]))
+    for i, s in zip(f["cols"], f["step"]):
+        if i >= screen.n0:
+            screened[screen.names[i - screen.n0]] += s
+    lin = _Linearized(ctx, final, screen.axis, len(screen.knots), f["channels"], ctx.engines, residual=screen.r)
+    cols = lin.columns(f["channels"])
+    f["lin"], f["cols"] = lin, cols
+    theta = lin.theta0.copy()
+    step = np.zeros(len(theta))
+    step[: screen.n0] = f["step"][: screen.n0]  # the entry state's columns come first in both
+    for j, name in enumerate(lin.names):
+        step[lin.n0 + j] = screened[name] - theta[lin.n0 + j]
+    r_best = lin.r
+    cost = float(r_best @ r_best)
+    for _ in range(REFINE_ITERATIONS):
+        for _half in range(4):
+            trial = theta + step
+            r, jac = lin.evaluate(trial)
+            ctx.nfev += 1
+            c = float(r @ r) if np.all(np.isfinite(r)) else math.inf
+            if c < cost:
+                break
+            step = 0.5 * step
+        else:
+            break
+        gain = (cost - c) / cost
+        theta, r_best, cost = trial, r, c
+        if gain < 1e-4:
+            break
+        s, _ = lin.step(r, jac, cols)
+        step = np.zeros(len(theta))
+        step[cols] = s
+    return theta, r_best
+
+
+def _outside_bounds(lin, theta: np.ndarray, channels) -> list[str]:
+    """Channels whose correction leaves its physical range (a coefficient x 0 .. 2, wind 200 m/s)."""
+    out = []
+    k = len(lin.knots)
+    for c in channels:
+        idx = [lin.n0 + lin.names.index(n) for n in channel_parameters(c, k)]
+        v = theta[idx]
+        if c == "wind":
+            if np.max(np.hypot(v[:k], v[k:])) > WIND_MAX_MPS:
+                out.append(c)
+        elif np.max(np.abs(v)) > AERO_MAX:
+            out.append(c)
+    return out
+
+
+__all__ = ["KNOT_COUNTS", "knot_counts", "points_to", "trace_residual"]

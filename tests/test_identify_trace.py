@@ -1,0 +1,138 @@
+"""What no candidate explains is traced to a force channel; real-data noise is read as noise.
+
+Records come from the independent Cartesian truth model with effects *outside* the candidate set
+(a lift or drag change confined to an altitude band, a lift change below a Mach number, a wind
+that reverses with altitude, a side force), with heavy-tailed noise, or with a start that
+scatters by kilometres.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from rventry_env.validation import identify_record
+from rventry_env.validation.record import RecordError
+from rventry_env.validation.search.adequacy import adequacy
+from rventry_env.validation.search.statistics import difference_noise, robust_difference_noise
+from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
+
+
+def _record(tmp_path, specs=(), **kw):
+    kw = {"noise": (20.0, 0.2), "duration": 300.0, "rate": 0.5, "seed": 1, **kw}
+    return simulate_record(tmp_path / "rec.csv", parse_effects(list(specs)), **kw)
+
+
+# ------------------------------------------------------------------ heavy-tailed noise
+
+
+def test_robust_difference_noise_is_the_bulk_scale_of_heavy_tails():
+    rng = np.random.default_rng(0)
+    t = np.arange(20000.0)
+    normal = rng.normal(0.0, 10.0, t.size)
+    assert robust_difference_noise(t, normal) == pytest.approx(10.0, rel=0.03)
+    assert difference_noise(t, normal) == pytest.approx(10.0, rel=0.03)
+    heavy = 10.0 * rng.standard_t(3, t.size) / np.sqrt(3.0)  # standard deviation 10
+    # the clipped rms falls below the real scatter, the robust scale is the bulk's (MAD of t(3): 0.655 sd)
+    assert difference_noise(t, heavy) < 0.97 * np.std(heavy)
+    assert robust_difference_noise(t, heavy) < 0.9 * np.std(heavy)
+
+
+@pytest.mark.slow
+def test_heavy_tailed_noise_without_an_effect_is_none(tmp_path):
+    path = _record(tmp_path, rate=10.0, noise_tails="student-t3", seed=1)
+    ident = identify_record(path)
+    rep = ident.report
+    assert rep["effect"] == "none" and not rep["unexplained"], rep["statement"]
+    assert rep["attribution"] == [] and rep["trace"] is None
+    assert all(g["measure"] == "robust (MAD) scales" for g in rep["adequacy"]["size"].values())
+    # the rms test on the same residual calls the tails an effect: the robust one is what decides
+    screened_sigma = rep["noise"]["weights"]
+    names = list(screened_sigma)
+    groups = np.repeat(np.arange(len(names)), 3)
+    rms = adequacy(ident.final, screened_sigma, "estimated", names, groups, np.repeat(list(screened_sigma.values()), 3))
+    assert rms["unexplained"], rms["size"]
+
+
+# ------------------------------------------------------------------ a start that scatters by kilometres
+
+
+def _scattered(tmp_path, altitude_error_m):
+    path = _record(tmp_path, observe="reduced", start_scatter=(60.0, 1500.0), noise=(50.0, 0.5), rate=1.0, seed=2)
+    side_path = path.with_suffix(".json")
+    side = json.loads(side_path.read_text())
+    side["entry_state"]["altitude_m"] += altitude_error_m
+    side_path.write_text(json.dumps(side))
+    return path
+
+
+def test_a_scattered_start_is_accepted_with_a_warning_and_a_wider_prior(tmp_path):
+    rep = identify_record(_scattered(tmp_path, 2000.0), max_effects=0).report
+    check = rep["entry_state_check"]
+    assert check["window_samples"] >= 8 and check["altitude_noise_m"] > 500.0  # the scatter, not one sample
+    assert any("entry_state.altitude_m" in w for w in check["warnings"])
+    assert rep["initial_state_bound"]["dh0_m"] > 2000.0  # widened from 5 noise levels (250 m)
+    assert rep["initial_state_offsets"]["dh0_m"] == pytest.approx(-2000.0, abs=300.0)  # the fit finds the error
+    assert "dh0_m" not in rep["initial_state_at_bound"]
+
+
+def test_a_grossly_wrong_sidecar_is_refused_naming_the_field(tmp_path):
+    with pytest.raises(RecordError, match=r"entry_state\.altitude_m.*scatter of those samples"):
+        identify_record(_scattered(tmp_path, 12000.0), max_effects=0)
+
+
+# ------------------------------------------------------------------ the trace, one record per channel
+
+
+def _trace(tmp_path, spec):
+    rep = identify_record(_record(tmp_path, [spec])).report
+    assert rep["unexplained"], rep["statement"]
+    assert rep["attribution"], rep["trace"]["statement"]
+    return rep
+
+
+@pytest.mark.slow
+def test_drag_in_an_altitude_band_is_traced_to_drag_over_that_band(tmp_path):
+    rep = _trace(tmp_path, "drag_band=1.15,50,53")
+    (a,) = rep["attribution"]
+    assert (a["channel"], a["axis"]) == ("drag", "altitude")
+    assert 49e3 <= a["band"][0] and a["band"][1] <= 54e3
+    assert a["size"] == pytest.approx(0.15, abs=0.04)
+    assert rep["trace"]["after_trace"]["position_rms_m"] < 45.0  # the noise: 20 m per component
+    assert any("drag" in p for p in rep["trace"]["points_to"])
+
+
+@pytest.mark.slow
+def test_lift_in_an_altitude_band_is_lift_not_the_atmosphere(tmp_path):
+    rep = _trace(tmp_path, "lift_band=0.8,50,53")
+    assert [a["channel"] for a in rep["attribution"]] == ["vertical_lift"]
+    a = rep["attribution"][0]
+    assert a["size"] < 0 and 49e3 <= a["band"][0] and a["band"][1] <= 54e3 and a["axis"] == "altitude"
+    assert any("not the atmosphere" in p for p in rep["trace"]["points_to"])
+
+
+@pytest.mark.slow
+def test_lift_below_a_mach_number_points_to_a_mach_dependent_lift(tmp_path):
+    rep = _trace(tmp_path, "mach_lift=0.85,21")
+    assert [a["channel"] for a in rep["attribution"]] == ["vertical_lift"]
+    assert "below" in rep["attribution"][0]["mach_range_of_band"]
+    assert any("C_L varying with Mach" in p for p in rep["trace"]["points_to"])
+
+
+@pytest.mark.slow
+def test_a_side_force_is_traced_across_the_lift(tmp_path):
+    rep = identify_record(_record(tmp_path, ["side_force=0.02"])).report
+    assert rep["unexplained"]
+    (a,) = rep["attribution"]
+    assert a["channel"] == "lateral_lift" and a["size"] == pytest.approx(0.02, abs=0.006)
+    assert any("side force" in p for p in rep["trace"]["points_to"])
+
+
+@pytest.mark.slow
+def test_a_wind_that_reverses_with_altitude_is_traced_to_the_wind(tmp_path):
+    rep = identify_record(_record(tmp_path, ["wind_shear=60,55"])).report
+    assert rep["unexplained"], rep["statement"]
+    channels = {(a["channel"], a["axis"]) for a in rep["attribution"]}
+    assert ("wind", "altitude") in channels
+    wind = next(a for a in rep["attribution"] if a["channel"] == "wind")
+    assert wind["reverses"]
