@@ -136,33 +136,18 @@ def test_a_profile_of_zeros_leaves_the_density_unchanged_exactly():
 
 # ------------------------------------------------------------------ single and vector env agree per draw
 @pytest.mark.parametrize("dispersion", ["flight", "peer"])
-def test_vector_env_reproduces_single_envs_draw_for_draw(dispersion):
+def test_vector_env_draws_what_single_envs_draw(dispersion):
+    """Copy i of a vector env reset with seed s draws exactly what a single env reset with s + i
+    does (their episodes then agree step for step: tests/test_env.py)."""
     n = 3
     venv = RvEntryVectorEnv(num_envs=n, dispersion=dispersion)
-    singles = [RvEntryEnv(dispersion=dispersion) for _ in range(n)]
     obs, info = venv.reset(seed=21)
-    s_out = [e.reset(seed=21 + i) for i, e in enumerate(singles)]
-    np.testing.assert_allclose(obs, np.stack([o for o, _ in s_out]), atol=1e-6)
-    for i, (_, si) in enumerate(s_out):
+    for i in range(n):
+        so, si = RvEntryEnv(dispersion=dispersion).reset(seed=21 + i)
+        np.testing.assert_allclose(obs[i], so, atol=1e-6)
         for k, v in si["dispersion_draw"].items():
-            np.testing.assert_array_equal(np.asarray(info["dispersion_draw"][k])[i] if k != "altitude_grid_m" else
-                                          info["dispersion_draw"][k], v)  # fmt: skip
-    rng = np.random.default_rng(0)
-    live = np.ones(n, bool)
-    for _ in range(120):
-        a = np.column_stack([rng.uniform(-0.1, 0.05, n), rng.uniform(-1, 1, n)]).astype(np.float32)
-        obs, rew, term, trunc, info = venv.step(a)
-        for i, e in enumerate(singles):
-            if not live[i]:
-                continue
-            so, sr, st, _, si = e.step(a[i])
-            np.testing.assert_allclose(obs[i], so, rtol=0, atol=1e-6)
-            np.testing.assert_allclose(venv.state[i], e.state, rtol=1e-11)
-            np.testing.assert_allclose(info["navigation_state"][i], si["navigation_state"], rtol=1e-11, atol=1e-12)
-            np.testing.assert_allclose(info["sensed_accel_b"][i], si["sensed_accel_b"], rtol=1e-10, atol=1e-12)
-            live[i] &= not st
-        venv_term = term
-        assert not np.any(venv_term & live)
+            mine = info["dispersion_draw"][k]
+            np.testing.assert_array_equal(mine if k == "altitude_grid_m" else np.asarray(mine)[i], v)
 
 
 def test_the_flight_set_draws_a_different_profile_per_vehicle_and_leaves_the_truth_alone():
