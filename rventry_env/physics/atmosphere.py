@@ -34,9 +34,9 @@ class ExponentialAtmosphere:
     sound_speed: float = 300.0
 
     def __post_init__(self):
-        check_number(self, "rho0", low=0.0)
-        check_number(self, "scale_height", low=0.0, low_open=True)
-        check_number(self, "sound_speed", low=0.0, low_open=True)
+        check_number(self, "rho0", low=0.0, high=1e3)  # Venus's surface: 65 kg/m^3
+        check_number(self, "scale_height", low=1.0, high=1e6)
+        check_number(self, "sound_speed", low=1.0, high=1e5)
 
     def density(self, h, ns):
         return self.rho0 * ns.exp(-h / self.scale_height)
@@ -54,7 +54,7 @@ class ScaledAtmosphere:
 
     def __post_init__(self):
         check_part(self, "base", "density", "speed_of_sound")
-        check_number(self, "scale", low=0.0)
+        check_number(self, "scale", low=0.0, high=1e3)
 
     def density(self, h, ns):
         return self.scale * self.base.density(h, ns)
@@ -129,7 +129,7 @@ class TabulatedAtmosphere:
             raise ValueError("altitudes must be strictly increasing")
         if np.any(~np.isfinite(rho)) or np.any(rho <= 0):
             raise ValueError("densities must be positive and finite")
-        check_number(self, "sound_speed", low=0.0, low_open=True)
+        check_number(self, "sound_speed", low=1.0, high=1e5)
         object.__setattr__(self, "_log_rho", np.log(rho))
 
     def density(self, h, ns):
