@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "rventry_env.examples.orbit.cli",
     "rventry_env.reference.cli",
     "rventry_env.evaluation.cli",
+    "rventry_env.evaluation.oracle_cli",
     "rventry_env.validation.cli",
 )
 COMMAND_GROUP = "rventry.commands"

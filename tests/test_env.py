@@ -331,7 +331,7 @@ def test_make_vec_returns_the_batched_env():
     assert obs.shape == (3, 26) and venv.observation_space.contains(obs)
 
 
-@pytest.mark.parametrize("dispersion", [None, "standard"])
+@pytest.mark.parametrize("dispersion", [None, "standard", "flight", "peer"])
 def test_vector_env_reproduces_n_single_envs(dispersion):
     n = 5
     venv = RvEntryVectorEnv(num_envs=n, task=TASK, dispersion=dispersion)
@@ -352,6 +352,9 @@ def test_vector_env_reproduces_n_single_envs(dispersion):
             assert rew[i] == pytest.approx(sr, rel=1e-9, abs=1e-12)
             assert st == term[i]
             np.testing.assert_allclose(venv.state[i], e.state, rtol=1e-12)
+            # what the vehicle measures too (its navigation and accelerometer, with the flight sets' errors)
+            np.testing.assert_allclose(info["navigation_state"][i], si["navigation_state"], rtol=1e-11, atol=1e-12)
+            np.testing.assert_allclose(info["sensed_accel_b"][i], si["sensed_accel_b"], rtol=1e-10, atol=1e-12)
             if st:
                 live[i] = False
                 assert info["_miss_km"][i] and info["miss_km"][i] == pytest.approx(si["miss_km"], rel=1e-9)

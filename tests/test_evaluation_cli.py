@@ -52,3 +52,21 @@ def test_dispersed_is_a_synonym_that_cannot_contradict(tmp_path, capsys):
     args = ["evaluate", "--agent", "reference", "--dispersed", "--dispersion", "wide", "--json", str(tmp_path / "e.json")]
     assert main(args) == 2
     assert "--dispersed means --dispersion standard" in capsys.readouterr().err
+
+
+def test_evaluate_reports_the_precision_tier_and_intervals_on_a_new_set(tmp_path, capsys):
+    out = tmp_path / "e.json"
+    assert main(["evaluate", "--agent", "reference", "--episodes", "3", "--dispersion", "peer-0.1", "--workers", "1",
+                 "--json", str(out)]) == 0  # fmt: skip
+    doc = json.loads(out.read_text())
+    s = doc["summary"]
+    lo, hi = s["success_rate_ci"]
+    assert 0.0 <= lo <= s["success_rate"] <= hi <= 1.0
+    lo, hi = s["precision_success_rate_ci"]
+    assert 0.0 <= lo <= s["precision_success_rate"] <= hi <= 1.0 and s["precision_success_rate"] <= s["success_rate"]
+    assert s["miss_m"]["p50"] <= s["miss_m"]["p95"] <= s["miss_m"]["p99"]
+    assert s["precision_thresholds"] == {"miss_m": 100.0, "vertical_error_deg": 2.0, "alpha_final_deg": 2.0,
+                                         "speed_error_mps": 25.0}  # fmt: skip
+    assert doc["dispersion"]["shape"] == "gaussian" and doc["dispersion"]["mass"] == pytest.approx(0.005)
+    assert all(e["dispersion"]["mass"] != 0 for e in doc["episodes"])
+    assert "precision" in capsys.readouterr().out

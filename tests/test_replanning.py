@@ -121,6 +121,31 @@ def test_rollout_hands_a_law_only_what_a_vehicle_measures():
                               "sensed_accel_b": (3, 3), "flying": (3,)} for s in seen)  # fmt: skip
 
 
+def test_rollout_hands_a_law_the_navigation_state_and_the_sensors_not_the_truth_or_the_draw():
+    """With sensor and navigation errors, a law is given what the vehicle's navigation and
+    accelerometer say (info["navigation_state"], info["sensed_accel_b"]), never the true state,
+    the true acceleration or the draw (info["dispersion_draw"])."""
+    seen = []
+
+    class Spy(Law):
+        def __call__(self, m):
+            seen.append(m)
+            return np.zeros((m.n, 2), np.float32)
+
+    rollout(Spy(), 2, seed=4, dispersion="flight", max_episode_steps=3)
+    venv = RvEntryVectorEnv(num_envs=2, dispersion="flight")
+    obs, info = venv.reset(seed=4)
+    first = seen[0]
+    np.testing.assert_array_equal(first.observation, obs)
+    np.testing.assert_array_equal(first.navigation_state, info["navigation_state"])
+    np.testing.assert_array_equal(first.sensed_accel_b, info["sensed_accel_b"])
+    assert np.all(np.abs(first.navigation_state[:, 0] - venv.state[:, 0]) > 1e-3)
+    assert np.all(np.abs(first.sensed_accel_b - np.stack(venv._forces.aero_b, axis=-1)) > 0)
+    assert set(Measurement.__dataclass_fields__) == {"observation", "time_s", "navigation_state", "sensed_accel_b",
+                                                     "flying"}  # fmt: skip
+    assert "dispersion_draw" in info
+
+
 def test_rollout_refuses_what_is_not_a_guidance_law():
     with pytest.raises(TypeError, match="lacks reset, episode_stats, episodes_per_task"):
         rollout(lambda m: np.zeros((m.n, 2)), 1, max_episode_steps=2)

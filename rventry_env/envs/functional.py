@@ -48,7 +48,7 @@ from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.observation import observation_box
 from rventry_env.envs.propagation import Propagator
 from rventry_env.envs.reward import RewardWeights
-from rventry_env.task import Dispersion, apply_state_dispersion, disperse_state
+from rventry_env.task import SCALAR_FIELDS, Dispersion, apply_state_dispersion, disperse_state
 from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
 from rventry_env.physics.model import EntryModel, numeric_leaves, scaled_model, with_numeric_leaves
 
@@ -144,7 +144,10 @@ class RvEntryFunctional(environment.Environment):
         if common.check_max_steps(steps) is None:
             raise ValueError("the functional environment needs a time limit (max_episode_steps)")
         x0 = self._nominal if nominal is None else common.check_state(nominal, model.planet.radius, self.task)
-        half = [getattr(dispersion, f) for f in Dispersion.__dataclass_fields__]
+        if dispersion.shape != "uniform" or dispersion.mass or dispersion.flight is not None:
+            raise ValueError(f"the functional environment flies the uniform scalar dispersion sets (none, standard, "
+                             f"wide, custom half-widths); the {dispersion.name!r} set needs the NumPy vector env")  # fmt: skip
+        half = [getattr(dispersion, f) for f in SCALAR_FIELDS]
         apply_state_dispersion(x0, np.asarray(half))  # refuses angles that are undefined at this start
         f = self.ns.float_dtype
         return EnvParams(tuple(jnp.asarray(v, dtype=f) for v in leaves), jnp.asarray(x0, f), jnp.asarray(half, f),

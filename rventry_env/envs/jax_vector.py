@@ -68,8 +68,12 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         return np.stack([np.asarray(c, dtype=np.float64) for c in self._flight.x], axis=-1)
 
     # ------------------------------------------------------------------ backend hooks
-    def _reset_copies(self, idx: np.ndarray, dispersion=None) -> None:
-        x0 = self._draw(idx, dispersion)
+    def _reset_copies(self, idx: np.ndarray, dispersion=None) -> list:
+        d = self.dispersion if dispersion is None else dispersion
+        if d.mass or d.flight is not None:
+            raise ValueError(f"backend='jax' flies the scalar dispersion sets; the {d.name!r} set's mass and "
+                             "flight-grade errors (profiles, sensors) need backend='numpy'")  # fmt: skip
+        x0, extras = self._draw(idx, dispersion)
         if self._x0 is None or self._flight is None or len(idx) == self.num_envs:
             self._x0 = np.empty((12, self.num_envs))
         self._x0[:, idx] = x0.T
@@ -79,6 +83,11 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         scales = jnp.asarray(np.stack([self._density, self._lift, self._drag]), f)
         self._scales = scales
         self._flight = self._restart_fn(self._flight, jnp.asarray(self._x0, f), scales, jnp.asarray(mask), self._leaves)
+        return extras
+
+    def _measure(self, elapsed=None, active=None) -> None:
+        """No sensor or navigation errors fly with backend='jax' (refused at reset): laws see the truth."""
+        self._nav = self._sensed = None
 
     def _observe(self):
         obs, clipped, _ = self._view_fn(self._flight, self._scales, self._leaves)

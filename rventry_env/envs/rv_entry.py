@@ -16,8 +16,9 @@ from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
-from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion
-from rventry_env.physics.model import EntryModel, scaled_model
+from rventry_env.envs.uncertainty import FlightState, Sensed
+from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
+from rventry_env.physics.model import EntryModel
 
 class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     """
@@ -88,10 +89,13 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     v = 7138 m/s, eB = (0, 0, sqrt(2)/2, sqrt(2)/2); alpha and sigma (free in the
     paper) default to the shipped collocation reference's initial values.
     Dispersions (constructor ``dispersion=`` or ``reset(options={"dispersion": ...})``,
-    a :class:`~rventry_env.task.Dispersion`, a dict of its fields or
-    ``"standard"``) draw uniformly from ``self.np_random``: density and C_L/C_D
-    scale factors, initial altitude, speed, flight-path angle, heading, alpha,
-    sigma. ``reset(options={"state": x})`` starts from any valid 12-state.
+    a :class:`~rventry_env.task.Dispersion`, a dict of its fields or a set's name:
+    ``"standard"``, ``"wide"``, ``"flight"``, ``"peer"``, ``"peer-0.1"``) draw from
+    ``self.np_random``: density and C_L/C_D scale factors, initial altitude, speed,
+    flight-path angle, heading, alpha, sigma (uniform or clipped Gaussian), and for the
+    flight-grade sets the mass, density and wind profiles in altitude, Mach-dependent
+    C_L/C_D errors, accelerometer and navigation errors (docs/uncertainty.md).
+    ``reset(options={"state": x})`` starts from any valid 12-state.
 
     ## Episode End
 
@@ -111,14 +115,17 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     ``sensed_accel_b`` (what an accelerometer measures: the aerodynamic specific
     force in B components, m/s^2, so ``-sensed[0]`` is the drag acceleration and
     ``sensed[1:]`` the lift's; the navigation state plus this is all a guidance law
-    may know), ``cost`` (running cost J so far), ``time_s``, ``action_clipped``,
+    may know), ``navigation_state`` (the 12-state the vehicle's navigation gives: the
+    truth unless the dispersion has sensor or navigation errors; the observation is
+    built from it), ``cost`` (running cost J so far), ``time_s``, ``action_clipped``,
     ``alpha_saturated``. The last step also: ``miss_km``, ``vertical_error_deg``,
     ``speed_error_mps``, ``alpha_final_deg``, ``max_load_factor_g``,
     ``min_dynamic_pressure_pa``, ``constraint_violation`` (load > 12 g or q < 12 kPa
     by more than 1 %), ``terminal_penalty``, ``failure`` ("" on impact) and
     ``is_success``: impact with miss <= 5 km, vertical error <= 5 deg,
     |speed error| <= 100 m/s and no constraint violation
-    (:class:`~rventry_env.task.SuccessThresholds`).
+    (:class:`~rventry_env.task.SuccessThresholds`). At reset, ``dispersion_draw``: the
+    episode's draw, for evaluation only (a guidance law is never given it).
 
     ## Arguments
 
@@ -178,6 +185,14 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             raise RuntimeError("the environment has no state before reset()")
         return np.array(self._x, dtype=np.float64)
 
+    @property
+    def episode_model(self) -> EntryModel:
+        """The episode's truth model (the drawn profiles, aerodynamics and mass), for evaluation
+        such as the attainable ceiling (``rventry oracle``); a guidance law is never given it."""
+        if self._x is None:
+            raise RuntimeError("the environment has no episode before reset()")
+        return self._episode_model
+
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
@@ -187,10 +202,13 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self.task.check_dispersion(dispersion)
         x0 = common.check_state(options["state"], self._radius, self.task) if "state" in options else self._nominal
         d = draw_dispersion(self.np_random, dispersion)
+        extras = draw_extras(self.np_random, dispersion, self.task.problem)
+        self._errors = FlightState(1, self.model)
+        self._errors.assign(0, dispersion, extras)
         if not dispersion.is_zero:
             x0 = apply_state_dispersion(x0, d)
             # Python floats, not NumPy scalars: the single env works on floats (overflow raises, and is caught)
-            self._episode_model = scaled_model(self.model, float(1 + d[0]), float(1 + d[1]), float(1 + d[2]))
+            self._episode_model = self._errors.model(float(1 + d[0]), float(1 + d[1]), float(1 + d[2]), single=True)
         else:
             self._episode_model = self.model
         self.dispersion_draw = d
@@ -204,8 +222,11 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self._min_q = self._forces.dynamic_pressure
         self._ended = False
         self._track = Track() if self.render_mode else None
+        self._measure()
         obs, clipped = self._observe()
         info = self._info(False, False, clipped)
+        # the draws, for evaluation only: a guidance law is never given them
+        info["dispersion_draw"] = self._errors.draw_info(d[None], [extras], single=True)
         self._record()
         return obs, info
 
@@ -232,6 +253,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         reward = -(out.cost + out.path_penalty)
         terminated = out.status != FLYING
         truncated = not terminated and self._limit is not None and self._steps >= self._limit
+        self._measure(out.elapsed)
         info_obs, obs_clipped = self._observe()
         info = self._info(clipped, out.alpha_saturated, obs_clipped)
         if terminated or truncated:
@@ -264,8 +286,25 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         return render_tracks([self._track], p.target_latitude, p.target_longitude)
 
     # ------------------------------------------------------------------ helpers
+    def _measure(self, elapsed=None) -> None:
+        """What the vehicle's sensors and navigation make of the truth (the truth itself where
+        the set has no sensor or navigation errors)."""
+        if self._errors.any_sensing:
+            nav, sensed, feats, _ = self._errors.sense(self._x, self._forces, self._c_ae, self._g0,
+                                                       None if elapsed is None else [elapsed])  # fmt: skip
+            nav_x = tuple(float(c) for c in nav[0])
+            self._nav = nav[0]
+            self._sensed = sensed[0]
+            seen = Sensed(dcm(*nav_x[6:10]), float(feats.dynamic_pressure[0]), float(feats.aero_accel[0]))
+            self._seen = (nav_x, seen, dcm(*nav_x[1:5]))
+        else:
+            self._nav = None
+            self._sensed = None
+            self._seen = (self._x, self._forces, self._c_ae)
+
     def _observe(self):
-        raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, MATH)
+        x, forces, c_ae = self._seen
+        raw = observe(x, forces, c_ae, self._t, self.task, self._target, self._radius, self._g0, MATH)
         obs, clipped = common.clip_observation(np.array(raw, dtype=np.float32), self._obs_low, self._obs_high)
         return obs, bool(clipped)
 
@@ -282,7 +321,8 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             "speed_mps": self._x[5],
             "dynamic_pressure_pa": f.dynamic_pressure,
             "load_factor_g": f.aero_accel / self._g0,
-            "sensed_accel_b": np.array(f.aero_b, dtype=np.float64),
+            "sensed_accel_b": np.array(f.aero_b, dtype=np.float64) if self._sensed is None else self._sensed.copy(),
+            "navigation_state": np.array(self._x, dtype=np.float64) if self._nav is None else self._nav.copy(),
             "cost": self._cost,
             "time_s": self._t,
             "action_clipped": action_clipped,

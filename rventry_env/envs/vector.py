@@ -17,7 +17,8 @@ from rventry_env.envs.observation import observe
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.transition import Flight, advance
-from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion
+from rventry_env.envs.uncertainty import FlightState
+from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
 from rventry_env.physics.model import EntryModel, scaled_model
 
 TERMINAL_KEYS = (
@@ -158,10 +159,15 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._prev_done = np.zeros(n, dtype=bool)
         self._frozen = np.zeros(n, dtype=bool)  # DISABLED: copies whose episode ended
         self.dispersion_draw = np.zeros((n, 9))
+        self._errors = FlightState(n, self.model)
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
-        self._reset_copies(np.arange(n), dispersion)
+        extras = self._reset_copies(np.arange(n), dispersion)
+        self._measure()
         obs, clipped = self._observe()
-        return obs, self._info(np.zeros(n, bool), np.zeros(n, bool), clipped)
+        info = self._info(np.zeros(n, bool), np.zeros(n, bool), clipped)
+        # the draws, for evaluation only: a guidance law is never given them
+        info["dispersion_draw"] = self._errors.draw_info(self.dispersion_draw, extras)
+        return obs, info
 
     def step(self, actions):
         if self._x is None:
@@ -200,6 +206,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             infos["final_info"] = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in infos.items()}
             infos["_final_info"] = ended.copy()
             self._reset_copies(idx)
+            self._measure()
             obs_r, _ = self._observe()
             obs[idx] = obs_r[idx]
         return obs, reward.astype(np.float64), terminated, truncated, infos
@@ -213,16 +220,20 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         return (render_tracks(self._tracks, p.target_latitude, p.target_longitude, "RvEntry-v0 (vector)"),)
 
     # ------------------------------------------------------------------ helpers
-    def _reset_copies(self, idx: np.ndarray, dispersion: Dispersion | None = None) -> None:
-        """Draw and apply the start of a new episode for copies ``idx`` (each from its own generator).
+    def _reset_copies(self, idx: np.ndarray, dispersion: Dispersion | None = None) -> list:
+        """Draw and apply the start of a new episode for copies ``idx`` (each from its own generator);
+        return their flight-grade draws (None each for a set without them).
 
         :param dispersion: this reset's dispersion (default: the constructor's).
         """
-        x0 = self._draw(idx, dispersion)
-        self._model = (
-            self.model if np.all(self._density == 1) and np.all(self._lift == 1) and np.all(self._drag == 1)
-            else scaled_model(self.model, self._density, self._lift, self._drag)
-        )  # fmt: skip
+        x0, extras = self._draw(idx, dispersion)
+        if self._errors.any_model:
+            self._model = self._errors.model(self._density, self._lift, self._drag)
+        else:
+            self._model = (
+                self.model if np.all(self._density == 1) and np.all(self._lift == 1) and np.all(self._drag == 1)
+                else scaled_model(self.model, self._density, self._lift, self._drag)
+            )  # fmt: skip
         for c in range(12):
             self._x[c][idx] = x0[:, c]
         self._forces = self._prop.forces(self._x, self._model)
@@ -237,6 +248,20 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                 if i < len(self._tracks):
                     self._tracks[i] = Track()
             self._record(only=[i for i in idx if i < len(self._tracks)])
+        return extras
+
+    def _measure(self, elapsed=None, active=None) -> None:
+        """What the vehicles' sensors and navigation make of the truth (the truth itself where
+        no copy's set has sensor or navigation errors)."""
+        if self._errors.any_sensing:
+            nav, self._sensed, feats, nav_c_ae = self._errors.sense(self._x, self._forces, self._c_ae, self._g0,
+                                                                    elapsed, active)  # fmt: skip
+            self._nav = nav
+            self._seen = (tuple(nav[:, j] for j in range(12)), feats, nav_c_ae)
+        else:
+            self._nav = None
+            self._sensed = None
+            self._seen = (self._x, self._forces, self._c_ae)
 
     def _advance_all(self, a: np.ndarray, active: np.ndarray) -> "Stepped":
         """One control step of the active copies (actions ``a`` clipped): the backend's part of ``step``."""
@@ -246,16 +271,23 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         )  # fmt: skip
         self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q = tr.flight
         self._c_ae = tr.c_ae
+        self._measure(tr.out.elapsed, active)
         obs, obs_clipped = self._observe()
         info = common.flight_info(self._x, self._forces, self._c_ae, self._t, self._cost, self._radius, self._g0, NUMPY)
         return Stepped(tr.reward, tr.terminated, tr.truncated, tr.out.alpha_saturated, obs, obs_clipped, info,
                        tr.outcome, self._max_load, self._min_q)  # fmt: skip
 
-    def _draw(self, idx: np.ndarray, dispersion: Dispersion | None) -> np.ndarray:
-        """Draw new episodes for copies ``idx`` from their generators: their initial states (len(idx), 12);
-        the density, lift and drag factors go to ``_density``, ``_lift``, ``_drag``."""
+    def _draw(self, idx: np.ndarray, dispersion: Dispersion | None) -> tuple[np.ndarray, list]:
+        """Draw new episodes for copies ``idx`` from their generators: their initial states (len(idx), 12)
+        and their flight-grade draws (None each for a set without them); the density, lift and drag
+        factors go to ``_density``, ``_lift``, ``_drag``, the flight-grade parts to ``_errors``."""
         dispersion = self.dispersion if dispersion is None else dispersion
-        d = np.stack([draw_dispersion(self._rngs[i], dispersion) for i in idx])
+        d = np.empty((len(idx), 9))
+        extras = []
+        for j, i in enumerate(idx):  # each copy's draws in the single env's order
+            d[j] = draw_dispersion(self._rngs[i], dispersion)
+            extras.append(draw_extras(self._rngs[i], dispersion, self.task.problem))
+            self._errors.assign(i, dispersion, extras[-1])
         x0 = self._initial[idx]
         if not dispersion.is_zero:
             x0 = apply_state_dispersion(x0, d)
@@ -263,10 +295,11 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._density[idx] = 1 + d[:, 0]
         self._lift[idx] = 1 + d[:, 1]
         self._drag[idx] = 1 + d[:, 2]
-        return x0
+        return x0, extras
 
     def _observe(self):
-        raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, NUMPY)
+        x, forces, c_ae = self._seen
+        raw = observe(x, forces, c_ae, self._t, self.task, self._target, self._radius, self._g0, NUMPY)
         return common.observation_batch(raw, self._obs_low, self._obs_high)
 
     def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
@@ -285,6 +318,9 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         infos["action_clipped"] = np.asarray(action_clipped, bool)
         infos["alpha_saturated"] = np.broadcast_to(np.asarray(alpha_saturated, bool), (n,)).copy()
         infos["observation_clipped"] = np.asarray(obs_clipped, bool)
+        if self._sensed is not None:
+            infos["sensed_accel_b"] = self._sensed.copy()
+        infos["navigation_state"] = self.state if self._nav is None else self._nav.copy()
         for k in TERMINAL_KEYS:
             infos[k] = np.full(n, "", dtype=object) if k == "failure" else np.zeros(n, dtype=float)
             infos["_" + k] = np.zeros(n, dtype=bool)

@@ -20,7 +20,7 @@ NOMINAL_TARGETS = {"miss_km": 1.0, "vertical_error_deg": 1.0, "abs_speed_error_m
 # success over TV-LQR without estimation, on the same episodes
 DISPERSED_SUCCESS_TARGETS = {"standard": 0.95, "wide": 0.90}
 MARGIN_OVER_LQR = 0.10
-DISPERSIONS = ("none", "standard", "wide")
+DISPERSIONS = ("none", "standard", "wide", "flight", "peer", "peer-0.1")
 MPC_EPISODES = 20
 # the memory an evaluated episode holds until the report is written: its outcome and its JSON
 # record, and with --plots its every step's state and action. Measured with /usr/bin/time on
@@ -77,7 +77,9 @@ def _dispersion_arguments(parser, default: str = "none") -> None:
         "--dispersion", choices=DISPERSIONS, default=None,
         help=f"initial-state and model dispersions (default {default}): standard = density 5 %%, C_L and C_D "
         "3 %%, altitude 0.5 km, speed 20 m/s, flight-path angle 0.2 deg; wide = 10 %%, 5 %%, 1 km, 40 m/s, "
-        "0.4 deg and heading 0.2 deg",
+        "0.4 deg and heading 0.2 deg (uniform half-widths); flight = altitude-varying NRLMSIS density and "
+        "Gauss-Markov perturbations, winds, Mach-dependent C_L and C_D, mass, accelerometer and navigation errors; "
+        "peer = RLReentry's clipped Gaussians, peer-0.1 a tenth of them (docs/uncertainty.md)",
     )  # fmt: skip
     parser.add_argument("--dispersed", action="store_true", help="the same as --dispersion standard")
     parser.set_defaults(dispersion_default=default)
@@ -150,7 +152,7 @@ def _document(agent, episodes, dispersion, seed, batch, summary) -> dict:
         "agent": agent,
         "n_episodes": episodes,
         "dispersion_set": dispersion,
-        "dispersion": Dispersion.parse(dispersion).__dict__,
+        "dispersion": Dispersion.parse(dispersion).describe(),
         "seed": seed,
         "provenance": batch.provenance,
         "reference": {"cost": float(ref.cost), "tf_s": float(ref.tf)},
@@ -343,7 +345,10 @@ def _tables(runs, names, episodes, dispersion, checks):
 
 def _print_summary(agent: str, s: dict) -> None:
     print(
-        f"{agent}: {s['episodes']} episode(s): success rate {s['success_rate']:.2f}; means: miss {s['miss_km']:.3g} km, "
+        f"{agent}: {s['episodes']} episode(s): success rate {s['success_rate']:.2f} "
+        f"[{s['success_rate_ci'][0]:.2f}, {s['success_rate_ci'][1]:.2f}], precision {s['precision_success_rate']:.2f} "
+        f"[{s['precision_success_rate_ci'][0]:.2f}, {s['precision_success_rate_ci'][1]:.2f}]; miss p50/p95/p99 "
+        f"{s['miss_m']['p50']:.0f}/{s['miss_m']['p95']:.0f}/{s['miss_m']['p99']:.0f} m; means: miss {s['miss_km']:.3g} km, "
         f"vertical error {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
         f"J/J* {s['cost_ratio']:.3f}; endings {s['endings']} (percentiles in the JSON report)"
         + (f", load relief capped {r['capped_steps']} step(s) in {r['episodes_capped']} episode(s)"

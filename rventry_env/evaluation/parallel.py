@@ -231,6 +231,7 @@ def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
         **{k: np.concatenate([getattr(b, k) for b in batches]) for k in fields_1d},
         dispersion_draw=np.concatenate([b.dispersion_draw for b in batches]),
         seeds=np.concatenate([b.seeds for b in batches]),
+        flight_draw={k: np.concatenate([b.flight_draw[k] for b in batches]) for k in batches[0].flight_draw},
         law_stats=[s for b in batches for s in b.law_stats],
         provenance=batches[0].provenance,
         lengths=np.concatenate([b.lengths for b in batches]),
@@ -256,4 +257,4 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["WorkerLost", "end_with_parent", "EvaluationJob", "evaluate", "map_local", "run_task", "concatenate", "split", "default_workers"]
+__all__ = ["WorkerLost", "end_with_parent", "EvaluationJob", "evaluate", "map_local", "map_cluster", "map_tasks", "run_task", "concatenate", "split", "default_workers"]

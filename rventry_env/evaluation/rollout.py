@@ -23,7 +23,7 @@ from gymnasium.vector import AutoresetMode
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.guidance.law import GuidanceLaw, Measurement, check_law
 from rventry_env.physics.model import EntryModel
-from rventry_env.task import Dispersion, EntryTask
+from rventry_env.task import SCALAR_FIELDS, Dispersion, EntryTask
 
 
 @dataclass
@@ -43,6 +43,8 @@ class EpisodeBatch:
     time_s: np.ndarray
     dispersion_draw: np.ndarray
     seeds: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    # flight-grade draws with one number per episode (mass, climate drivers), name -> (N,)
+    flight_draw: dict = field(default_factory=dict)
     law_stats: list = field(default_factory=list)  # per episode, from the law's episode_stats()
     provenance: dict | None = None  # the law's (GuidanceLaw.provenance)
     # histories: time (T,), states (T, N, 12), actions (T, N, 2); T = longest episode
@@ -68,7 +70,8 @@ class EpisodeBatch:
                 "success": bool(self.is_success[i]),
                 "failure": str(self.failure[i]),
                 "tf_s": float(self.time_s[i]),
-                "dispersion": dict(zip(Dispersion.__dataclass_fields__, map(float, self.dispersion_draw[i]))),
+                "dispersion": {**dict(zip(SCALAR_FIELDS, map(float, self.dispersion_draw[i]))),
+                               **{k: float(v[i]) for k, v in self.flight_draw.items()}},
             }
             if self.seeds.size:
                 rec["seed"] = int(self.seeds[i])
@@ -124,12 +127,14 @@ def rollout(
             "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
     final = {k: np.zeros(n, dtype=object if k == "failure" else (bool if k in ("constraint_violation", "is_success") else float)) for k in keys}
     draws = venv.dispersion_draw.copy()
+    flight_draw = episode_draws(info["dispersion_draw"])
     lengths = np.zeros(n, int)
     hist_t, hist_x, hist_a = [], [], []
     time_s = np.zeros(n)
     while not done.all():
         state = venv.state
-        measured = Measurement(obs, time_s.copy(), state, info["sensed_accel_b"].copy(), ~done)
+        # what the law is given: the navigation state and the sensors, never the truth or the draw
+        measured = Measurement(obs, time_s.copy(), info["navigation_state"].copy(), info["sensed_accel_b"].copy(), ~done)
         actions = np.asarray(policy(measured), dtype=np.float32)
         if record_history:
             hist_t.append(time_s.copy())
@@ -150,10 +155,26 @@ def rollout(
                 hist_a.append(np.full((n, 2), np.nan, np.float32))
     stats = list(policy.episode_stats())
     batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths,
-                         seeds=np.array(seeds), law_stats=stats, provenance=policy.provenance)  # fmt: skip
+                         seeds=np.array(seeds), law_stats=stats, provenance=policy.provenance,
+                         flight_draw=flight_draw)  # fmt: skip
     if record_history:
         batch.history_t, batch.history_x, batch.history_a = _tidy_history(hist_t, hist_x, hist_a, lengths)
     return batch
+
+
+CLIMATE_NAMES = ("day_of_year", "local_time_h", "f107_sfu", "f107a_sfu", "ap")
+
+
+def episode_draws(draw: dict) -> dict:
+    """The per-episode numbers of a reset's ``info["dispersion_draw"]`` beyond the nine scalars:
+    the mass offset and, with a climatology, its drivers (name -> (N,))."""
+    out = {}
+    if "mass" in draw:
+        out["mass"] = np.asarray(draw["mass"], dtype=float)
+    climate = np.asarray(draw.get("climate", np.empty((0, 0))), dtype=float)
+    if climate.size and np.all(np.isfinite(climate)):
+        out.update({name: climate[:, j] for j, name in enumerate(CLIMATE_NAMES)})
+    return out
 
 
 def _tidy_history(ts, xs, acts, lengths):

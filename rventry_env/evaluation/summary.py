@@ -35,6 +35,11 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     }
     out: dict = {k: _f(np.mean(values[k].astype(float))) for k in METRICS}
     out["success_rate"] = _f(np.mean(batch.is_success.astype(float)))
+    out["success_rate_ci"] = rate_interval(batch.is_success)
+    precise = precision_success(batch, task)
+    out["precision_success_rate"] = _f(np.mean(precise.astype(float)))
+    out["precision_success_rate_ci"] = rate_interval(precise)
+    out["miss_m"] = {f"p{q}": _f(np.percentile(batch.miss_km.astype(float), q) * 1000.0) for q in (50, 95, 99)}
     out["constraint_violation_rate"] = _f(np.mean(batch.constraint_violation.astype(float)))
     out["impact_rate"] = _f(np.mean(batch.failure == ""))
     out["episodes"] = int(batch.miss_km.size)
@@ -44,9 +49,28 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     failures, counts = np.unique(batch.failure.astype(str), return_counts=True)
     out["endings"] = {("impact" if f == "" else str(f)): int(c) for f, c in zip(failures, counts)}
     out["success_thresholds"] = dataclasses.asdict(task.success)
+    out["precision_thresholds"] = dataclasses.asdict(task.precision)
     out["replanning"] = replanning_summary(batch.law_stats)
     out["load_relief"] = load_relief_summary(batch.law_stats)
     return out
+
+
+def precision_success(batch: EpisodeBatch, task: EntryTask) -> np.ndarray:
+    """Which episodes meet the precision tier (:class:`~rventry_env.task.PrecisionThresholds`)."""
+    return task.precision.met(batch.failure == "", batch.miss_km.astype(float), batch.vertical_error_deg.astype(float),
+                              batch.alpha_final_deg.astype(float), batch.speed_error_mps.astype(float),
+                              batch.constraint_violation)  # fmt: skip
+
+
+def rate_interval(hits, confidence: float = 0.95) -> list[float]:
+    """The Wilson score interval [low, high] of a success rate (scipy's binomtest)."""
+    from scipy.stats import binomtest
+
+    hits = np.asarray(hits, bool)
+    if hits.size == 0:
+        return [0.0, 1.0]
+    ci = binomtest(int(hits.sum()), int(hits.size)).proportion_ci(confidence_level=confidence, method="wilson")
+    return [float(ci.low), float(ci.high)]
 
 
 def task_metric_key(success_rate: float | None, mean_miss_km: float | None) -> tuple[float, float]:

@@ -10,15 +10,30 @@ these; the reward an RL agent is paid stays with the environment
 (:class:`rventry_env.envs.reward.RewardWeights`).
 """
 
-from rventry_env.task.definition import EntryTask, SuccessThresholds
-from rventry_env.task.dispersion import NAMED_SETS, Dispersion, apply_state_dispersion, disperse_state, draw_dispersion
+from rventry_env.task.definition import EntryTask, PrecisionThresholds, SuccessThresholds
+from rventry_env.task.dispersion import (
+    FLIGHT_ERRORS,
+    NAMED_SETS,
+    SCALAR_FIELDS,
+    Dispersion,
+    apply_state_dispersion,
+    disperse_state,
+    draw_dispersion,
+    draw_extras,
+)
+from rventry_env.task.flight import FlightErrors
 from rventry_env.task.problem import EntryProblem
 
 __all__ = [
     "EntryProblem",
     "EntryTask",
     "SuccessThresholds",
+    "PrecisionThresholds",
     "NAMED_SETS",
+    "SCALAR_FIELDS",
+    "FLIGHT_ERRORS",
+    "FlightErrors",
+    "draw_extras",
     "Dispersion",
     "apply_state_dispersion",
     "disperse_state",

@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 
+import numpy as np
+
 from rventry_env.task.dispersion import Dispersion
 from rventry_env.task.problem import EntryProblem
 
@@ -30,6 +32,28 @@ class SuccessThresholds:
 
 
 @dataclass(frozen=True)
+class PrecisionThresholds:
+    """The precision tier, reported beside the benchmark's success: what a flight project asks of
+    a precise impact (the paper's Example 2 also asks for alpha(t_f) = 0). An impact counts when
+    every error is within its bound and no path bound was breached beyond the success margin."""
+
+    miss_m: float = 100.0
+    vertical_error_deg: float = 2.0
+    alpha_final_deg: float = 2.0
+    speed_error_mps: float = 25.0
+
+    def met(self, impact, miss_km, vertical_error_deg, alpha_final_deg, speed_error_mps, constraint_violation):
+        """Where each episode meets the tier (arrays or numbers)."""
+        with np.errstate(invalid="ignore"):
+            return (
+                np.asarray(impact, bool) & (np.asarray(miss_km) * 1000.0 <= self.miss_m)
+                & (np.asarray(vertical_error_deg) <= self.vertical_error_deg)
+                & (np.abs(alpha_final_deg) <= self.alpha_final_deg)
+                & (np.abs(speed_error_mps) <= self.speed_error_mps) & ~np.asarray(constraint_violation, bool)
+            )  # fmt: skip
+
+
+@dataclass(frozen=True)
 class EntryTask:
     """Problem, success thresholds, control step and episode-end rules together.
 
@@ -44,6 +68,7 @@ class EntryTask:
 
     problem: EntryProblem = field(default_factory=EntryProblem)
     success: SuccessThresholds = field(default_factory=SuccessThresholds)
+    precision: PrecisionThresholds = field(default_factory=PrecisionThresholds)
     dt: float = 1.0
     substeps: int = 1
     ceiling_altitude: float = 80e3
@@ -106,27 +131,28 @@ class EntryTask:
         p = self.problem
         room_down = p.initial_altitude - p.final_altitude
         room_up = self.ceiling_altitude - p.initial_altitude
-        if dispersion.altitude_m >= min(room_down, room_up):
+        big = dispersion.largest
+        if big("altitude_m") >= min(room_down, room_up):
             raise ValueError(
                 f"dispersion altitude_m = {dispersion.altitude_m:g} m could start the vehicle "
                 f"{'underground' if room_down <= room_up else 'above the skip-out ceiling'}: the initial altitude "
-                f"is {p.initial_altitude:g} m, so the half-width must stay below {min(room_down, room_up):g} m"
+                f"is {p.initial_altitude:g} m, so the largest draw must stay below {min(room_down, room_up):g} m"
             )
-        if dispersion.speed_mps >= p.initial_speed - self.min_speed:
+        if big("speed_mps") >= p.initial_speed - self.min_speed:
             raise ValueError(
                 f"dispersion speed_mps = {dispersion.speed_mps:g} m/s could start the vehicle below the stall "
-                f"speed ({self.min_speed:g} m/s): the initial speed is {p.initial_speed:g} m/s, so the half-width "
+                f"speed ({self.min_speed:g} m/s): the initial speed is {p.initial_speed:g} m/s, so the largest draw "
                 f"must stay below {p.initial_speed - self.min_speed:g} m/s"
             )
         for name in ("flight_path_deg", "heading_deg"):
-            if getattr(dispersion, name) >= 90.0:
+            if big(name) >= 90.0:
                 raise ValueError(f"dispersion {name} = {getattr(dispersion, name):g} deg must stay below 90 deg")
         alpha_room = math.degrees(min(p.initial_alpha, p.alpha_max - p.initial_alpha))
-        if dispersion.alpha_deg > alpha_room:
+        if big("alpha_deg") > alpha_room:
             raise ValueError(
                 f"dispersion alpha_deg = {dispersion.alpha_deg:g} deg would start alpha outside [0, alpha_max]: "
-                f"alpha(0) is {math.degrees(p.initial_alpha):g} deg, so the half-width must stay within {alpha_room:g} deg"
+                f"alpha(0) is {math.degrees(p.initial_alpha):g} deg, so the largest draw must stay within {alpha_room:g} deg"
             )
 
 
-__all__ = ["EntryTask", "SuccessThresholds"]
+__all__ = ["EntryTask", "SuccessThresholds", "PrecisionThresholds"]

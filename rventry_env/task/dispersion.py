@@ -7,7 +7,7 @@ in the single and in the vector environment alike.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -15,18 +15,30 @@ from rventry_env.physics.entry import IDX
 from rventry_env.core.backend import NUMPY
 from rventry_env.core import euler_parameters as ep
 from rventry_env.core.euler_parameters import dcm_column, rates_from_omega
+from rventry_env.task.flight import FlightErrors
 
-NAMED_SETS = ("standard", "wide")
+NAMED_SETS = ("standard", "wide", "flight", "peer", "peer-0.1")
+# the nine numbers every reset draws, in this order (always nine, whatever the set)
+SCALAR_FIELDS = ("density", "lift", "drag", "altitude_m", "speed_mps", "flight_path_deg", "heading_deg", "alpha_deg",
+                 "sigma_deg")  # fmt: skip
+SHAPES = ("uniform", "gaussian")
 SINGULAR_TOL = 1e-9  # cos(latitude) or cos(flight-path angle) at or below this: a pole, vertical flight
 
 
 @dataclass(frozen=True)
 class Dispersion:
-    """Half-widths of uniform dispersions drawn at each reset from ``np_random``.
+    """The dispersions drawn at each reset from ``np_random``.
 
     Model dispersions scale the density and the lift and drag coefficients by
-    (1 + U(-x, x)); state dispersions add U(-x, x) to the initial altitude,
-    speed, flight-path angle, heading, alpha and sigma.
+    (1 + d); state dispersions add d to the initial altitude, speed, flight-path angle,
+    heading, alpha and sigma. With ``shape="uniform"`` (the standard and wide sets) each field
+    is a half-width and d = U(-x, x); with ``shape="gaussian"`` each is a standard deviation and
+    d = x N(0, 1) clipped at ``clip_sigmas``.
+
+    ``mass`` scales the vehicle's mass by (1 + d) (same shape), and ``flight`` adds the
+    flight-grade errors of :class:`~rventry_env.task.flight.FlightErrors` (density and wind
+    profiles, Mach-dependent aerodynamics, accelerometer and navigation errors). Neither
+    draws anything when zero, so the standard and wide sets draw exactly what they always did.
     """
 
     density: float = 0.0
@@ -38,6 +50,10 @@ class Dispersion:
     heading_deg: float = 0.0
     alpha_deg: float = 0.0
     sigma_deg: float = 0.0
+    shape: str = "uniform"
+    clip_sigmas: float = 3.0
+    mass: float = 0.0
+    flight: FlightErrors | None = field(default=None)
 
     @classmethod
     def standard(cls) -> "Dispersion":
@@ -52,6 +68,35 @@ class Dispersion:
                    heading_deg=0.2)  # fmt: skip
 
     @classmethod
+    def flight_set(cls) -> "Dispersion":
+        """The flight set: what a flight project's Monte Carlo draws (magnitudes and sources in
+        docs/uncertainty.md). Gaussian, clipped at 3 sigma."""
+        return cls(
+            density=0.0, lift=0.05, drag=0.05, altitude_m=100.0, speed_mps=2.0, flight_path_deg=0.05,
+            heading_deg=0.05, shape="gaussian", mass=0.01, flight=FLIGHT_ERRORS,
+        )  # fmt: skip
+
+    @classmethod
+    def peer(cls, factor: float = 1.0) -> "Dispersion":
+        """RLReentry's set mapped onto this entry (docs/uncertainty.md): clipped Gaussians with
+        altitude sigma 5 km, speed 60 m/s, flight-path angle 0.25 deg, heading 1 deg, mass 5 %,
+        C_L and C_D 20 %, density 25 %; every sigma times ``factor``."""
+        return cls(
+            density=0.25 * factor, lift=0.20 * factor, drag=0.20 * factor, altitude_m=5000.0 * factor,
+            speed_mps=60.0 * factor, flight_path_deg=0.25 * factor, heading_deg=1.0 * factor, shape="gaussian",
+            mass=0.05 * factor,
+        )  # fmt: skip
+
+    @classmethod
+    def named(cls, name: str) -> "Dispersion":
+        """A named set: ``"none"``, ``"standard"``, ``"wide"``, ``"flight"``, ``"peer"``, ``"peer-0.1"``."""
+        makers = {"none": cls, "standard": cls.standard, "wide": cls.wide, "flight": cls.flight_set,
+                  "peer": cls.peer, "peer-0.1": lambda: cls.peer(0.1)}  # fmt: skip
+        if name not in makers:
+            raise ValueError(f"no dispersion set {name!r}; named sets: {sorted(makers)}")
+        return makers[name]()
+
+    @classmethod
     def parse(cls, value) -> "Dispersion":
         """A Dispersion from None, a Dispersion, a set's name (``"none"``, ``"standard"``, ``"wide"``) or a dict of fields."""
         if value is None or value == "none":
@@ -59,45 +104,100 @@ class Dispersion:
         if isinstance(value, Dispersion):
             return value
         if isinstance(value, str) and value in NAMED_SETS:
-            return getattr(cls, value)()
+            return cls.named(value)
         if isinstance(value, dict):
             unknown = set(value) - set(cls.__dataclass_fields__)
             if unknown:
                 raise ValueError(f"unknown dispersion field(s) {sorted(unknown)}; known: {sorted(cls.__dataclass_fields__)}")
             values = {}
             for k, v in value.items():
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                if k == "shape":
+                    values[k] = v
+                elif k == "flight":
+                    values[k] = FlightErrors.parse(v)
+                elif isinstance(v, bool) or not isinstance(v, (int, float)):
                     raise ValueError(f"dispersion {k} must be a number, got {v!r}")
-                values[k] = float(v)
+                else:
+                    values[k] = float(v)
             return cls(**values)
         names = ", ".join(repr(n) for n in ("none", *NAMED_SETS))
         raise ValueError(f"cannot make a Dispersion from {value!r}: give {names}, a Dispersion or a dict of its fields")
 
     def __post_init__(self):
-        for k, v in self.__dict__.items():
+        if self.shape not in SHAPES:
+            raise ValueError(f"dispersion shape must be one of {SHAPES}, got {self.shape!r}")
+        what = "half-width" if self.shape == "uniform" else "standard deviation"
+        for k in (*SCALAR_FIELDS, "mass"):
+            v = getattr(self, k)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"dispersion {k} must be a finite half-width >= 0, got {v!r}")
-        for k in ("density", "lift", "drag"):
-            if getattr(self, k) >= 1:
-                raise ValueError(f"dispersion {k} = {getattr(self, k):g} is relative and must be below 1 (100 %)")
+                raise ValueError(f"dispersion {k} must be a finite {what} >= 0, got {v!r}")
+        c = self.clip_sigmas
+        if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or c <= 0:
+            raise ValueError(f"dispersion clip_sigmas must be a positive number, got {c!r}")
+        if self.flight is not None and not isinstance(self.flight, FlightErrors):
+            raise ValueError(f"dispersion flight must be FlightErrors or None, got {self.flight!r}")
+        for k in ("density", "lift", "drag", "mass"):
+            if self.largest(k) >= 1:
+                raise ValueError(
+                    f"dispersion {k} = {getattr(self, k):g} is relative and its largest draw "
+                    f"({self.largest(k):g}) must be below 1 (100 %)"
+                )
+
+    def largest(self, name: str) -> float:
+        """The largest |d| a field can draw: its half-width, or clip_sigmas standard deviations."""
+        return getattr(self, name) * (1.0 if self.shape == "uniform" else self.clip_sigmas)
 
     @property
     def name(self) -> str:
-        """The named set this equals (``"none"``, ``"standard"``, ``"wide"``), else ``"custom"``."""
+        """The named set this equals (``"none"``, ``"standard"``, ...), else ``"custom"``."""
         if self.is_zero:
             return "none"
-        return next((n for n in NAMED_SETS if getattr(Dispersion, n)() == self), "custom")
+        return next((n for n in NAMED_SETS if Dispersion.named(n) == self), "custom")
+
+    def describe(self) -> dict:
+        """A JSON-friendly description of every field (the flight errors as a dict)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "flight"}
+        out["flight"] = None if self.flight is None else self.flight.describe()
+        return out
+
+    @property
+    def has_extras(self) -> bool:
+        """Whether a reset draws more than the nine scalars (a mass or flight-grade errors)."""
+        return self.mass > 0 or (self.flight is not None and not self.flight.is_zero)
+
+    @property
+    def has_sensing(self) -> bool:
+        """Whether the vehicle's sensors or navigation err (what a law sees differs from the truth)."""
+        return self.flight is not None and self.flight.has_sensing
 
     @property
     def is_zero(self) -> bool:
-        return all(v == 0 for v in self.__dict__.values())
+        return all(getattr(self, k) == 0 for k in SCALAR_FIELDS) and not self.has_extras
 
 
 def draw_dispersion(rng: np.random.Generator, dispersion: Dispersion) -> np.ndarray:
-    """One draw of the 9 dispersion variables, in Dispersion field order (always 9 numbers,
-    so single and vector environments stay in step draw for draw)."""
-    half = np.array([getattr(dispersion, f) for f in Dispersion.__dataclass_fields__])
-    return rng.uniform(-1.0, 1.0, size=half.shape) * half
+    """One draw of the 9 scalar dispersion variables, in :data:`SCALAR_FIELDS` order (always 9
+    numbers, so single and vector environments stay in step draw for draw)."""
+    half = np.array([getattr(dispersion, f) for f in SCALAR_FIELDS])
+    if dispersion.shape == "uniform":
+        return rng.uniform(-1.0, 1.0, size=half.shape) * half
+    c = dispersion.clip_sigmas
+    return np.clip(rng.standard_normal(half.shape), -c, c) * half
+
+
+def draw_extras(rng: np.random.Generator, dispersion: Dispersion, problem) -> dict | None:
+    """What a reset draws after the nine scalars: the mass factor's offset and the flight-grade
+    errors (:func:`~rventry_env.task.flight.draw_flight`); None, drawing nothing, for a set
+    without them."""
+    if not dispersion.has_extras:
+        return None
+    from rventry_env.task.flight import draw_flight
+
+    z = rng.uniform(-1.0, 1.0) if dispersion.shape == "uniform" else float(np.clip(rng.standard_normal(), -dispersion.clip_sigmas, dispersion.clip_sigmas))
+    out = {"mass": np.float64(z * dispersion.mass)}
+    flight = dispersion.flight if dispersion.flight is not None else FlightErrors()
+    out.update(draw_flight(rng, flight, problem))
+    return out
 
 
 def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -155,4 +255,23 @@ def _turn(q: tuple, axis: tuple, angle, ns) -> tuple:
     return tuple(cos * qi + 2.0 * sin * ki for qi, ki in zip(q, k))
 
 
-__all__ = ["NAMED_SETS", "Dispersion", "draw_dispersion", "apply_state_dispersion", "disperse_state"]
+
+# The flight set's flight-grade magnitudes (1 sigma; sources in docs/uncertainty.md)
+FLIGHT_ERRORS = FlightErrors(
+    climatology=True,
+    # ln-density Gauss-Markov: (band top m, rms, correlation length m)
+    density_bands=((10e3, 0.02, 5e3), (30e3, 0.03, 8e3), (50e3, 0.05, 10e3), (100e3, 0.08, 12e3)),
+    wind_mean_mps=10.0,
+    wind_bands=((10e3, 5.0, 3e3), (30e3, 8.0, 4e3), (50e3, 12.0, 5e3), (100e3, 20.0, 6e3)),
+    lift_mach=0.03,
+    drag_mach=0.03,
+    accel_bias_mps2=50e-6 * 9.80665,
+    accel_scale=100e-6,
+    accel_misalignment_rad=math.radians(20.0 / 3600.0),
+    accel_noise_mps2=3e-4,
+    nav_position_m=100.0,
+    nav_velocity_mps=0.5,
+)
+
+__all__ = ["NAMED_SETS", "SCALAR_FIELDS", "FLIGHT_ERRORS", "Dispersion", "draw_dispersion", "draw_extras",
+           "apply_state_dispersion", "disperse_state"]  # fmt: skip

@@ -1,0 +1,124 @@
+"""Every shipped law on the flight-grade dispersion sets: basic and precision success with 95 %
+Wilson intervals, miss percentiles, and the oracle's ceiling beside them.
+
+For each set and law this runs what ``rventry evaluate --agent LAW --dispersion SET`` runs (seeds
+0 .. N-1) and prints one Markdown table per set (the README's). The ceiling column reads
+``out/oracle_SET.json`` (``rventry oracle --dispersion SET --episodes 50 --json out/oracle_SET.json``)
+when it is there.
+
+``--effects`` instead flies the laws on the ``flight`` set's parts one at a time (its scalar
+dispersions alone, the climatology alone, the density perturbation alone, the winds alone, the
+Mach-dependent aerodynamics alone, the sensors and navigation alone): which effect breaks which law.
+
+Run: ``python scripts/bench_sets.py [--sets flight peer peer-0.1] [--laws ...] [--episodes 200]
+[--mpc-episodes 20] [--workers 2] [--effects] --json out/bench_sets.json``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+LAWS = ("reference", "lqr", "lqr-est", "mpc", "learned")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sets", nargs="+", default=["flight", "peer", "peer-0.1"])
+    ap.add_argument("--laws", nargs="+", default=list(LAWS))
+    ap.add_argument("--episodes", type=int, default=200)
+    ap.add_argument("--mpc-episodes", type=int, default=20)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--effects", action="store_true", help="the flight set's effects one at a time")
+    ap.add_argument("--json", required=True)
+    args = ap.parse_args()
+    if args.effects:
+        return effects(args)
+
+    from rventry_env.evaluation.cli import run_agent
+    from rventry_env.util.files import write_json
+
+    out: dict = {"episodes": args.episodes, "mpc_episodes": args.mpc_episodes, "sets": {}}
+    for s in args.sets:
+        rows = {}
+        for law in args.laws:
+            n = args.mpc_episodes if law == "mpc" else args.episodes
+            t0 = time.time()
+            _, summary = run_agent(law, n, s, 0, history=False, workers=args.workers)
+            rows[law] = {k: summary[k] for k in ("episodes", "success_rate", "success_rate_ci", "precision_success_rate",
+                                                 "precision_success_rate_ci", "miss_m", "endings",
+                                                 "constraint_violation_rate")}  # fmt: skip
+            rows[law]["wall_s"] = time.time() - t0
+            print(f"{s:9s} {law:10s} {n:4d} ep: success {summary['success_rate']:.2f} {summary['success_rate_ci']}, "
+                  f"precision {summary['precision_success_rate']:.2f}, {time.time() - t0:.0f} s", flush=True)  # fmt: skip
+        ceiling = None
+        path = Path("out") / f"oracle_{s}.json"
+        if path.exists():
+            ceiling = json.loads(path.read_text())["summary"]
+        out["sets"][s] = {"laws": rows, "oracle": ceiling}
+        write_json(args.json, out)
+        print(table(s, rows, ceiling))
+
+
+def effect_sets() -> dict:
+    """The flight set's parts, each alone (dicts of Dispersion fields)."""
+    import dataclasses
+
+    from rventry_env.task import FLIGHT_ERRORS as F
+    from rventry_env.task import Dispersion, FlightErrors
+
+    flight = Dispersion.parse("flight")
+    sensing = {k: getattr(F, k) for k in ("accel_bias_mps2", "accel_scale", "accel_misalignment_rad",
+                                          "accel_noise_mps2", "nav_position_m", "nav_velocity_mps")}  # fmt: skip
+    return {
+        "entry state, C_L/C_D, mass": dataclasses.replace(flight, flight=None),
+        "NRLMSIS climatology": Dispersion(flight=FlightErrors(climatology=True)),
+        "density perturbation": Dispersion(flight=FlightErrors(density_bands=F.density_bands)),
+        "winds": Dispersion(flight=FlightErrors(wind_mean_mps=F.wind_mean_mps, wind_bands=F.wind_bands)),
+        "Mach-dependent C_L/C_D": Dispersion(flight=FlightErrors(lift_mach=F.lift_mach, drag_mach=F.drag_mach)),
+        "sensors and navigation": Dispersion(flight=FlightErrors(**sensing)),
+    }
+
+
+def effects(args) -> None:
+    from rventry_env.evaluation.cli import run_agent
+    from rventry_env.util.files import write_json
+
+    out: dict = {"episodes": args.episodes, "effects": {}}
+    lines = ["| effect alone | " + " | ".join(f"`{law}`" for law in args.laws) + " |",
+             "|---|" + "---|" * len(args.laws)]  # fmt: skip
+    for name, d in effect_sets().items():
+        cells = []
+        for law in args.laws:
+            n = args.mpc_episodes if law == "mpc" else args.episodes
+            _, summary = run_agent(law, n, d.describe() | {"flight": d.flight}, 0, history=False, workers=args.workers)
+            out["effects"].setdefault(name, {})[law] = {k: summary[k] for k in ("episodes", "success_rate",
+                                                       "success_rate_ci", "precision_success_rate", "miss_m")}  # fmt: skip
+            c = summary["success_rate_ci"]
+            cells.append(f"{summary['success_rate']:.2f} [{c[0]:.2f}, {c[1]:.2f}]")
+            print(f"{name:28s} {law:10s} {n:4d} ep: success {summary['success_rate']:.2f}", flush=True)
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        write_json(args.json, out)
+    print("\n".join(lines))
+
+
+def table(name: str, rows: dict, ceiling: dict | None) -> str:
+    def ci(v, c):
+        return f"{v:.2f} [{c[0]:.2f}, {c[1]:.2f}]"
+
+    lines = [f"`{name}`" + (f" (oracle: flyable {ci(ceiling['flyable_fraction'], ceiling['flyable_fraction_ci'])} on "
+                             f"{ceiling['draws']} draws)" if ceiling else ""),  # fmt: skip
+             "", "| law | episodes | success [95 % CI] | precision [95 % CI] | miss p50 / p95 (m) | path-bound breaches |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for law, r in rows.items():
+        m = r["miss_m"]
+        lines.append(f"| `{law}` | {r['episodes']} | {ci(r['success_rate'], r['success_rate_ci'])} | "
+                     f"{ci(r['precision_success_rate'], r['precision_success_rate_ci'])} | "
+                     f"{m['p50']:.0f} / {m['p95']:.0f} | {r['constraint_violation_rate']:.2f} |")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    main()
