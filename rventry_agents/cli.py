@@ -13,19 +13,22 @@ from rventry_env.util.args import positive_int, seed
 def register(sub: argparse._SubParsersAction) -> None:
     train = sub.add_parser("train", help="train a learning agent on RvEntry-v0")
     algos = train.add_subparsers(dest="algo", metavar="ALGO", required=True)
-    for name, algorithm, what in (
-        ("ppo", "ppo", "stable-baselines3 PPO (default config: the PPO residual on the classical law)"),
-        ("recurrent-ppo", "recurrent_ppo", "sb3-contrib RecurrentPPO, an LSTM policy (default config: the plain baseline)"),
-        ("sac", "sac", "stable-baselines3 SAC (default config: the plain baseline)"),
-    ):  # fmt: skip
-        from rventry_agents.train import DEFAULT_CONFIGS
+    from rventry_agents.train import DEFAULT_CONFIGS, FINETUNE_CONFIG
 
-        default = DEFAULT_CONFIGS[algorithm].relative_to(DEFAULT_CONFIGS["ppo"].parent.parent)
+    for name, algorithm, config, what in (
+        ("ppo", "ppo", DEFAULT_CONFIGS["ppo"], "stable-baselines3 PPO (default config: the PPO residual on the classical law)"),
+        ("ppo-finetune", "ppo", FINETUNE_CONFIG, "stable-baselines3 PPO starting from the imitation student (dagger)"),
+        ("recurrent-ppo", "recurrent_ppo", DEFAULT_CONFIGS["recurrent_ppo"],
+         "sb3-contrib RecurrentPPO, an LSTM policy (default config: the plain baseline)"),
+        ("sac", "sac", DEFAULT_CONFIGS["sac"], "stable-baselines3 SAC (default config: the plain baseline)"),
+    ):  # fmt: skip
+        default = config.relative_to(DEFAULT_CONFIGS["ppo"].parent.parent)
         cmd = algos.add_parser(name, help=f"{what}, on the numpy-batched vector env")
         cmd.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
         cmd.add_argument("--seed", type=seed, help="random seed (default: the config's)")
-        cmd.add_argument("--out", default=f"runs/{algorithm}", help=f"output directory (default runs/{algorithm})")
-        cmd.add_argument("--config", help=f"TOML config (default {default})")
+        cmd.add_argument("--out", default=f"runs/{name.replace('-', '_')}",
+                         help=f"output directory (default runs/{name.replace('-', '_')})")
+        cmd.add_argument("--config", default=str(config), help=f"TOML config (default {default})")
         cmd.add_argument("--resume", action="store_true",
                          help="go on with the interrupted run in --out from its latest evaluation")
         cmd.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -33,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
     dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
     dag.add_argument("--workers", type=positive_int, default=2, help="local processes flying the expert (default 2)")
+    dag.add_argument("--cluster", metavar="ADDRESS",
+                     help="fly the expert's episodes on the Dask cluster at this scheduler address instead")
     dag.add_argument("--out", default="runs/dagger", help="output directory (default runs/dagger)")
     dag.add_argument("--config", help="TOML config (default rventry_agents/dagger.toml)")
     dag.add_argument("--resume", action="store_true", help="take the rounds already finished in --out, go on from there")
@@ -59,7 +64,7 @@ def _run_dagger(args) -> int:
     from rventry_agents.dagger import train_dagger
 
     out = train_dagger(args.config, args.out, workers=args.workers, seed=args.seed, progress_bar=not args.no_progress,
-                       resume=args.resume)
+                       resume=args.resume, cluster=args.cluster)
     print(f"wrote {out}/student.pt (best on the task metric), rounds.json, learning_curve.png, metadata.json")
     return 0
 

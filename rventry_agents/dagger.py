@@ -29,6 +29,7 @@ import math
 import shlex
 import sys
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +47,7 @@ from rventry_agents.imitation import (
 )
 from rventry_env.task import EntryTask
 from rventry_env.guidance.load_relief import LoadRelief
-from rventry_env.util.files import atomic_write, check_writable, save_figure, write_json
+from rventry_env.util.files import atomic_write, check_writable, dumps_json, save_figure, write_json
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
 SHIPPED_DAGGER = Path(__file__).resolve().parent / "data" / "dagger"  # the run behind the README's figures
@@ -107,164 +108,358 @@ def select_metric(student, cfg: dict, task: EntryTask) -> dict:
             "vertical_error_deg_p50": float(np.median(b.vertical_error_deg))}  # fmt: skip
 
 
-def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | None = None, progress_bar: bool = True,
-                 resume: bool = False) -> Path:  # fmt: skip
-    """Run the config's DAgger rounds; with ``resume``, rounds already finished in ``out`` (their
-    data, student and record) are taken as they are, and the run goes on from there."""
+# the config sections that shape the rounds already flown: a resumed run must keep them
+# ([final], [distil] and [flight] come after the rounds, and each checks its own record on resume)
+RUN_SECTIONS = ("student", "expert", "data", "fit", "select")
+RUN_FILE = "run.json"
+
+
+@dataclass(frozen=True)
+class Selected:
+    """A network chosen to fly: where it comes from, its weights and its shape.
+
+    :param source: a round's index, ``"final"`` (the ensemble refitted after the rounds) or
+        ``"distilled"`` (one network fitted to the selected one's commands).
+    :param weights: the network's state dict (:func:`network_bytes`).
+    """
+
+    source: int | str
+    weights: bytes
+    members: int
+    hidden: tuple[int, ...]
+
+    def network(self):
+        return network_from_bytes(self.weights, self.hidden, self.members)
+
+
+@dataclass(frozen=True)
+class RunSetup:
+    """A DAgger run's settings, checked before anything is flown (:func:`prepare_run`)."""
+
+    cfg: dict
+    out: Path
+    workers: int
+    seed: int | None  # --seed, which offsets the training vehicles and replaces the fit seed
+    task: EntryTask
+    hidden: tuple[int, ...]
+    members: int
+    law: dict  # LearnedGuidance keywords: horizon, load_relief_margin
+    trackers: list
+    fit_seed: int
+    expert: str
+    expert_settings: tuple  # (name, value) pairs of ReplanningSettings
+    first_seed: int  # the seed of round 0's first training vehicle
+    cluster: str | None = None  # a Dask scheduler's address: the expert flies there instead of on local workers
+
+    def fit_settings(self) -> dict:
+        """Keywords of :func:`fit` (and :func:`fit_commands`) after the data: the [fit] section."""
+        f = self.cfg["fit"]
+        return {"epochs": int(f["epochs"]), "batch_size": int(f["batch_size"]), "lr": float(f["learning_rate"]),
+                "seed": self.fit_seed, "weight_decay": float(f.get("weight_decay", 0.0))}  # fmt: skip
+
+
+class RunClock:
+    """The run's wall time, counting the work an earlier run did and this one takes as it was."""
+
+    def __init__(self):
+        self.t0 = time.time()
+
+    def elapsed(self) -> float:
+        return time.time() - self.t0
+
+    def credit(self, seconds: float) -> None:
+        """Work taken from an earlier run that took ``seconds`` beyond what is counted already."""
+        self.t0 -= seconds
+
+    def at_least(self, seconds: float) -> None:
+        """The run has lasted at least ``seconds`` (a record that counts the run's whole time so far)."""
+        self.t0 = min(self.t0, time.time() - seconds)
+
+
+@dataclass
+class Rounds:
+    """What the DAgger rounds leave (:func:`run_rounds`): every round's data and record, and the best network."""
+
+    xs: list = field(default_factory=list)  # features per round
+    ys: list = field(default_factory=list)  # expert labels per round
+    records: list = field(default_factory=list)
+    best: Selected | None = None
+
+    @property
+    def samples(self) -> int:
+        return self.records[-1]["samples"]
+
+    def features(self) -> np.ndarray:
+        return np.concatenate(self.xs)
+
+    def labels(self) -> np.ndarray:
+        return np.concatenate(self.ys)
+
+
+def new_network(hidden: tuple[int, ...], members: int, seed: int, stage: str):
+    """:func:`make_network` with its initial weights drawn from torch's global generator seeded
+    from the run's seed and the ``stage`` (``"round 3"``, ``"final"``, ``"distil"``): two runs of
+    one config and seed start every network alike, and a resumed run starts the networks it fits
+    as the uninterrupted run did."""
     import torch
 
+    digest = hashlib.sha256(f"{seed}/{stage}".encode()).digest()
+    torch.manual_seed(int.from_bytes(digest[:8], "little"))
+    return make_network(hidden, members)
+
+
+def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None = None) -> RunSetup:
+    """Read and check the config and the output directory; a bad setting fails here, not in a worker."""
     cfg = load_config(config)
     out = Path(out)
     check_writable(folders=(out,))
-    hidden = tuple(int(h) for h in cfg["student"]["hidden"])
-    members = int(cfg["student"].get("members", 1))
     task = EntryTask()
     law = student_law(cfg["student"], task)
-    horizon, relief = law["horizon"], law["load_relief_margin"]
     trackers = flight_trackers(cfg)
-    for h in (horizon, *trackers):
-        h.check_step(task.dt)  # a bad horizon fails now, not in a worker
-    fit_cfg = cfg["fit"]
-    fit_seed = int(fit_cfg["seed"] if seed is None else seed)
+    for h in (law["horizon"], *trackers):
+        h.check_step(task.dt)
     expert_cfg = dict(cfg.get("expert", {}))
     expert = str(expert_cfg.pop("agent", "mpc"))
-    expert_settings = tuple(sorted(expert_cfg.items()))
-    if expert_settings:
+    if expert_cfg:
         from rventry_env.guidance.replanning import ReplanningSettings
 
         if expert != "mpc":
             raise ValueError(f"[expert] settings {sorted(expert_cfg)} apply to the mpc expert only, not {expert!r}")
-        ReplanningSettings(**expert_cfg)  # a bad name or value fails now, not in a worker
-    torch.set_num_threads(max(1, workers))
-    t0 = time.time()
-    xs, ys, rounds = [], [], []
-    best, best_key, student = None, None, None
-    next_seed = int(cfg["data"]["train_seed"]) + (0 if seed is None else 1_000 * seed)
-    done = json.loads((out / "rounds.json").read_text()) if resume and (out / "rounds.json").is_file() else []
-    if done:
-        t0 -= done[-1]["wall_s"]  # wall times count the whole run
+        ReplanningSettings(**expert_cfg)
+    return RunSetup(
+        cfg=cfg, out=out, workers=workers, seed=seed, task=task,
+        hidden=tuple(int(h) for h in cfg["student"]["hidden"]), members=int(cfg["student"].get("members", 1)),
+        law=law, trackers=trackers, fit_seed=int(cfg["fit"]["seed"] if seed is None else seed), expert=expert,
+        expert_settings=tuple(sorted(expert_cfg.items())),
+        first_seed=int(cfg["data"]["train_seed"]) + (0 if seed is None else 1_000 * seed), cluster=cluster,
+    )  # fmt: skip
+
+
+def _run_identity(run: RunSetup) -> dict:
+    """What the rounds were flown with: the sections of :data:`RUN_SECTIONS` and the --seed."""
+    return json.loads(dumps_json({"seed": run.seed, **{k: run.cfg.get(k, {}) for k in RUN_SECTIONS}}))
+
+
+def _differences(old, new, prefix: str = "") -> list[str]:
+    """The dotted names of the fields that differ between two JSON-like values."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        return [d for k in sorted(set(old) | set(new)) for d in _differences(old.get(k), new.get(k), f"{prefix}{k}.")]
+    return [] if old == new else [f"{prefix.rstrip('.')} ({json.dumps(old)} -> {json.dumps(new)})"]
+
+
+def check_resumable(run: RunSetup, resume: bool) -> None:
+    """Refuse to resume a run with another config than it was started with, naming the fields;
+    then record this run's (``run.json``). A run from before the record was kept is checked
+    against its ``metadata.json``, where it has one."""
+    identity = _run_identity(run)
+    if resume:
+        started = mine = None
+        if (run.out / RUN_FILE).is_file():
+            started, mine = json.loads((run.out / RUN_FILE).read_text()), identity
+        elif (run.out / "metadata.json").is_file():  # a run of before: its config and the fit seed it used
+            meta = json.loads((run.out / "metadata.json").read_text())
+            started = {"seed": identity["seed"], **{k: meta["config"].get(k, {}) for k in RUN_SECTIONS}}
+            started["fit"] = {**started["fit"], "seed": meta["seed"]}
+            mine = {**identity, "fit": {**identity["fit"], "seed": run.fit_seed}}
+        changed = [] if started is None else _differences(started, mine)
+        if changed:
+            raise ValueError(f"cannot resume {run.out}: it was started with another config; changed: "
+                             f"{', '.join(changed)}. Resume with the same config and --seed, or start a new run "
+                             "(another --out)")  # fmt: skip
+    write_json(run.out / RUN_FILE, identity)
+
+
+def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds: Rounds) -> None:
+    """Round ``k`` as an earlier run flew it: its data and record."""
+    if (record["episodes"], record["beta"]) != (n, beta):
+        raise ValueError(f"cannot resume {run.out}: its round {k} flew {record['episodes']} episodes at beta "
+                         f"{record['beta']}, the config says {n} at {beta}")  # fmt: skip
+    with np.load(run.out / f"data_round_{k}.npz") as d:
+        if "angles" not in d:
+            raise ValueError(f"cannot resume {run.out}: its round {k} was recorded with another kind of label "
+                             "(the expert's rates); start a new run")  # fmt: skip
+        rounds.xs.append(d["x"])
+        rounds.ys.append(d["angles"])
+    rounds.records.append(record)
+
+
+def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, student, rounds: Rounds, clock: RunClock,
+               bar) -> tuple[object, dict]:  # fmt: skip
+    """Round ``k``: fly ``n`` episodes (the expert's action with probability ``beta``), label every
+    state, refit a new student on all the data so far and select it alone; returns it and its record."""
+    blob = None if student is None else network_bytes(student)
+    jobs = [CollectJob(seed=first_seed + i, dispersion=run.cfg["data"]["dispersion"],
+                       beta=beta if blob else 1.0, student=blob, hidden=run.hidden, task=run.task, expert=run.expert,
+                       expert_settings=run.expert_settings, horizon=run.law["horizon"],
+                       load_relief_margin=run.law["load_relief_margin"], members=run.members)
+            for i in range(n)]  # fmt: skip
+    tid = bar.add_task(f"round {k}: {n} episodes, beta {beta}", total=n)
+    res = collect(jobs, run.workers, progress=lambda d: bar.advance(tid, d), cluster=run.cluster)
+    x = np.concatenate([r["x"] for r in res])
+    y = np.concatenate([r["angles"] for r in res])
+    buf = io.BytesIO()
+    np.savez_compressed(buf, x=x, angles=y)
+    atomic_write(run.out / f"data_round_{k}.npz", buf.getvalue())
+    rounds.xs.append(x)
+    rounds.ys.append(y)
+    flown_success = float(np.mean([r["success"] for r in res]))
+    student = new_network(run.hidden, run.members, run.fit_seed, f"round {k}")
+    losses = fit(student, rounds.features(), rounds.labels(), **run.fit_settings())
+    metric = select_metric(LearnedGuidance(student, task=run.task, **run.law), run.cfg, run.task)
+    rec = {"round": k, "episodes": n, "beta": beta, "samples": int(sum(len(a) for a in rounds.xs)),
+           "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
+           "wall_s": clock.elapsed(), **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
+    rounds.records.append(rec)
+    atomic_write(run.out / f"student_round_{k}.pt", network_bytes(student))
+    write_json(run.out / "rounds.json", rounds.records)  # progress survives an interrupted run
+    bar.console.print(
+        f"round {k}: {rec['samples']} samples, flown success {flown_success:.2f}, fit loss "
+        f"{losses[-1]:.4f}; student alone on the selection set: success {metric['success_rate']:.2f}, "
+        f"miss p50 {metric['miss_km_p50']:.2f} km, violations {metric['violation_rate']:.2f}"
+    )  # fmt: skip
+    return student, rec
+
+
+def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool = True) -> Rounds:
+    """The config's DAgger rounds; with ``resume``, the rounds an earlier run finished in ``run.out``
+    are taken as they are and the run goes on from the last one's student. The best round on the
+    task metric is selected (student.pt, student.json) as the rounds go."""
     from rich.progress import Progress
 
+    done = json.loads((run.out / "rounds.json").read_text()) if resume and (run.out / "rounds.json").is_file() else []
+    if done:
+        clock.credit(done[-1]["wall_s"])  # wall times count the whole run
+    rounds, student, next_seed = Rounds(), None, run.first_seed
     with Progress(disable=not progress_bar) as bar:
-        for k, rnd in enumerate(cfg["rounds"]):
+        for k, rnd in enumerate(run.cfg["rounds"]):
             n, beta = int(rnd["episodes"]), float(rnd["beta"])
             if k < len(done):
-                if (done[k]["episodes"], done[k]["beta"]) != (n, beta):
-                    raise ValueError(f"cannot resume {out}: its round {k} flew {done[k]['episodes']} episodes at beta "
-                                     f"{done[k]['beta']}, the config says {n} at {beta}")  # fmt: skip
-                with np.load(out / f"data_round_{k}.npz") as d:
-                    if "angles" not in d:
-                        raise ValueError(f"cannot resume {out}: its round {k} was recorded with another kind of label "
-                                         "(the expert's rates); start a new run")  # fmt: skip
-                    xs.append(d["x"])
-                    ys.append(d["angles"])
-                rounds.append(done[k])
-                next_seed += n
-                bar.console.print(f"round {k}: taken from {out}")
+                _take_round(run, k, n, beta, done[k], rounds)
+                bar.console.print(f"round {k}: taken from {run.out}")
                 if k == len(done) - 1:  # the student to go on with, and the best so far
-                    student = network_from_bytes((out / f"student_round_{k}.pt").read_bytes(), hidden, members)
+                    student = network_from_bytes((run.out / f"student_round_{k}.pt").read_bytes(), run.hidden,
+                                                 run.members)  # fmt: skip
                     sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
-                    best = (sel, (out / f"student_round_{sel}.pt").read_bytes(), members, hidden)
-                    best_key = _select_key(done[sel])
-                continue
-            blob = None if student is None else network_bytes(student)
-            jobs = [CollectJob(next_seed + i, cfg["data"]["dispersion"], beta if blob else 1.0, blob, hidden, task,
-                               expert, expert_settings, horizon, relief, members) for i in range(n)]  # fmt: skip
+                    rounds.best = Selected(sel, (run.out / f"student_round_{sel}.pt").read_bytes(), run.members,
+                                           run.hidden)  # fmt: skip
+            else:
+                student, rec = _fly_round(run, k, n, beta, next_seed, student, rounds, clock, bar)
+                if rounds.best is None or _select_key(rec) > _select_key(rounds.records[rounds.best.source]):
+                    rounds.best = Selected(k, network_bytes(student), run.members, run.hidden)
+                    _write_selected(run.out, rounds.best, run.law, run.task)
             next_seed += n
-            tid = bar.add_task(f"round {k}: {n} episodes, beta {beta}", total=n)
-            res = collect(jobs, workers, progress=lambda d, tid=tid: bar.advance(tid, d))
-            x = np.concatenate([r["x"] for r in res])
-            y = np.concatenate([r["angles"] for r in res])
-            buf = io.BytesIO()
-            np.savez_compressed(buf, x=x, angles=y)
-            atomic_write(out / f"data_round_{k}.npz", buf.getvalue())
-            xs.append(x)
-            ys.append(y)
-            flown_success = float(np.mean([r["success"] for r in res]))
-            student = make_network(hidden, members)
-            losses = fit(student, np.concatenate(xs), np.concatenate(ys), int(fit_cfg["epochs"]),
-                         int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), fit_seed,
-                         float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
-            metric = select_metric(LearnedGuidance(student, task=task, **law), cfg, task)
-            rec = {"round": k, "episodes": n, "beta": beta, "samples": int(sum(len(a) for a in xs)),
-                   "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
-                   "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
-            rounds.append(rec)
-            blob = network_bytes(student)
-            atomic_write(out / f"student_round_{k}.pt", blob)
-            write_json(out / "rounds.json", rounds)  # progress survives an interrupted run
-            bar.console.print(
-                f"round {k}: {rec['samples']} samples, flown success {flown_success:.2f}, fit loss "
-                f"{losses[-1]:.4f}; student alone on the selection set: success {metric['success_rate']:.2f}, "
-                f"miss p50 {metric['miss_km_p50']:.2f} km, violations {metric['violation_rate']:.2f}"
-            )  # fmt: skip
-            key = _select_key(rec)
-            if best_key is None or key > best_key:
-                best_key, best = key, (k, blob, members, hidden)
-                _write_selected(out, best, law, task)
-    write_json(out / "rounds.json", rounds)
-    final = None
-    n_final = int(cfg.get("final", {}).get("members", 1))
+    write_json(run.out / "rounds.json", rounds.records)
+    return rounds
+
+
+def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool) -> tuple[Selected, dict | None]:
+    """``[final] members`` > 1: an ensemble refitted on all the rounds' data, selected if it beats the
+    best round; on resume, an earlier run's ensemble of the same size and data is taken as it is.
+    Returns the selected network and the ensemble's record (None without one)."""
+    n_final = int(run.cfg.get("final", {}).get("members", 1))
+    best = rounds.best
     if n_final == 1:
-        (out / "final.json").unlink(missing_ok=True)  # an earlier run's ensemble, which this run does not refit
-    if n_final > 1:  # an ensemble refitted on all the rounds' data, kept if it beats the best round
-        done_final = json.loads((out / "final.json").read_text()) if resume and (out / "final.json").is_file() else None
-        if done_final is not None and done_final["members"] == n_final and done_final["samples"] == rounds[-1]["samples"]:
-            final = done_final
-            t0 = min(t0, time.time() - final["wall_s"])  # its fit counts in the run's wall time
-            print(f"final ensemble: taken from {out}")
-        else:
-            ensemble = make_network(hidden, n_final)
-            losses = fit(ensemble, np.concatenate(xs), np.concatenate(ys), int(fit_cfg["epochs"]),
-                         int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), fit_seed,
-                         float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
-            metric = select_metric(LearnedGuidance(ensemble, task=task, **law), cfg, task)
-            final = {"members": n_final, "samples": rounds[-1]["samples"], "fit_loss_last": losses[-1],
-                     "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
-            atomic_write(out / "student_final.pt", network_bytes(ensemble))
-            write_json(out / "final.json", final)
-            print(f"final ensemble of {n_final}: student alone on the selection set: success "
-                  f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
-        if _select_key(final) > best_key:
-            best = ("final", (out / "student_final.pt").read_bytes(), n_final, hidden)
-            _write_selected(out, best, law, task)
-    selected = final if best[0] == "final" else rounds[best[0]]
-    distilled, taken = None, False
-    if "distil" in cfg:  # one network fitted to the selected one: one network's cost per decision
-        distilled, taken = _distil(cfg, out, best, xs, rounds[-1]["samples"], law, task, fit_seed, resume)
-    teacher = None if distilled is None else distilled["teacher"]
-    if distilled is None:
+        (run.out / "final.json").unlink(missing_ok=True)  # an earlier run's ensemble, which this run does not refit
+        return best, None
+    path = run.out / "final.json"
+    done = json.loads(path.read_text()) if resume and path.is_file() else None
+    if done is not None and done["members"] == n_final and done["samples"] == rounds.samples:
+        final = done
+        clock.at_least(final["wall_s"])  # its fit counts in the run's wall time
+        print(f"final ensemble: taken from {run.out}")
+    else:
+        ensemble = new_network(run.hidden, n_final, run.fit_seed, "final")
+        losses = fit(ensemble, rounds.features(), rounds.labels(), **run.fit_settings())
+        metric = select_metric(LearnedGuidance(ensemble, task=run.task, **run.law), run.cfg, run.task)
+        final = {"members": n_final, "samples": rounds.samples, "fit_loss_last": losses[-1],
+                 "wall_s": clock.elapsed(), **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
+        atomic_write(run.out / "student_final.pt", network_bytes(ensemble))
+        write_json(path, final)
+        print(f"final ensemble of {n_final}: student alone on the selection set: success "
+              f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
+    if _select_key(final) > _select_key(rounds.records[best.source]):
+        best = Selected("final", (run.out / "student_final.pt").read_bytes(), n_final, run.hidden)
+        _write_selected(run.out, best, run.law, run.task)
+    return best, final
+
+
+def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: RunClock,
+                    resume: bool) -> tuple[Selected, dict | None]:  # fmt: skip
+    """``[distil]``: one network fitted to the selected network's commands (:func:`_distil`), which
+    flies in its place; returns the network that flies and the distillation's record (None without one)."""
+    if "distil" not in run.cfg:
         for name in ("distil.json", "student_distilled.pt"):
-            (out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
-    else:
-        t0 -= distilled["wall_s"] if taken else 0.0  # a distillation taken as it was counts in the run's wall time
-        best = ("distilled", (out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]))
+            (run.out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
+        return teacher, None
+    distilled, taken = _distil(run.cfg, run.out, teacher, rounds.xs, rounds.samples, run.law, run.task,
+                               run.fit_seed, resume)  # fmt: skip
+    if taken:
+        clock.credit(distilled["wall_s"])  # a distillation taken as it was counts in the run's wall time
+    best = Selected("distilled", (run.out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]))
+    _write_selected(run.out, best, run.law, run.task, distilled_from=distilled["teacher"])
+    return best, distilled
+
+
+def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None) -> dict | None:
+    """``[flight]``: the selected network flown with the trained tracker and each candidate; the best
+    on the task metric is kept (the trained one among equals). Returns the chosen record (None: no scan)."""
+    if not run.trackers:
+        (run.out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
+        return None
+    horizon = run.law["horizon"]
+    scan = choose_tracker(best.network(), [horizon, *run.trackers], run.law["load_relief_margin"], run.cfg, run.task)
+    write_json(run.out / "flight.json", {"student": best.source, "candidates": scan})
+    i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
+    _write_selected(run.out, best, run.law, run.task, tracker=None if i == 0 else run.trackers[i - 1],
+                    distilled_from=None if distilled is None else distilled["teacher"])  # fmt: skip
+    chosen = scan[i]
+    print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
+          f"miss mean {chosen['select_miss_km_mean']:.3f} km, vertical error p50 "
+          f"{chosen['select_vertical_error_deg_p50']:.2f} deg")  # fmt: skip
+    return chosen
+
+
+def write_run_record(run: RunSetup, rounds: Rounds, best: Selected, final: dict | None, distilled: dict | None,
+                     tracking: dict | None, clock: RunClock) -> None:  # fmt: skip
+    """metadata.json (command, seed, wall time, config, the selected network's record) and the learning curve."""
+    if distilled is not None:
         selected = distilled
-        _write_selected(out, best, law, task, distilled_from=teacher)
-    if trackers:  # the selected network's tracker: the trained horizon unless a candidate does better
-        scan = choose_tracker(network_from_bytes(best[1], best[3], best[2]), [horizon, *trackers], relief, cfg, task)
-        write_json(out / "flight.json", {"student": best[0], "candidates": scan})
-        i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
-        _write_selected(out, best, law, task, tracker=None if i == 0 else trackers[i - 1], distilled_from=teacher)
-        chosen = scan[i]
-        selected = {**selected, "tracking": chosen}
-        print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
-              f"miss mean {chosen['select_miss_km_mean']:.3f} km, vertical error p50 "
-              f"{chosen['select_vertical_error_deg_p50']:.2f} deg")  # fmt: skip
     else:
-        (out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
-    write_json(out / "metadata.json", {
+        selected = final if best.source == "final" else rounds.records[best.source]
+    if tracking is not None:
+        selected = {**selected, "tracking": tracking}
+    write_json(run.out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
-        "seed": fit_seed, "workers": workers, "wall_s": time.time() - t0, "config": cfg,
-        "selected_round": best[0], "selected": selected,
+        "seed": run.fit_seed, "workers": run.workers, "wall_s": clock.elapsed(), "config": run.cfg,
+        "selected_round": best.source, "selected": selected,
     })  # fmt: skip
     after = {} if final is None else {f"ensemble of {final['members']}, all rounds' data": final}
     if distilled is not None:
         after[f"distilled from {_student_words(distilled['teacher'], distilled['teacher_members'])}"] = distilled
-    if trackers:
-        after[f"selected, tracker {_tracker_words(chosen)}"] = chosen
-    plot_rounds(rounds, out / "learning_curve.png", after)
-    return out
+    if tracking is not None:
+        after[f"selected, tracker {_tracker_words(tracking)}"] = tracking
+    plot_rounds(rounds.records, run.out / "learning_curve.png", after)
+
+
+def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | None = None, progress_bar: bool = True,
+                 resume: bool = False, cluster: str | None = None) -> Path:  # fmt: skip
+    """Run the config's DAgger rounds, then the ensemble refit, the distillation and the tracker
+    choice the config asks for. With ``resume``, the work an earlier run finished in ``out`` is
+    taken as it is (each phase checks its own), and a run started with another config is refused.
+    With ``cluster`` (a Dask scheduler's address) the expert's episodes fly on its workers; every
+    episode is seeded, so the run is the same as on local workers."""
+    import torch
+
+    run = prepare_run(config, out, workers, seed, cluster)
+    check_resumable(run, resume)
+    torch.set_num_threads(max(1, workers))
+    clock = RunClock()
+    rounds = run_rounds(run, clock, resume, progress_bar)
+    best, final = refit_ensemble(run, rounds, clock, resume)
+    best, distilled = distil_selected(run, rounds, best, clock, resume)
+    tracking = choose_flight_tracker(run, best, distilled)
+    write_run_record(run, rounds, best, final, distilled, tracking, clock)
+    return run.out
 
 
 def _tracker_words(rec: dict) -> str:
@@ -285,11 +480,11 @@ def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: 
     scan = []
     for h in horizons:
         metric = select_metric(LearnedGuidance(network, task=task, horizon=h, load_relief_margin=relief), cfg, task)
-        scan.append({**_horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
+        scan.append({**horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
     return scan
 
 
-def _horizon_keys(h: Horizon, prefix: str) -> dict:
+def horizon_keys(h: Horizon, prefix: str) -> dict:
     """A horizon as student.json keys (an unbounded descent rate as null)."""
     return {f"{prefix}_s": h.max_s, f"{prefix}_min_s": h.min_s,
             f"{prefix}_descent_mps": h.descent_mps if math.isfinite(h.descent_mps) else None}  # fmt: skip
@@ -319,18 +514,17 @@ def student_law(student_cfg: dict, task: EntryTask) -> dict:
     return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin}
 
 
-def _write_selected(out: Path, best: tuple, law: dict, task: EntryTask, tracker: Horizon | None = None,
+def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, tracker: Horizon | None = None,
                     distilled_from=None) -> None:  # fmt: skip
-    """student.pt and student.json for ``best`` = (round, "final" or "distilled"; network bytes;
-    members; hidden widths), trained with ``law``; ``tracker``, the tracker horizon chosen after
-    training (None: the trained one); ``distilled_from``, the round or "final" a distilled
-    network was fitted to."""
-    atomic_write(out / "student.pt", best[1])
-    write_json(out / "student.json", {"hidden": list(best[3]), "members": best[2], "inputs": "observation features "
+    """student.pt and student.json for the network ``best``, trained with ``law``; ``tracker``, the
+    tracker horizon chosen after training (None: the trained one); ``distilled_from``, the round
+    or "final" a distilled network was fitted to."""
+    atomic_write(out / "student.pt", best.weights)
+    write_json(out / "student.json", {"hidden": list(best.hidden), "members": best.members, "inputs": "observation features "
                "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
                "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
-               **_horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else _horizon_keys(tracker, "tracking")),
-               "load_relief_margin": law["load_relief_margin"], "selected_round": best[0],
+               **horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else horizon_keys(tracker, "tracking")),
+               "load_relief_margin": law["load_relief_margin"], "selected_round": best.source,
                **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
 
 
@@ -338,7 +532,7 @@ def _student_words(name, members: int) -> str:
     return f"the ensemble of {members}" if members > 1 else ("the final refit" if name == "final" else f"round {name}")
 
 
-def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: dict, task: EntryTask, seed: int,
+def _distil(cfg: dict, out: Path, teacher: Selected, xs: list, samples: int, law: dict, task: EntryTask, seed: int,
             resume: bool) -> tuple[dict, bool]:  # fmt: skip
     """``[distil]``: one network of ``hidden`` widths fitted, by the [fit] settings and ``epochs``,
     to the selected network's commands on every state the rounds visited, those below
@@ -349,8 +543,8 @@ def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: d
     from rventry_env.envs.observation import ALTITUDE_SCALE, feature_index
 
     d, fit_cfg = cfg["distil"], cfg["fit"]
-    rec = {"teacher": teacher[0], "teacher_members": teacher[2], "teacher_hidden": list(teacher[3]),
-           "teacher_sha256": hashlib.sha256(teacher[1]).hexdigest(), "seed": seed,
+    rec = {"teacher": teacher.source, "teacher_members": teacher.members, "teacher_hidden": list(teacher.hidden),
+           "teacher_sha256": hashlib.sha256(teacher.weights).hexdigest(), "seed": seed,
            "hidden": [int(h) for h in d["hidden"]], "epochs": int(d.get("epochs", fit_cfg["epochs"])), "samples": samples,
            "emphasis_below_m": float(d.get("emphasis_below_m", 0.0)), "emphasis": int(d.get("emphasis", 1))}  # fmt: skip
     done = json.loads((out / "distil.json").read_text()) if resume and (out / "distil.json").is_file() else None
@@ -361,8 +555,8 @@ def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: d
     x = np.concatenate(xs)
     low = x[:, feature_index("altitude")] * ALTITUDE_SCALE < rec["emphasis_below_m"]
     x = np.concatenate([x, np.repeat(x[low], rec["emphasis"] - 1, axis=0)])  # the few seconds near the ground
-    net = make_network(tuple(rec["hidden"]), 1)
-    losses = fit_commands(net, x, network_commands(network_from_bytes(teacher[1], teacher[3], teacher[2]), x),
+    net = new_network(tuple(rec["hidden"]), 1, seed, "distil")
+    losses = fit_commands(net, x, network_commands(teacher.network(), x),
                           rec["epochs"], int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), seed,
                           float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
     metric = select_metric(LearnedGuidance(net, task=task, **law), cfg, task)
@@ -370,7 +564,7 @@ def _distil(cfg: dict, out: Path, teacher: tuple, xs: list, samples: int, law: d
                 "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}})  # fmt: skip
     atomic_write(out / "student_distilled.pt", network_bytes(net))
     write_json(out / "distil.json", rec)
-    print(f"one network distilled from {_student_words(teacher[0], teacher[2])}: fit loss {losses[-1]:.4f}; on the "
+    print(f"one network distilled from {_student_words(teacher.source, teacher.members)}: fit loss {losses[-1]:.4f}; on the "
           f"selection set: success {metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
     return rec, False
 
@@ -421,7 +615,12 @@ def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
                          + next(f"index {i}: {a!r} saved, {b!r} now" for i, (a, b) in enumerate(zip(names, INPUT_NAMES))
                                 if a != b))  # fmt: skip
     network = network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]), int(meta.get("members", 1)))
-    return LearnedGuidance(network, task=task, **student_law(meta, task))
+    law = LearnedGuidance(network, task=task, **student_law(meta, task))
+    run = json.loads((run_dir / "metadata.json").read_text()) if (run_dir / "metadata.json").is_file() else {}
+    law.provenance = {"algorithm": "DAgger (supervised imitation of mpc)", "start": "scratch",
+                      "samples": run.get("selected", {}).get("samples"), "seed": run.get("seed"),
+                      "selected": meta.get("selected_round")}  # fmt: skip
+    return law
 
 
 def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:

@@ -292,9 +292,10 @@ def collect_episode(job: CollectJob) -> dict:
     }
 
 
-def collect(jobs: list[CollectJob], workers: int, progress=None) -> list[dict]:
-    """Fly the jobs, on a local process pool when ``workers`` > 1; results in job order."""
-    from rventry_env.evaluation.parallel import map_local
+def collect(jobs: list[CollectJob], workers: int, progress=None, cluster: str | None = None) -> list[dict]:
+    """Fly the jobs, on a local process pool when ``workers`` > 1, or on the Dask cluster at
+    ``cluster``; results in job order, the same wherever they were flown."""
+    from rventry_env.evaluation.parallel import map_tasks
 
     results: list = [None] * len(jobs)
 
@@ -303,7 +304,7 @@ def collect(jobs: list[CollectJob], workers: int, progress=None) -> list[dict]:
         if progress:
             progress(1)
 
-    map_local(collect_episode, [(j,) for j in jobs], workers, done)
+    map_tasks(collect_episode, [(j,) for j in jobs], workers, done, cluster)
     return results
 
 

@@ -9,10 +9,10 @@ Two loaders are registered with ``rventry evaluate`` through entry points:
 
 A training run of this package writes, beside ``model.zip``, ``policy.json`` (how
 to fly it: direct, or residual on the classical law) and ``vecnormalize.pkl`` (the
-observation statistics). A run's model without its normalization file is an error,
-never a silent skip: flying it on raw observations would be a different policy.
-A bare SB3 zip from elsewhere (no ``policy.json`` beside it) is flown directly,
-on raw observations, and says so.
+observation statistics). A model without its normalization file is refused, never
+flown on raw observations, which would be a different policy; a model that was trained
+on raw observations says so in ``policy.json`` beside it: ``{"mode": "direct",
+"normalized": false}``.
 """
 
 from __future__ import annotations
@@ -137,14 +137,19 @@ class SB3Policy(Law):
         spec = next((d / "policy.json" for d in (path.parent, path.parent.parent) if (d / "policy.json").is_file()), None)
         self.spec = json.loads(spec.read_text()) if spec is not None else {"mode": "direct"}
         self.from_run = spec is not None
-        if normalize_path is None and self.from_run:
+        self.model: BaseAlgorithm = _load_sb3(path, self.spec.get("algorithm"))  # first: is it a model at all
+        if normalize_path is None:
             normalize_path = _normalization_for(path)
             if not normalize_path.is_file():
-                raise FileNotFoundError(
-                    f"{path} belongs to an rventry training run ({spec}) but its observation statistics "
-                    f"{normalize_path.name} are missing beside it; pass the VecNormalize file explicitly"
-                )
-        self.model: BaseAlgorithm = _load_sb3(path, self.spec.get("algorithm"))
+                if self.spec.get("normalized", True):
+                    raise FileNotFoundError(
+                        f"{path} has no observation statistics beside it ({normalize_path.name}): flown on raw "
+                        "observations it would be a different policy, so it is refused. Put the VecNormalize file "
+                        f"it was trained with there as {normalize_path.name}, or, for a model trained on raw "
+                        f'observations, write {{"mode": "direct", "normalized": false}} to '
+                        f"{path.parent / 'policy.json'}"
+                    )
+                normalize_path = None
         self.obs_mean = self.obs_var = None
         self.clip_obs, self.epsilon = 10.0, 1e-8
         self.normalize_path = None if normalize_path is None else Path(normalize_path)
@@ -163,12 +168,24 @@ class SB3Policy(Law):
         if env is not None:
             self.task.check_trained(EntryTask(dt=float(env["dt"]), substeps=int(env["substeps"])).record(),
                                     f"the model {path}")  # fmt: skip
-        self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"], self.spec.get("authority_rad"),
-                                self.task)  # fmt: skip
+        self.provenance = self.metadata.get("provenance") or (
+            {"algorithm": f"{self.metadata.get('algorithm', self.spec.get('algorithm', 'ppo'))} (stable-baselines3)",
+             "start": {"residual": "TV-LQR, residual", "direct": "scratch"}.get(self.spec["mode"], self.spec["mode"]),
+             "timesteps": self.metadata.get("timesteps"), "seed": self.metadata.get("seed")}
+            if self.from_run else None)  # fmt: skip
+        if self.spec["mode"] == "student":
+            from rventry_agents.finetune import fine_tuned_law
+
+            self._act = fine_tuned_law(self.model.policy, self.spec["student"], self.task)
+        else:
+            self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"],
+                                    self.spec.get("authority_rad"), self.task)  # fmt: skip
 
     def reset(self, n_episodes: int) -> None:
-        if hasattr(self._act, "reset"):
-            self._act.reset(n_episodes)
+        self._act.reset(n_episodes)
+
+    def episode_stats(self) -> list[dict]:
+        return self._act.episode_stats()
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_mean is None:

@@ -46,11 +46,12 @@ class RvEntrySB3VecEnv(VecEnv):
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self.render_mode = self.venv.render_mode
         self._actions: np.ndarray | None = None
+        self.last_infos: dict = {}  # the batched env's info of the latest reset or step (the reset copies' own)
 
     def reset(self):
         seeds = None if all(s is None for s in self._seeds) else [0 if s is None else s for s in self._seeds]
         options = self._options[0] if self._options and self._options[0] else None
-        obs, _ = self.venv.reset(seed=seeds, options=options)
+        obs, self.last_infos = self.venv.reset(seed=seeds, options=options)
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(self.num_envs)]
@@ -61,6 +62,7 @@ class RvEntrySB3VecEnv(VecEnv):
 
     def step_wait(self):
         obs, reward, terminated, truncated, infos = self.venv.step(self._actions)
+        self.last_infos = infos  # the batched env's own, for wrappers that read its sensors
         dones = terminated | truncated
         out: list[dict] = [{} for _ in range(self.num_envs)]
         if np.any(dones):

@@ -39,6 +39,7 @@ DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo.toml"
 BASELINES = Path(__file__).resolve().parent / "baselines"
 # the config each algorithm's command reads when none is given
 DEFAULT_CONFIGS = {"ppo": DEFAULT_CONFIG, "recurrent_ppo": BASELINES / "recurrent_ppo.toml", "sac": BASELINES / "sac.toml"}
+FINETUNE_CONFIG = Path(__file__).resolve().parent / "ppo_finetune.toml"  # PPO from the imitation student
 
 
 def load_config(path: str | Path | dict | None = None, algorithm: str = "ppo") -> dict:
@@ -74,11 +75,13 @@ def make_reward(cfg: dict) -> RewardWeights:
     return replace(base, **{k: float(v) for k, v in overrides.items()})
 
 
-POLICY_MODES = ("direct", "residual")
+POLICY_MODES = ("direct", "residual", "student")
 
 
 def policy_mode(cfg: dict) -> tuple[str, list[float]]:
-    """("direct" | "residual", (alpha, sigma) authority in rad) from the config's [policy] section."""
+    """("direct" | "residual" | "student", (alpha, sigma) authority in rad) from the config's [policy]
+    section. ``student``: PPO fine-tuning from an imitation student, [policy] ``start`` (an agent
+    name or a DAgger run's directory; :mod:`rventry_agents.finetune`)."""
     pol = cfg["policy"]
     mode = pol.get("mode", "direct")
     if mode not in POLICY_MODES:
@@ -86,11 +89,15 @@ def policy_mode(cfg: dict) -> tuple[str, list[float]]:
     authority = [math.radians(float(pol.get("alpha_authority_deg", 0.0))), math.radians(float(pol.get("sigma_authority_deg", 0.0)))]
     if mode == "residual" and not all(a > 0 for a in authority):
         raise ValueError("[policy] mode = 'residual' needs alpha_authority_deg > 0 and sigma_authority_deg > 0")
+    if mode == "student" and not isinstance(pol.get("start"), str):
+        raise ValueError("[policy] mode = 'student' needs start = the student's agent name or DAgger run directory")
     return mode, authority
 
 
-def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None, algorithm: str = "ppo"):
-    """The training VecEnv: batched env -> [residual] -> VecMonitor -> [range shaping] -> VecNormalize.
+def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None, algorithm: str = "ppo", student=None):
+    """The training VecEnv: batched env -> [residual | student] -> VecMonitor -> [range shaping] -> VecNormalize.
+
+    ``student``: for [policy] mode = "student", the (law, scales) the fine-tuning starts from.
 
     VecMonitor sits inside the shaping, so logged episode returns are the
     environment's own (unshaped) rewards.
@@ -102,12 +109,16 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None, algorith
 
     e = cfg["env"]
     venv = RvEntrySB3VecEnv(
-        n_envs or int(e["num_envs"]), task=task, reward=make_reward(cfg), dispersion=Dispersion.parse(dict(e.get("dispersion", {}))),
+        n_envs or int(e["num_envs"]), task=task, reward=make_reward(cfg), dispersion=Dispersion.parse(e.get("dispersion", {})),
         max_episode_steps=int(e["max_episode_steps"]), time_limit_is_failure=bool(e["time_limit_is_failure"]),
     )  # fmt: skip
     mode, authority = policy_mode(cfg)
     if mode == "residual":
         venv = ResidualVecEnv(venv, ResidualGuidance(authority, task))
+    elif mode == "student":
+        from rventry_agents.finetune import StudentVecEnv
+
+        venv = StudentVecEnv(venv, *student)
     venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
     shaping = cfg.get("shaping", {})
     if float(shaping.get("range_weight", 0.0)) > 0:
@@ -119,11 +130,16 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None, algorith
     )  # fmt: skip
 
 
-def live_policy(model, vecnorm, cfg: dict, task: EntryTask):
-    """The model being trained as a rollout policy (deterministic, normalized observations)."""
+def live_policy(model, vecnorm, cfg: dict, task: EntryTask, spec: dict | None = None):
+    """The model being trained as a rollout policy (deterministic, normalized observations);
+    ``spec``, a student-started policy's :func:`~rventry_agents.finetune.student_spec`."""
     from rventry_agents.sb3_policy import Predictor, make_policy
 
     mode, authority = policy_mode(cfg)
+    if mode == "student":
+        from rventry_agents.finetune import fine_tuned_law
+
+        return fine_tuned_law(model.policy, spec, task)
     return make_policy(Predictor(model, vecnorm.normalize_obs), mode, authority, task)
 
 
@@ -135,7 +151,7 @@ def evaluation_key(rec: dict) -> tuple[float, float]:
 
 
 def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float | None, algorithm: str,
-                    resumed: dict | None = None):  # fmt: skip
+                    resumed: dict | None = None, spec: dict | None = None):  # fmt: skip
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     from rventry_env.evaluation.rollout import rollout
@@ -171,7 +187,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
         def evaluate(self):
             vecnorm = self.model.get_vec_normalize_env()
             batch = rollout(
-                live_policy(self.model, vecnorm, cfg, task), int(t["eval_episodes"]), seed=int(t["eval_seed"]),
+                live_policy(self.model, vecnorm, cfg, task, spec), int(t["eval_episodes"]), seed=int(t["eval_seed"]),
                 dispersion=t["eval_dispersion"], task=task, max_episode_steps=int(cfg["env"]["max_episode_steps"]),
             )  # fmt: skip
             s = summarize(batch, reference_cost or 1.0, task)
@@ -315,26 +331,36 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
     if timesteps < 1:
         raise ValueError(f"timesteps must be positive, got {timesteps}")
     mode, authority = policy_mode(cfg)
-    if mode == "residual" and algorithm != "ppo":
-        raise ValueError(f"[policy] mode = 'residual' is built for ppo, not {algorithm}; use mode = 'direct'")
+    if mode in ("residual", "student") and algorithm != "ppo":
+        raise ValueError(f"[policy] mode = {mode!r} is built for ppo, not {algorithm}; use mode = 'direct'")
     kwargs = policy_kwargs(cfg, algorithm)
     out = Path(out)
     resumed = read_resume_point(out, algorithm, cfg) if resume else None
     if resumed is not None and resumed["timesteps"] >= timesteps:
         raise ValueError(f"cannot resume {out}: it has done {resumed['timesteps']:,} of {timesteps:,} steps already")
-    out.mkdir(parents=True, exist_ok=True)
-    # how to fly any model saved under ``out`` (best, final, checkpoints)
-    write_json(out / "policy.json", {"algorithm": algorithm, "mode": mode, "authority_rad": authority})
-    write_json(out / "config.json", cfg)
     torch.set_num_threads(int(t.get("torch_threads", 1)))
     task = make_task(cfg, task)
+    student = spec = None
+    if mode == "student":  # the starting point is checked before anything is written
+        from rventry_agents.finetune import StudentScales, load_start, student_spec
+
+        law = load_start(cfg["policy"]["start"], task)
+        student = (law, StudentScales.of(law.network))
+        spec = student_spec(law, student[1], cfg["policy"]["start"])
+        kwargs["net_arch"] = {"pi": list(law.network.hidden), "vf": kwargs["net_arch"]["vf"]}
+        kwargs["activation_fn"] = torch.nn.Tanh  # the student's
+    out.mkdir(parents=True, exist_ok=True)
+    # how to fly any model saved under ``out`` (best, final, checkpoints)
+    write_json(out / "policy.json", {"algorithm": algorithm, "mode": mode, "authority_rad": authority,
+                                     **({} if spec is None else {"student": spec})})  # fmt: skip
+    write_json(out / "config.json", cfg)
     try:
         from rventry_env.reference import load_reference
 
         reference_cost = float(load_reference().cost)
     except Exception:  # training does not need the reference; the cost ratio does
         reference_cost = None
-    venv = make_vec_env(cfg, task, algorithm=algorithm)
+    venv = make_vec_env(cfg, task, algorithm=algorithm, student=student)
     done = 0 if resumed is None else int(resumed["timesteps"])
     venv.seed(seed + done)
     try:
@@ -368,10 +394,26 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
         with torch.no_grad():
             model.policy.action_net.weight.zero_()
             model.policy.action_net.bias.zero_()
-    evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost, algorithm, resumed)
+    warmup = 0
+    if resumed is None and mode == "student":
+        from rventry_agents.finetune import init_actor_from_student
+
+        init_actor_from_student(model.policy, student[0].network)  # step 0 flies exactly the student
+        warmup = min(int(cfg["policy"].get("critic_warmup_steps", 0)), timesteps)
+    evaluator, ckpt = _make_callbacks(cfg, task, out, reference_cost, algorithm, resumed, spec)
     start = time.time()
-    model.learn(timesteps - done, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar,
-                reset_num_timesteps=resumed is None)  # fmt: skip
+    if warmup:
+        from rventry_agents.finetune import set_actor_trainable
+
+        # the critic learns the student's values first; an actor updated against a random critic
+        # takes its first steps from noise
+        set_actor_trainable(model.policy, False)
+        model.learn(warmup, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar)
+        set_actor_trainable(model.policy, True)
+        done = model.num_timesteps
+    if timesteps > done:
+        model.learn(timesteps - done, callback=CallbackList([evaluator, ckpt]), progress_bar=progress_bar,
+                    reset_num_timesteps=resumed is None and not warmup)  # fmt: skip
     evaluator.evaluate()  # the final iterate competes for "best" too
     wall = evaluator.wall_before + time.time() - start
     model.save(out / "final_model.zip")
@@ -386,6 +428,8 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
         "resumed_at_timesteps": evaluator.resumes,
         "torch_threads": int(t.get("torch_threads", 1)),
         "config": cfg,
+        **({} if spec is None else {"provenance": {"algorithm": "PPO (stable-baselines3)", "start": spec["start"],
+                                                   "critic_warmup_steps": warmup, "timesteps": timesteps}}),
         "best_evaluation": best,
         "reference_cost": reference_cost,
     }

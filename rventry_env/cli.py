@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 from importlib.metadata import entry_points
 
@@ -35,7 +36,22 @@ def build_parser() -> argparse.ArgumentParser:
         importlib.import_module(name).register(sub)
     for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         ep.load()(sub)
+    _negative_numbers_are_values(parser)
     return parser
+
+
+# argparse takes "-1e9" for an option (its own pattern knows "-1" and "-1.5" only) and answers
+# "expected one argument"; with this one a negative number in any notation reaches the option's
+# type, which names what is wrong with it
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
+
+
+def _negative_numbers_are_values(parser: argparse.ArgumentParser) -> None:
+    parser._negative_number_matcher = _NEGATIVE_NUMBER
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _negative_numbers_are_values(child)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -49,6 +65,13 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         print(f"rventry {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:
+        from rventry_env.evaluation.parallel import WorkerLost
+
+        if not isinstance(exc, WorkerLost):
+            raise
+        print(f"rventry {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"rventry {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -11,6 +11,9 @@ time percentiles and the failed solves for every variant.
 sets (seed 0), the nominal J/J*, re-solve time median / p99, and the wall time of the
 200-episode evaluation with ``--workers``.
 
+``--terminal-alpha A,B,...``: the nominal flight with the terminal alpha bound aimed at each
+value (deg; 0 = off): alpha(t_f), the vertical-impact error, the miss and J/J*.
+
     python scripts/bench_mpc.py --evaluate --workers 2 --json out/bench_mpc.json
     python scripts/bench_mpc.py --scan --episodes 40 --workers 2 --json out/scan_mpc.json
 
@@ -176,11 +179,42 @@ def evaluate(args) -> dict:
     return out
 
 
+def _aims(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"give aims in deg separated by commas, got {text!r}") from None
+    if not values or any(not np.isfinite(v) or v < 0 for v in values):
+        raise argparse.ArgumentTypeError(f"aims must be finite and >= 0 deg (0: off), got {text!r}")
+    return values
+
+
+def terminal_alpha(aims: list[float]) -> dict:
+    """The nominal flight with the terminal alpha bound aimed at each value (deg; 0: off)."""
+    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.guidance.replanning import ReplanningGuidance
+
+    j_star = _reference_cost()
+    rows = []
+    for aim in aims:
+        settings = replace(DEFAULT, terminal_alpha=aim > 0, terminal_alpha_deg=aim if aim > 0 else DEFAULT.terminal_alpha_deg)
+        b = rollout(ReplanningGuidance(settings=settings), 1)
+        rows.append({"aim_deg": aim, "alpha_final_deg": float(b.alpha_final_deg[0]),
+                     "vertical_error_deg": float(b.vertical_error_deg[0]), "miss_m": 1000 * float(b.miss_km[0]),
+                     "cost_ratio": float(b.cost[0] / j_star), "success": bool(b.is_success[0])})  # fmt: skip
+        r = rows[-1]
+        print(f"aim {'off' if aim == 0 else f'{aim:g} deg'}: alpha(t_f) {r['alpha_final_deg']:.2f} deg, vertical error "
+              f"{r['vertical_error_deg']:.2f} deg, miss {r['miss_m']:.1f} m, J/J* {r['cost_ratio']:.3f}", flush=True)  # fmt: skip
+    return {"terminal_alpha": rows}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     mode = ap.add_mutually_exclusive_group(required=True)
     mode.add_argument("--scan", action="store_true", help="vary each setting alone around the defaults")
     mode.add_argument("--evaluate", action="store_true", help="the benchmark's targets with the defaults")
+    mode.add_argument("--terminal-alpha", type=_aims, metavar="DEG,...",
+                      help="the nominal flight with the terminal alpha bound aimed at each value (0: off)")
     ap.add_argument("--episodes", type=positive_int, help="episodes per variant (scan: 40) or per set (evaluate: 200)")
     ap.add_argument("--dispersion", default="wide", choices=("standard", "wide"), help="the scan's set (wide)")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
@@ -192,7 +226,7 @@ def main(argv=None) -> int:
         args.episodes = 40 if args.scan else 200
     if args.seed is None:
         args.seed = 100_000 if args.scan else 0
-    out = scan(args) if args.scan else evaluate(args)
+    out = scan(args) if args.scan else evaluate(args) if args.evaluate else terminal_alpha(args.terminal_alpha)
     out["command"] = " ".join(["python scripts/bench_mpc.py", *(argv if argv is not None else sys.argv[1:])])
     if args.json:
         print(f"wrote {write_json(args.json, out)}")

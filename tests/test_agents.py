@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rventry_env.task import Dispersion, EntryTask
-from rventry_agents.sb3_policy import SHIPPED_PPO, SB3Policy
+from rventry_agents.sb3_policy import SHIPPED_BASELINES, SHIPPED_PPO, SB3Policy
 from rventry_env.evaluation.agents import load_agent as load_policy
 from rventry_env.evaluation.rollout import rollout
 
@@ -260,3 +260,15 @@ def test_evaluate_cli_rejects_bad_arguments(tmp_path):
            "--json", str(tmp_path / "x.json")]  # fmt: skip
     res = subprocess.run(cmd, capture_output=True, text=True)
     assert res.returncode == 2 and "positive integer" in res.stderr
+
+
+def test_a_saved_model_without_its_statistics_is_refused_unless_declared_raw(tmp_path):
+    """A model.zip alone is refused (raw observations would fly a different policy), naming the two ways out."""
+    import shutil
+
+    shutil.copy(SHIPPED_BASELINES / "ppo" / "model.zip", tmp_path / "model.zip")
+    with pytest.raises(ValueError, match=r"vecnormalize.pkl.*\"normalized\": false"):
+        load_policy(str(tmp_path / "model.zip"))
+    (tmp_path / "policy.json").write_text(json.dumps({"mode": "direct", "normalized": False}))
+    policy = SB3Policy(tmp_path / "model.zip")
+    assert policy.normalize_path is None and policy.obs_mean is None

@@ -108,13 +108,37 @@ def test_a_truncated_episode_through_gym_make_carries_the_end_keys(limit):
         env.step(np.zeros(2, np.float32))
 
 
+def test_gym_make_max_episode_steps_ends_with_the_end_keys_and_refuses_a_further_step():
+    """gym.make(..., max_episode_steps=N), the usual way to shorten episodes: the env reads N from
+    the TimeLimit's spec and closes the episode itself, and SB3's Monitor sees is_success."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.monitor import Monitor
+
+    env = gym.make("RvEntry-v0", task=TASK, max_episode_steps=5)
+    assert env.spec.max_episode_steps == 5
+    terminated, truncated, info = _fly_level(env, 5)
+    assert truncated and not terminated and info["time_s"] == pytest.approx(5.0)
+    assert set(END_KEYS) <= set(info) and info["failure"] == "time limit" and info["is_success"] is False
+    with pytest.raises(RuntimeError, match="after the episode ended"):
+        env.step(np.zeros(2, np.float32))
+    env.reset(seed=1)  # the next episode has the same limit
+    assert _fly_level(env, 5)[1]
+
+    monitored = Monitor(gym.make("RvEntry-v0", task=TASK, max_episode_steps=4), info_keywords=("is_success",))
+    _, truncated, info = _fly_level(monitored, 4)
+    assert truncated and info["episode"]["l"] == 4 and info["is_success"] is False
+    venv = make_vec_env("RvEntry-v0", n_envs=2, env_kwargs={"task": TASK, "max_episode_steps": 3},
+                        monitor_kwargs={"info_keywords": ("is_success",)})  # fmt: skip
+    venv.reset()
+    for _ in range(3):
+        _, _, dones, infos = venv.step(np.zeros((2, 2), np.float32))
+    assert dones.all() and all(i["failure"] == "time limit" and i["episode"]["is_success"] is False for i in infos)
+
+
 def test_an_outer_time_limit_is_closed_by_the_wrapper():
     from rventry_env.envs.wrappers import EndAtTimeLimit
 
-    bare = gym.make("RvEntry-v0", task=TASK, max_episode_steps=5)  # Gymnasium's TimeLimit: the env cannot see it
-    _, truncated, info = _fly_level(bare, 5)
-    assert truncated and "failure" not in info
-    wrapped = EndAtTimeLimit(gym.make("RvEntry-v0", task=TASK, max_episode_steps=5))
+    wrapped = EndAtTimeLimit(gym.wrappers.TimeLimit(RvEntryEnv(task=TASK), 5))
     _, truncated, info = _fly_level(wrapped, 5)
     assert truncated and info["failure"] == "time limit" and set(END_KEYS) <= set(info)
     with pytest.raises(RuntimeError, match="after the episode ended"):

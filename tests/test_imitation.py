@@ -387,3 +387,22 @@ def test_task_records_name_every_difference():
     assert EntryTask().differences(rec) == []
     diffs = EntryTask(substeps=2, problem=EntryProblem(q_min=10e3)).differences(rec)
     assert diffs == ["substeps: trained 1, here 2", "problem.q_min: trained 12000.0, here 10000.0"]
+
+
+@pytest.mark.slow
+def test_dagger_on_a_dask_cluster_gives_the_local_run(tmp_path):
+    """The expert's episodes flown on a two-worker LocalCluster: the same data, rounds and student."""
+    distributed = pytest.importorskip("distributed")
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL.replace("[final]\nmembers = 2", "[final]\nmembers = 1"))
+    here = train_dagger(cfg, tmp_path / "here", workers=1, progress_bar=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl:
+        there = train_dagger(cfg, tmp_path / "there", progress_bar=False, cluster=cl.scheduler_address)
+    for k in range(2):
+        with np.load(here / f"data_round_{k}.npz") as a, np.load(there / f"data_round_{k}.npz") as b:
+            np.testing.assert_array_equal(a["x"], b["x"])
+            np.testing.assert_array_equal(a["angles"], b["angles"])
+    drop = {"wall_s"}
+    ra, rb = (json.loads((d / "rounds.json").read_text()) for d in (here, there))
+    assert [{k: v for k, v in r.items() if k not in drop} for r in ra] == [{k: v for k, v in r.items() if k not in drop} for r in rb]
+    assert (here / "student.pt").read_bytes() == (there / "student.pt").read_bytes()

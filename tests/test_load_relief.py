@@ -107,3 +107,34 @@ def test_the_capped_rate_is_the_highest_that_meets_the_limit_by_a_whole_step_of_
     limit = relief.limit_g
     assert np.all(predicted(capped[:, 0])[on] <= limit)
     assert np.all(predicted(capped[:, 0] + 2.0 / 2**14)[on] > limit)
+
+
+def test_the_load_limiter_holds_the_bound_under_an_injected_density_step():
+    """The optimum replayed open loop into air 8 % denser below 16 km passes 12 g; with the relief,
+    calibrated on the accelerometer, it stays within the bound all the way down."""
+    import math
+
+    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.guidance.law import Law
+    from rventry_env.guidance.reference_replay import ReferencePolicy
+    from rventry_env.physics import DensityCorrection, ExponentialAtmosphere
+
+    class Relieved(Law):
+        def __init__(self, relief):
+            self.law, self.relief = ReferencePolicy(), relief
+
+        def reset(self, n):
+            self.relief.reset(n)
+
+        def __call__(self, m):
+            return self.relief(self.law(m), m.navigation_state, m.sensed_accel_b, count=m.flying).astype(np.float32)
+
+    step = DensityCorrection(ExponentialAtmosphere(), (0.0, 15_990.0, 16_000.0, 80e3),
+                             (math.log(1.08), math.log(1.08), 0.0, 0.0))  # fmt: skip
+    model = EntryModel(atmosphere=step)
+    bound = EntryTask().problem.a_max_g
+    open_loop = rollout(ReferencePolicy(), 1, model=model)
+    assert open_loop.max_load_factor_g[0] > 1.05 * bound  # above 12.6 g: the step breaks the bound without feedback
+    relieved = rollout(Relieved(LoadRelief(margin=0.02)), 1, model=model)
+    assert relieved.max_load_factor_g[0] <= bound and relieved.failure[0] == ""
+    assert relieved.law_stats == [] and relieved.miss_km[0] < 1.0

@@ -5,6 +5,8 @@ A coarse mesh and rare re-plans keep these short; the benchmark (scripts/bench_m
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -178,3 +180,71 @@ def test_settings_are_checked():
         ReplanningSettings(q_margin=0.6)
     with pytest.raises(ValueError, match="mesh_degree must be a positive integer"):
         ReplanningSettings(mesh_degree=2.5)
+
+
+def test_mpc_lands_the_nominal_case_with_alpha_at_zero():
+    """Example 2's alpha(t_f) = 0, flown: tracking alone left 0.9 deg at impact on this mesh."""
+    b = rollout(ReplanningGuidance(settings=replace(COARSE, terminal_alpha=True, terminal_alpha_deg=0.2)), 1)
+    assert b.is_success[0] and b.miss_km[0] < 0.5
+    assert abs(b.alpha_final_deg[0]) <= 0.5
+    without = rollout(ReplanningGuidance(settings=COARSE), 1)
+    assert abs(without.alpha_final_deg[0]) > 0.5  # the check can fail: without the bound it does
+
+
+def test_the_terminal_alpha_bound_takes_alpha_out_by_impact_and_nothing_before():
+    import math
+
+    from rventry_env.core import conversions as cv
+    from rventry_env.guidance.terminal import alpha_rate_bound, time_to_impact
+
+    task, radius = EntryTask(), EntryModel().planet.radius
+
+    def state(h, v, gamma_deg, alpha_deg):
+        s = np.array([[radius + h, 0.0, 0.0, v, math.radians(gamma_deg), 0.0]])
+        x = np.zeros((1, 12))
+        x[:, :10] = cv.rv_euler_from_spherical(s)
+        x[:, 10] = math.radians(alpha_deg)
+        return x
+
+    x = state(600.0, 1200.0, -90.0 + 1e-3, 3.0)  # vertical, 0.5 s to go: this is the last step
+    assert time_to_impact(x, radius)[0] == pytest.approx(0.5, rel=1e-6)
+    assert alpha_rate_bound(x, task, radius)[0] == pytest.approx(-math.radians(3.0), rel=1e-6)  # zero at its end
+    x = state(1920.0, 1200.0, -90.0 + 1e-3, 5.0)  # 1.6 s: the next step is the last, impact 0.6 s into it
+    at_last = math.radians(0.2) / (1 - 0.6 + 0.05)  # what then leaves 0.2 deg at impact
+    assert alpha_rate_bound(x, task, radius)[0] == pytest.approx(at_last - math.radians(5.0), rel=1e-6)
+    x = state(3120.0, 1200.0, -90.0 + 1e-3, 12.0)  # 2.6 s: one step of 0.8 * 10 deg/s before the last
+    assert alpha_rate_bound(x, task, radius)[0] == pytest.approx(at_last + math.radians(8.0 - 12.0), rel=1e-6)
+    high = state(30e3, 6000.0, -2.0, 12.0)  # high up the bound is far above any rate
+    assert alpha_rate_bound(high, task, radius)[0] > 10 * task.problem.u_alpha_max
+    assert np.isinf(alpha_rate_bound(state(30e3, 6000.0, 1.0, 12.0), task, radius)[0])  # climbing: no bound
+
+
+def test_evaluation_results_do_not_depend_on_the_machines_speed(monkeypatch):
+    """No wall-time cap by default: the iteration budget alone decides, so a slowed clock flies the same."""
+    import time as _time
+
+    law = ReplanningGuidance(settings=COARSE)
+    assert "max_wall_time" not in law.solver.ipopt_options
+    venv = RvEntryVectorEnv(num_envs=1, dispersion="standard")
+
+    def fly():
+        obs, info = venv.reset(seed=7)
+        law.reset(1)
+        return _fly(law, venv, obs, info, 40)
+
+    normal = fly()
+    real = _time.perf_counter
+    monkeypatch.setattr(_time, "perf_counter", lambda: 50.0 * real())  # every solve looks 50x slower
+    np.testing.assert_array_equal(fly(), normal)
+    assert PlanSolver(EntryTask(), EntryModel(), replace(COARSE, max_wall_s=1.5)).ipopt_options["max_wall_time"] == 1.5
+    with pytest.raises(ValueError, match="max_wall_s must be None"):
+        ReplanningSettings(max_wall_s=0.0)
+
+
+@pytest.mark.slow
+def test_mpc_with_load_relief_reports_its_capped_steps_and_lands():
+    b = rollout(ReplanningGuidance(settings=replace(COARSE, load_relief_margin=0.02)), 1)
+    assert b.is_success[0] and b.max_load_factor_g[0] <= 12.0 * 0.98 + 0.05
+    assert set(b.law_stats[0]) >= {"replans", "load_relief_steps"}
+    with pytest.raises(ValueError, match="load_relief_margin must be None"):
+        ReplanningSettings(load_relief_margin=1.5)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import replace
 
 import numpy as np
@@ -85,6 +86,18 @@ def clip_observation(obs: np.ndarray, low: np.ndarray, high: np.ndarray):
     return obs, clipped
 
 
+def real_actions(actions, shape: tuple, what: str) -> np.ndarray:
+    """Actions as float64 of ``shape``: real numbers only (a complex action is refused, not cut to its real part)."""
+    raw = np.asarray(actions)
+    if raw.dtype.kind not in "biuf":
+        raise ValueError(f"{what} must be real numbers, got dtype {raw.dtype}: {raw.tolist()!r:.80}")
+    a = raw.astype(np.float64)
+    if a.shape != shape:
+        layout = "[alpha rate, bank rate]" if len(shape) == 1 else "one [alpha rate, bank rate] per copy"
+        raise ValueError(f"{what} must have shape {shape} ({layout}), got shape {a.shape}")
+    return a
+
+
 def check_max_steps(max_episode_steps) -> int | None:
     """A time limit in control steps: a positive integer, or None for none."""
     if max_episode_steps is None:
@@ -92,6 +105,57 @@ def check_max_steps(max_episode_steps) -> int | None:
     if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
         raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
     return int(max_episode_steps)
+
+
+# how far up the call stack reset() looks for the wrappers that called it (Monitor, TimeLimit,
+# OrderEnforcing, PassiveEnvChecker and its helper, a vector env: about 8 frames)
+_CALLER_DEPTH = 24
+
+
+def outer_time_limit(env, own: int | None) -> int | None:
+    """The time limit an episode of ``env`` ends at: its own, or a shorter one set outside it.
+
+    ``gym.make(id, max_episode_steps=N)`` wraps the environment in Gymnasium's ``TimeLimit``
+    and records N only in that wrapper's ``spec.max_episode_steps``: the environment itself is
+    given a spec without it, and Gymnasium refuses extra wrappers outside ``TimeLimit`` for an id
+    with a ``vector_entry_point``. Called from ``reset``, this finds the ``TimeLimit`` wrappers of
+    ``env`` among the frames that called it (each wrapper's ``reset`` calls the one inside it)
+    and reads their ``spec.max_episode_steps``, so that the environment truncates at the same
+    step and closes the episode with its end keys itself.
+    """
+    from gymnasium.wrappers import TimeLimit
+
+    limits = [] if own is None else [own]
+    frame = sys._getframe(1)
+    for _ in range(_CALLER_DEPTH):
+        if frame is None:
+            break
+        caller = frame.f_locals.get("self")
+        if isinstance(caller, TimeLimit) and caller.unwrapped is env:
+            spec = caller.spec
+            n = spec.max_episode_steps if spec is not None else None
+            if n is not None:
+                limits.append(int(n))
+        frame = frame.f_back
+    return min(limits) if limits else None
+
+
+RESET_OPTIONS = ("dispersion", "state")
+
+
+def reset_options(options) -> dict:
+    """``reset(options=...)`` checked: None or a dict whose keys are among :data:`RESET_OPTIONS`."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(
+            f"reset(options=...) must be a dict such as {{'state': x}} or {{'dispersion': 'standard'}}, "
+            f"got {type(options).__name__} {options!r:.80}"
+        )
+    unknown = set(options) - set(RESET_OPTIONS)
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {list(RESET_OPTIONS)}")
+    return dict(options)
 
 
 def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) -> EntryTask:
@@ -120,24 +184,42 @@ def make_model(model: EntryModel | None) -> EntryModel:
     return model
 
 
-def check_state(state, radius: float) -> np.ndarray:
-    """Validate a user-supplied initial state (12 components, state order of docs/conventions.md)."""
+# the fastest start accepted: well beyond any entry (Earth's escape speed is 11.2 km/s), and far
+# enough below overflow that every force and reward of the first steps stays finite
+MAX_INITIAL_SPEED = 1e5
+
+
+def check_state(state, radius: float, task: EntryTask) -> np.ndarray:
+    """Validate a user-supplied initial state (12 components, state order of docs/conventions.md).
+
+    Refused, naming the component: not 12 finite numbers, not above the surface or above the
+    skip-out ceiling, a speed not in (0, 100 km/s], Euler parameters not of unit norm, alpha
+    outside [0, alpha_max] (where the environment holds it).
+    """
     try:
         x = np.asarray(state, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"an initial state must be {N_STATE} numbers, got {state!r}") from None
+        raise ValueError(f"an initial state must be {N_STATE} numbers, got {state!r:.200}") from None
     if x.shape != (N_STATE,):
         raise ValueError(f"an initial state must have shape ({N_STATE},): r, eA1..etaA, v, eB1..etaB, alpha, sigma; got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError(f"the initial state contains NaN or inf: {x}")
     if x[0] <= radius:
         raise ValueError(f"the initial radius {x[0]:.1f} m is not above the surface ({radius:.1f} m)")
-    if x[5] <= 0:
-        raise ValueError(f"the initial speed must be positive, got {x[5]}")
+    if x[0] - radius > task.ceiling_altitude:
+        raise ValueError(f"the initial altitude {x[0] - radius:.6g} m is above the skip-out ceiling "
+                         f"({task.ceiling_altitude:g} m, EntryTask.ceiling_altitude)")  # fmt: skip
+    if not 0 < x[5] <= MAX_INITIAL_SPEED:
+        raise ValueError(f"the initial speed must lie in (0, {MAX_INITIAL_SPEED:g}] m/s, got {x[5]:.6g}")
     for name, q in (("eA", x[1:5]), ("eB", x[6:10])):
-        n = np.linalg.norm(q)
-        if abs(n - 1) > 1e-6:
-            raise ValueError(f"the initial {name} Euler parameters must have unit norm, got norm {n:.9f}")
+        with np.errstate(over="ignore"):
+            n = np.linalg.norm(q)
+        if not abs(n - 1) <= 1e-6:
+            raise ValueError(f"the initial {name} Euler parameters must have unit norm, got norm {n:.9g}")
+    alpha_max = task.problem.alpha_max
+    if not 0 <= x[10] <= alpha_max:
+        raise ValueError(f"the initial alpha must lie in [0, {math.degrees(alpha_max):g}] deg (alpha_max), "
+                         f"got {x[10]:.6g} rad")  # fmt: skip
     return x
 
 

@@ -19,9 +19,6 @@ from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion
 from rventry_env.physics.model import EntryModel, scaled_model
 
-_RESET_OPTIONS = {"state", "dispersion"}
-
-
 class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     """
     ## Description
@@ -102,7 +99,10 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     the RK4 map; the returned state is the state at impact), on skip-out (altitude
     above 80 km), on a non-finite state, or on stall (v < 50 m/s); the last three
     set ``info["failure"]``. ``truncated`` at the time limit, ``max_episode_steps``
-    = 2000 in the registration (2000 s at the default dt).
+    = 2000 by default (2000 s at the default dt). A shorter limit set with
+    ``gym.make("RvEntry-v0", max_episode_steps=N)`` (Gymnasium's ``TimeLimit``, which
+    records it in ``env.spec.max_episode_steps``) is read at ``reset``, so that episode
+    too ends with the end keys below, and a further ``step`` raises.
 
     ## Info
 
@@ -167,6 +167,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             model, task, reward, dt, substeps, dispersion, render_mode, MATH
         )
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
+        self._limit = self.max_episode_steps  # this episode's: the own limit or a shorter outer one
         self._ended = False
 
     # ------------------------------------------------------------------ state
@@ -180,13 +181,11 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = {} if options is None else dict(options)
-        unknown = set(options) - _RESET_OPTIONS
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {sorted(_RESET_OPTIONS)}")
+        self._limit = common.outer_time_limit(self, self.max_episode_steps)
+        options = common.reset_options(options)
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
         self.task.check_dispersion(dispersion)
-        x0 = common.check_state(options["state"], self._radius) if "state" in options else self._nominal
+        x0 = common.check_state(options["state"], self._radius, self.task) if "state" in options else self._nominal
         d = draw_dispersion(self.np_random, dispersion)
         if not dispersion.is_zero:
             x0 = apply_state_dispersion(x0, d)
@@ -215,9 +214,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._ended:
             raise RuntimeError("step() called after the episode ended (terminated or truncated); call reset() first")
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) [alpha rate, bank rate], got shape {a.shape}")
+        a = common.real_actions(action, (2,), "action")
         a0, a1 = float(a[0]), float(a[1])
         if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"action contains NaN or inf: {a.tolist()}")
@@ -234,7 +231,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self._min_q = min(self._min_q, out.min_q)
         reward = -(out.cost + out.path_penalty)
         terminated = out.status != FLYING
-        truncated = not terminated and self.max_episode_steps is not None and self._steps >= self.max_episode_steps
+        truncated = not terminated and self._limit is not None and self._steps >= self._limit
         info_obs, obs_clipped = self._observe()
         info = self._info(clipped, out.alpha_saturated, obs_clipped)
         if terminated or truncated:

@@ -113,10 +113,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                 raise ValueError(f"reset(seed=...) needs one seed per copy ({n}), got {len(seeds)}")
             self._rngs = [seeding.np_random(s)[0] for s in seeds]
         super().reset(seed=seed if isinstance(seed, int) else None)
-        options = {} if options is None else dict(options)
-        unknown = set(options) - {"state", "dispersion"}
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: ['dispersion', 'state']")
+        options = common.reset_options(options)
         # one-off, as in the single env: the episodes started by this reset draw from it,
         # later autoresets from the constructor's dispersion again
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
@@ -132,7 +129,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                     f"got {options['state'] if states.size == 0 else states.shape!r}"
                 )
             states = np.broadcast_to(states, (n, states.shape[-1])) if states.ndim == 1 else states
-            self._initial = np.stack([common.check_state(s, self._radius) for s in states])
+            self._initial = np.stack([common.check_state(s, self._radius, self.task) for s in states])
         else:
             self._initial = np.broadcast_to(self._nominal, (n, self._nominal.size))
         self._density = np.ones(n)
@@ -155,17 +152,18 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     def step(self, actions):
         if self._x is None:
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != (self.num_envs, 2):
-            raise ValueError(f"actions must have shape ({self.num_envs}, 2), got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            bad = np.argwhere(~np.isfinite(a).all(axis=1))[:, 0]
-            raise ValueError(f"actions contain NaN or inf (copies {bad[:10].tolist()})")
-        action_clipped = np.any((a < -1.0) | (a > 1.0), axis=1)
-        a = np.clip(a, -1.0, 1.0)
+        a = common.real_actions(actions, (self.num_envs, 2), "actions")
         mode = self.metadata["autoreset_mode"]
         next_step = mode == AutoresetMode.NEXT_STEP
         restart = self._prev_done if next_step else np.zeros(self.num_envs, bool)
+        ignored = restart | self._frozen  # their actions are not flown, so not checked either
+        finite = np.isfinite(a).all(axis=1)
+        if not np.all(finite | ignored):
+            bad = np.nonzero(~finite & ~ignored)[0]
+            raise ValueError(f"actions contain NaN or inf (copies {bad[:10].tolist()})")
+        a = np.where(finite[:, None], a, 0.0)
+        action_clipped = np.any((a < -1.0) | (a > 1.0), axis=1)
+        a = np.clip(a, -1.0, 1.0)
         if np.any(restart):  # NEXT_STEP: these copies start over and ignore their action
             self._reset_copies(np.nonzero(restart)[0])
         restart = restart | self._frozen  # copies not stepped this time

@@ -1,13 +1,12 @@
 """Wrappers for ``RvEntry-v0``.
 
 ``RvEntry-v0`` keeps its own time limit (``max_episode_steps``, 2000 control steps by
-default) and ends a truncated episode with the same info keys as any other. A time
-limit added from outside, such as the Gymnasium ``TimeLimit`` wrapper that
-``gym.make("RvEntry-v0", max_episode_steps=N)`` applies, cannot be seen by the
-environment; :class:`EndAtTimeLimit`, put outside it, lets the environment close such
-an episode as it closes any other::
-
-    env = EndAtTimeLimit(gym.make("RvEntry-v0", max_episode_steps=500))
+default) and ends a truncated episode with the same info keys as any other. A shorter
+Gymnasium ``TimeLimit`` around it (``gym.make("RvEntry-v0", max_episode_steps=N)``) is
+read at ``reset`` and honoured the same way, with no wrapper. :class:`EndAtTimeLimit`
+is for any other limit kept outside the environment (a wrapper of your own that
+truncates): put outside it, it lets the environment close such an episode as it closes
+any other.
 """
 
 from __future__ import annotations

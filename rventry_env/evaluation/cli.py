@@ -11,8 +11,8 @@ import argparse
 import time
 from pathlib import Path
 
-from rventry_env.util.args import positive_int, seed
-from rventry_env.util.files import check_writable, write_json
+from rventry_env.util.args import agent_spec, positive_int, seed
+from rventry_env.util.files import check_writable, output_set, write_json
 
 # the RvEntry-v0 benchmark's targets for a guidance law, printed beside the measured values
 NOMINAL_TARGETS = {"miss_km": 1.0, "vertical_error_deg": 1.0, "abs_speed_error_mps": 50.0, "cost_ratio": 1.3}
@@ -22,6 +22,12 @@ DISPERSED_SUCCESS_TARGETS = {"standard": 0.95, "wide": 0.90}
 MARGIN_OVER_LQR = 0.10
 DISPERSIONS = ("none", "standard", "wide")
 MPC_EPISODES = 20
+# the memory an evaluated episode holds until the report is written: its outcome and its JSON
+# record, and with --plots its every step's state and action. Measured with /usr/bin/time on
+# `rventry evaluate --agent reference --dispersion standard`: 20,000 episodes peaked at 247 MB,
+# 2,000 with --plots at 1.3 GB; these are those figures per episode, rounded up
+EPISODE_BYTES = 12e3
+EPISODE_HISTORY_BYTES = 7e5
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     names = ", ".join(agent_names())
     ev = sub.add_parser("evaluate", help="evaluate a guidance law on RvEntry-v0 against the collocation reference")
-    ev.add_argument("--agent", required=True, help=f"{names}, or the path of a saved policy")
+    ev.add_argument("--agent", required=True, type=agent_spec, help=f"{names}, or the path of a saved policy")
     ev.add_argument("--episodes", type=positive_int, default=1, help="number of episodes (default 1)")
     _dispersion_arguments(ev)
     ev.add_argument("--seed", type=seed, default=0, help="episode i uses seed SEED + i (default 0)")
@@ -46,7 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help=f"dispersed episodes for mpc, which re-plans in flight (default {MPC_EPISODES}: "
                            "about 8 s each on two cores)")  # fmt: skip
     cmp_.add_argument("--seed", type=seed, default=0, help="dispersed episode i uses seed SEED + i (default 0)")
-    cmp_.add_argument("--agent", default="learned",
+    cmp_.add_argument("--agent", default="learned", type=agent_spec,
                       help="the learned agent to compare (default: the shipped learned policy)")  # fmt: skip
     _dispersion_arguments(cmp_, default="standard")
     cmp_.add_argument("--json", default="out/compare.json", metavar="PATH", help="default out/compare.json")
@@ -86,6 +92,41 @@ def dispersion_name(args) -> str:
     return args.dispersion or args.dispersion_default
 
 
+def available_memory() -> float | None:
+    """Bytes this process may still use: the kernel's MemAvailable, or less under a cgroup limit (None: unknown)."""
+    try:
+        meminfo = Path("/proc/meminfo").read_text()
+    except OSError:
+        return None
+    fields = dict(line.split(":", 1) for line in meminfo.splitlines() if ":" in line)
+    if "MemAvailable" not in fields:
+        return None
+    free = float(fields["MemAvailable"].split()[0]) * 1024
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        used = float(Path("/sys/fs/cgroup/memory.current").read_text())
+        if limit != "max":
+            free = min(free, float(limit) - used)
+    except (OSError, ValueError):
+        pass
+    return free
+
+
+def check_memory(episodes: int, history: bool, option: str = "--episodes") -> None:
+    """Refuse at once a request whose episodes will not fit in memory, rather than after hours or at the kernel's hand."""
+    free = available_memory()
+    per = EPISODE_HISTORY_BYTES if history else EPISODE_BYTES
+    need = episodes * per
+    if free is None or need <= 0.8 * free:
+        return
+    fits = max(1, int(0.8 * free // per))
+    raise ValueError(
+        f"{option} {episodes} needs about {need / 1e9:.3g} GB of memory ({per / 1e3:.0f} kB per episode"
+        f"{' with --plots' if history else ''}), more than the {free / 1e9:.3g} GB available now; run it in parts of "
+        f"at most {fits} episodes with --seed S, S + {fits}, ..." + (", or without --plots" if history else "")
+    )
+
+
 def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
               cluster: str | None = None, progress=None):  # fmt: skip
     """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary)."""
@@ -111,6 +152,7 @@ def _document(agent, episodes, dispersion, seed, batch, summary) -> dict:
         "dispersion_set": dispersion,
         "dispersion": Dispersion.parse(dispersion).__dict__,
         "seed": seed,
+        "provenance": batch.provenance,
         "reference": {"cost": float(ref.cost), "tf_s": float(ref.tf)},
         "summary": summary,
         "episodes": batch.records(float(ref.cost)),
@@ -132,6 +174,7 @@ def _evaluate(args) -> int:
 
     dispersion = dispersion_name(args)
     check_writable(args.json, folders=(args.plots,) if args.plots else ())
+    check_memory(args.episodes, bool(args.plots))
     t0 = time.time()
     with Progress(transient=True) as progress:
         job = progress.add_task(f"{args.agent}: {args.episodes} episode(s)", total=args.episodes)
@@ -141,12 +184,14 @@ def _evaluate(args) -> int:
     doc = _document(args.agent, args.episodes, dispersion, args.seed, batch, summary)
     doc["wall_time_s"] = time.time() - t0
     doc["workers"] = None if args.cluster else args.workers
-    write_json(args.json, doc)
+    with output_set():  # the report and its plots: all replaced, or none
+        write_json(args.json, doc)
+        if args.plots:
+            label = _label(args.agent)
+            plot_trajectories({label: batch}, Path(args.plots) / f"trajectories_{label}.png",
+                              reference=load_reference())  # fmt: skip
+            plot_outcomes({label: batch}, Path(args.plots) / f"outcomes_{label}.png", EntryTask().success)
     _print_summary(args.agent, summary)
-    if args.plots:
-        label = _label(args.agent)
-        plot_trajectories({label: batch}, Path(args.plots) / f"trajectories_{label}.png", reference=load_reference())
-        plot_outcomes({label: batch}, Path(args.plots) / f"outcomes_{label}.png", EntryTask().success)
     return 0
 
 
@@ -173,6 +218,7 @@ def _compare(args) -> int:
     known = set(agent_names())
     agents = ((args.agent, label), *((a, n) for a, n in COMPARED if a in known and a != args.agent))
     episodes = {name: (args.mpc_episodes if agent == "mpc" else args.episodes) for agent, name in agents}
+    check_memory(sum(episodes.values()) + len(agents), history=True)  # every law's histories, for the plots
     plan = [(case, agent, name, 1 if case == "nominal" else episodes[name], "none" if case == "nominal" else dispersion)
             for case in ("nominal", "dispersed") for agent, name in agents]  # fmt: skip
     runs = {}
@@ -211,18 +257,19 @@ def _compare(args) -> int:
         "wall_time_s": time.time() - t0,
         "workers": None if args.cluster else args.workers,
     }
-    write_json(args.json, doc)
+    ref = load_reference()
+    plots = Path(args.plots)
+    with output_set():  # the report and its plots: all replaced, or none
+        write_json(args.json, doc)
+        for case, title in (("nominal", "Nominal: guidance laws vs the optimal reference"),
+                            ("dispersed", f"Dispersed ({dispersion} set)")):  # fmt: skip
+            plot_trajectories({f"{name}": runs[(case, name)][0] for _, name in agents},
+                              plots / f"{case}_trajectories.png", reference=ref, title=title)  # fmt: skip
+        plot_outcomes({name: runs[("dispersed", name)][0] for _, name in agents}, plots / "dispersed_outcomes.png",
+                      EntryTask().success)  # fmt: skip
     console = Console(width=150)
     for table in _tables(runs, [name for _, name in agents], episodes, dispersion, checks):
         console.print(table)
-    ref = load_reference()
-    plots = Path(args.plots)
-    for case, title in (("nominal", "Nominal: guidance laws vs the optimal reference"),
-                        ("dispersed", f"Dispersed ({dispersion} set)")):  # fmt: skip
-        plot_trajectories({f"{name}": runs[(case, name)][0] for _, name in agents}, plots / f"{case}_trajectories.png",
-                          reference=ref, title=title)  # fmt: skip
-    plot_outcomes({name: runs[("dispersed", name)][0] for _, name in agents}, plots / "dispersed_outcomes.png",
-                  EntryTask().success)  # fmt: skip
     print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)"
           f" in {time.time() - t0:.0f} s")  # fmt: skip
     return 0
@@ -296,9 +343,9 @@ def _tables(runs, names, episodes, dispersion, checks):
 
 def _print_summary(agent: str, s: dict) -> None:
     print(
-        f"{agent}: {s['episodes']} episode(s): success {s['success_rate']:.2f}, miss {s['miss_km']:.3g} km, "
-        f"vertical {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
-        f"J/J* {s['cost_ratio']:.3f}, endings {s['endings']}"
+        f"{agent}: {s['episodes']} episode(s): success rate {s['success_rate']:.2f}; means: miss {s['miss_km']:.3g} km, "
+        f"vertical error {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
+        f"J/J* {s['cost_ratio']:.3f}; endings {s['endings']} (percentiles in the JSON report)"
         + (f", load relief capped {r['capped_steps']} step(s) in {r['episodes_capped']} episode(s)"
            if (r := s.get("load_relief")) else "")
     )

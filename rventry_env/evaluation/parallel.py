@@ -80,10 +80,47 @@ def split(seeds: list[int], size: int) -> list[list[int]]:
     return [seeds[i : i + size] for i in range(0, len(seeds), size)]
 
 
-def _single_thread_worker() -> None:
+class WorkerLost(RuntimeError):
+    """A worker process ended before its task did (killed, or out of memory); nothing was written."""
+
+
+def _start_worker(parent: int) -> None:
+    """Set up a pool worker: one BLAS thread, and an end of its own when its parent ends."""
     # before the first task's unpickling imports NumPy in this fresh (spawned) process
     os.environ["OMP_NUM_THREADS"] = "1"
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    end_with_parent(parent)
+
+
+def end_with_parent(parent: int, poll_s: float = 1.0) -> None:
+    """End this process when the process ``parent`` ends, however it ends (``kill -9`` included).
+
+    The kernel is asked for a SIGKILL when the parent dies (Linux ``PR_SET_PDEATHSIG``); a daemon
+    thread also checks every ``poll_s`` that the parent is still this process's parent, for the
+    systems without it and for a parent gone before the request took effect.
+    """
+    import signal
+    import sys
+    import threading
+    import time
+
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG = 1
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch():
+        while True:
+            time.sleep(poll_s)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="end-with-parent", daemon=True).start()
 
 
 def map_local(fn: Callable, calls: list[tuple], workers: int, done: Callable[[int, Any], None]) -> None:
@@ -97,12 +134,21 @@ def map_local(fn: Callable, calls: list[tuple], workers: int, done: Callable[[in
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    from concurrent.futures.process import BrokenProcessPool
+
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=ctx,
-                             initializer=_single_thread_worker) as pool:  # fmt: skip
+    # each worker ends with this process: a killed parent leaves no worker behind
+    with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=ctx, initializer=_start_worker,
+                             initargs=(os.getpid(),)) as pool:  # fmt: skip
         futures = {pool.submit(fn, *c): i for i, c in enumerate(calls)}
-        for f in as_completed(futures):
-            done(futures[f], f.result())
+        try:
+            for f in as_completed(futures):
+                done(futures[f], f.result())
+        except BrokenProcessPool:
+            raise WorkerLost(
+                "a worker process ended before its task did (killed, or out of memory); the other workers "
+                "were stopped and nothing was written"
+            ) from None
 
 
 def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: str | None = None,
@@ -136,6 +182,18 @@ def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: st
 
 
 def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) -> None:
+    map_cluster(run_task, [(job, t) for t in tasks], address, done,
+                keys=[f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}" for i, t in enumerate(tasks)])  # fmt: skip
+
+
+def map_cluster(fn: Callable, calls: list[tuple], address: str, done: Callable[[int, Any], None],
+                keys: list[str] | None = None) -> None:  # fmt: skip
+    """:func:`map_local` on a Dask cluster: ``fn(*calls[i])`` for every i on the workers of the
+    scheduler at ``address``; ``done(i, result)`` here as each finishes. ``keys`` name the tasks
+    (default: the function's name and the call's index).
+
+    :raises ValueError: Dask is not installed, or the scheduler cannot be reached.
+    """
     try:
         from distributed import Client, as_completed
     except ImportError:
@@ -144,14 +202,23 @@ def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) 
         client = Client(address, timeout="20s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    keys = keys or [f"rventry-{getattr(fn, '__name__', 'task')}-{i}" for i in range(len(calls))]
     try:
-        futures = [client.submit(run_task, job, t, pure=False, key=f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}")
-                   for i, t in enumerate(tasks)]  # fmt: skip
+        futures = [client.submit(fn, *c, pure=False, key=k) for c, k in zip(calls, keys)]
         index = {f.key: i for i, f in enumerate(futures)}
         for f in as_completed(futures):
             done(index[f.key], f.result())
     finally:
         client.close()
+
+
+def map_tasks(fn: Callable, calls: list[tuple], workers: int, done: Callable[[int, Any], None],
+              cluster: str | None = None) -> None:  # fmt: skip
+    """:func:`map_cluster` when a scheduler address is given, else :func:`map_local`."""
+    if cluster is not None:
+        map_cluster(fn, calls, cluster, done)
+    else:
+        map_local(fn, calls, workers, done)
 
 
 def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
@@ -165,6 +232,7 @@ def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
         dispersion_draw=np.concatenate([b.dispersion_draw for b in batches]),
         seeds=np.concatenate([b.seeds for b in batches]),
         law_stats=[s for b in batches for s in b.law_stats],
+        provenance=batches[0].provenance,
         lengths=np.concatenate([b.lengths for b in batches]),
     )
     if all(b.history_t is not None for b in batches):
@@ -188,4 +256,4 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["EvaluationJob", "evaluate", "map_local", "run_task", "concatenate", "split", "default_workers"]
+__all__ = ["WorkerLost", "end_with_parent", "EvaluationJob", "evaluate", "map_local", "run_task", "concatenate", "split", "default_workers"]

@@ -6,12 +6,13 @@ from pathlib import Path
 
 import numpy as np
 
-from rventry_env.physics.entry import IDX
-from rventry_env.core.conversions import cartesian_from_rv_euler
+from rventry_env.core.conversions import cartesian_from_rv_euler, lift_up_angle, wrap_angle
 from rventry_env.evaluation.rollout import EpisodeBatch
+from rventry_env.physics.entry import IDX
 from rventry_env.util.files import save_figure
 
 R_E = 6378137.0
+NEAR_VERTICAL = np.sin(np.radians(2.0)) ** 2  # the squared horizontal share of "lift up" 2 deg from vertical flight
 
 
 def _ground_track(x: np.ndarray):
@@ -23,6 +24,44 @@ def _ground_track(x: np.ndarray):
     lat[ok] = np.degrees(np.arcsin(np.clip(a1[..., 2], -1, 1)))[ok]
     lon[ok] = np.degrees(np.arctan2(a1[..., 1], a1[..., 0]))[ok]
     return lat, lon
+
+
+def conventional_bank_deg(x: np.ndarray) -> np.ndarray:
+    """The conventional bank angle mu (0 = lift up, positive to the right) in degrees, in [-180, 180),
+    of states ``x (..., 12)``; NaN where it means nothing (within 2 deg of vertical flight, where
+    it is undefined at the end and swings freely just before; padding) and where it wraps, so that
+    a line drawn through it does not cross the plot at each wrap."""
+    e_b = np.moveaxis(np.where(np.isfinite(x[..., 6:10]), x[..., 6:10], 0.0), -1, 0)
+    theta_u, n2 = lift_up_angle(e_b)
+    mu = np.degrees(wrap_angle(x[..., 11] - theta_u))
+    mu = np.where((n2 > NEAR_VERTICAL) & np.isfinite(x[..., 11]), mu, np.nan)
+    wraps = np.abs(np.diff(mu, axis=0)) > 180.0
+    mu[1:][wraps] = np.nan
+    return mu
+
+
+def coinciding(batches: dict[str, EpisodeBatch], altitude_m: float = 100.0, bank_deg: float = 1.0) -> list[list[str]]:
+    """Groups of single-episode batches whose flights lie on top of one another: altitude within
+    ``altitude_m`` and conventional bank within ``bank_deg`` at every common step."""
+    single = {k: b for k, b in batches.items() if b.history_x is not None and b.history_x.shape[1] == 1}
+    groups: list[list[str]] = []
+    for name, b in single.items():
+        for g in groups:
+            other = single[g[0]]
+            n = min(b.history_x.shape[0], other.history_x.shape[0])
+            xa, xb = b.history_x[:n, 0], other.history_x[:n, 0]
+            dh = np.nanmax(np.abs(xa[:, 0] - xb[:, 0]))
+            dmu = np.abs(wrap_angle(np.radians(conventional_bank_deg(xa) - conventional_bank_deg(xb))))
+            if dh <= altitude_m and np.nanmax(np.degrees(dmu), initial=0.0) <= bank_deg:
+                g.append(name)
+                break
+        else:
+            groups.append([name])
+    return [g for g in groups if len(g) > 1]
+
+
+def _words(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
 def plot_trajectories(
@@ -43,20 +82,25 @@ def plot_trajectories(
     fig, axes = plt.subplots(2, 3, figsize=(14, 7.5))
     ax = dict(zip(("h", "v", "track", "alpha", "sigma", "legend"), axes.ravel()))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for k, (label, b) in enumerate(batches.items()):
+    for label, b in batches.items():
         if b.history_x is None:
             raise ValueError(f"batch {label!r} was not recorded with record_history=True")
+    groups = coinciding(batches)
+    # flights on top of one another: the second of a group dashed, the third dotted, ... to tell them apart
+    styles = {name: ("-", "--", ":", "-.")[i % 4] for g in groups for i, name in enumerate(g)}
+    for k, (label, b) in enumerate(batches.items()):
         c = colors[k % len(colors)]
+        ls = styles.get(label, "-")
         t, x = b.history_t, b.history_x
         n = x.shape[1]
         lw, alpha = (1.6, 1.0) if n == 1 else (0.6, max(0.08, min(0.6, 8.0 / n)))
         lat, lon = _ground_track(x)
-        ax["h"].plot(t, (x[..., IDX.r] - R_E) / 1e3, color=c, lw=lw, alpha=alpha)
-        ax["v"].plot(t, x[..., IDX.v] / 1e3, color=c, lw=lw, alpha=alpha)
-        ax["track"].plot(lon, lat, color=c, lw=lw, alpha=alpha)
-        ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), color=c, lw=lw, alpha=alpha)
-        ax["sigma"].plot(t, np.degrees(x[..., IDX.sigma]), color=c, lw=lw, alpha=alpha)
-        ax["legend"].plot([], [], color=c, lw=2, label=f"{label} ({n} episode{'s' if n > 1 else ''})")
+        ax["h"].plot(t, (x[..., IDX.r] - R_E) / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["v"].plot(t, x[..., IDX.v] / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["track"].plot(lon, lat, color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["sigma"].plot(t, conventional_bank_deg(x), color=c, lw=lw, alpha=alpha, ls=ls)
+        ax["legend"].plot([], [], color=c, lw=2, ls=ls, label=f"{label} ({n} episode{'s' if n > 1 else ''})")
     if reference is not None:
         tr = np.linspace(0, reference.tf, 2000)
         xr = reference.state(tr)
@@ -66,7 +110,7 @@ def plot_trajectories(
         ax["v"].plot(tr, xr[:, IDX.v] / 1e3, **kw)
         ax["track"].plot(lon, lat, **kw)
         ax["alpha"].plot(tr, np.degrees(xr[:, IDX.alpha]), **kw)
-        ax["sigma"].plot(tr, np.degrees(xr[:, IDX.sigma]), **kw)
+        ax["sigma"].plot(tr, conventional_bank_deg(xr), **kw)
         ax["legend"].plot([], [], label="collocation reference (optimal)", **kw)
     ax["track"].plot([target_deg[1]], [target_deg[0]], "rx", ms=10, mew=2)
     ax["legend"].plot([], [], "rx", ms=10, mew=2, label="target")
@@ -74,9 +118,15 @@ def plot_trajectories(
     ax["v"].set(xlabel="t (s)", ylabel="speed (km/s)")
     ax["track"].set(xlabel="longitude (deg)", ylabel="latitude (deg)", title="ground track")
     ax["alpha"].set(xlabel="t (s)", ylabel="angle of attack (deg)")
-    ax["sigma"].set(xlabel="t (s)", ylabel="bank angle sigma (deg, paper's)")
+    ax["sigma"].set(xlabel="t (s)", ylabel="bank angle (deg, 0 = lift up, + right)", ylim=(-185, 185),
+                    yticks=range(-180, 181, 90))  # fmt: skip
     ax["legend"].axis("off")
     ax["legend"].legend(loc="center", fontsize=10, frameon=False)
+    notes = [f"{_words(g)} fly within 100 m of altitude\nand 1 deg of bank of one another: their lines overlap"
+             for g in groups]  # fmt: skip
+    if notes:
+        ax["legend"].text(0.5, 0.0, "\n".join(notes), ha="center", va="bottom", fontsize=9, style="italic",
+                          wrap=True, transform=ax["legend"].transAxes)  # fmt: skip
     for a in axes.ravel()[:5]:
         a.grid(alpha=0.3)
     if title:
@@ -85,13 +135,18 @@ def plot_trajectories(
 
 
 def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds) -> Path:
-    """Histograms of miss, vertical-impact error and speed error with the success thresholds."""
+    """Histograms of miss, vertical-impact error and speed error with the success thresholds, as a PNG."""
+    return save_figure(outcomes_figure(batches, thresholds), path, tight=False)
+
+
+def outcomes_figure(batches: dict[str, EpisodeBatch], thresholds):
+    """The figure of :func:`plot_outcomes`."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6 + 0.25 * ((len(batches) + 3) // 4)))
     specs = (
         ("miss_km", "miss (km)", thresholds.miss_km, True),
         ("vertical_error_deg", "vertical-impact error (deg)", thresholds.vertical_error_deg, True),
@@ -113,10 +168,29 @@ def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds
             if v.size:
                 ax.hist(np.clip(v, bins[0], bins[-1]) if positive else v, bins=bins, alpha=0.5,
                         weights=np.full(v.size, 1.0 / v.size), label=f"{name} ({v.size})", histtype="stepfilled")
-        ax.axvline(thr, color="r", ls="--", lw=1)
+        unit = label.rsplit("(", 1)[-1].rstrip(")")
+        ax.axvline(thr, color="r", ls="--", lw=1, label=f"success threshold ({'' if positive else '+/-'}{thr:g} {unit})")
         if not positive:
             ax.axvline(-thr, color="r", ls="--", lw=1)
+        if positive:  # whole labels at 1, 2, 5 per decade, none on the minor ticks: no overlap
+            from matplotlib import ticker
+
+            ax.set_xlim(min(bins[0], thr) / 1.2, max(bins[-1], thr) * 1.2)
+            ax.xaxis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0) if _decades(ax) < 3 else (1.0,)))
+            ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.xaxis.set_minor_formatter(ticker.NullFormatter())
         ax.set(xlabel=label, ylabel="fraction of episodes")
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8)
-    return save_figure(fig, path)
+        ax.legend(handles=[h for h in ax.get_lines() if h.get_label().startswith("success")], fontsize=8)
+    # the laws once, below the panels, where they hide no bar
+    handles, labels = axes[0].get_legend_handles_labels()
+    laws = [(h, lab) for h, lab in zip(handles, labels) if not lab.startswith("success")]
+    fig.legend([h for h, _ in laws], [lab for _, lab in laws], loc="lower center", ncol=min(len(laws), 4), fontsize=9,
+               frameon=False)  # fmt: skip
+    fig.tight_layout(rect=(0, 0.06 * ((len(laws) + 3) // 4), 1, 1))
+    return fig
+
+
+def _decades(ax) -> float:
+    lo, hi = ax.get_xlim()
+    return float(np.log10(hi / lo))

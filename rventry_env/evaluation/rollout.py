@@ -44,6 +44,7 @@ class EpisodeBatch:
     dispersion_draw: np.ndarray
     seeds: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     law_stats: list = field(default_factory=list)  # per episode, from the law's episode_stats()
+    provenance: dict | None = None  # the law's (GuidanceLaw.provenance)
     # histories: time (T,), states (T, N, 12), actions (T, N, 2); T = longest episode
     history_t: np.ndarray | None = None
     history_x: np.ndarray | None = None
@@ -149,7 +150,7 @@ def rollout(
                 hist_a.append(np.full((n, 2), np.nan, np.float32))
     stats = list(policy.episode_stats())
     batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths,
-                         seeds=np.array(seeds), law_stats=stats)  # fmt: skip
+                         seeds=np.array(seeds), law_stats=stats, provenance=policy.provenance)  # fmt: skip
     if record_history:
         batch.history_t, batch.history_x, batch.history_a = _tidy_history(hist_t, hist_x, hist_a, lengths)
     return batch

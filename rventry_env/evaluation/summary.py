@@ -76,6 +76,7 @@ def replanning_summary(stats: list[dict]) -> dict | None:
     return {
         "replans": int(sum(s["replans"] for s in stats)),
         "replan_failures": int(sum(s["replan_failures"] for s in stats)),
+        "replan_timeouts": int(sum(s.get("replan_timeouts", 0) for s in stats)),
         "episodes_with_a_failure": int(sum(1 for s in stats if s["replan_failures"])),
         "solves": int(times.size),
         "solve_time_s": {**pct, "max": _f(resolves.max())} if pct else None,

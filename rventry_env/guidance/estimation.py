@@ -25,7 +25,13 @@ k_L = L_measured / L_model = k_D k_LD, each a random walk:
   the accelerometer's noise (default 0.05 m/s^2, 5 mg: a conservative tactical-grade
   figure) relative to the acceleration the model predicts. A measurement the model
   predicts to be small (little lift near alpha = 0) is therefore weighted little;
-* **prior**: k = 1 +/- ``prior_sigma`` (0.2).
+* **prior**: k = 1 +/- ``prior_sigma`` (0.2);
+* **bounds**: an update that would carry a factor outside ``scale_bounds`` (0.1 to 10) is
+  rejected and counted in :attr:`AeroScaleEstimator.rejected`. A measurement the model cannot
+  explain (the lift seen along the commanded direction turned negative by a wind the model
+  does not have, say) would otherwise drive k_L through zero, and ln k_LD, which the laws
+  feed forward, to NaN. An update with a small gain (a measurement the model predicts to be
+  small, weighted little) stays inside the bounds and is taken as before.
 
 The lift is measured along the commanded lift direction (cos sigma b2 + sin sigma b3),
 so the sign of C_L (negative at small alpha and high Mach) is kept. The filter
@@ -61,12 +67,16 @@ class EstimatorSettings:
     accel_noise: float = 0.05
     drift: float = 0.002
     prior_sigma: float = 0.2
+    scale_bounds: tuple = (0.1, 10.0)
 
     def __post_init__(self):
         for name in ("accel_noise", "drift", "prior_sigma"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be positive and finite, got {v}")
+        lo, hi = self.scale_bounds
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < 1 < hi):
+            raise ValueError(f"scale_bounds must be (low, high) with 0 < low < 1 < high, got {self.scale_bounds}")
 
 
 class AeroScaleEstimator:
@@ -84,12 +94,21 @@ class AeroScaleEstimator:
 
     def reset(self, n: int) -> None:
         """Forget everything: n vehicles at the prior."""
-        s = self.settings
         self.n = int(n)
-        self.k = np.ones((self.n, 2))  # (k_D, k_L)
-        self.var = np.full((self.n, 2), s.prior_sigma**2)
-        self.t_last = np.full(self.n, np.nan)
-        self.updates = np.zeros(self.n, dtype=int)
+        self.k = np.empty((self.n, 2))  # (k_D, k_L)
+        self.var = np.empty((self.n, 2))
+        self.t_last = np.empty(self.n)
+        self.updates = np.empty(self.n, dtype=int)
+        self.rejected = np.empty(self.n, dtype=int)  # per vehicle: factor updates refused by scale_bounds
+        self.reset_rows(slice(None))
+
+    def reset_rows(self, rows) -> None:
+        """Forget everything for the vehicles ``rows`` (new episodes, or all): back to the prior."""
+        self.k[rows] = 1.0
+        self.var[rows] = self.settings.prior_sigma**2
+        self.t_last[rows] = np.nan
+        self.updates[rows] = 0
+        self.rejected[rows] = 0
 
     def update(self, time_s, state, sensed_accel_b, rows=None) -> None:
         """Fold in one measurement per vehicle.
@@ -121,7 +140,12 @@ class AeroScaleEstimator:
             r = (s.accel_noise / np.abs(pred)) ** 2
         ok = np.isfinite(z) & np.isfinite(r) & np.all(np.isfinite(a), axis=1, keepdims=True)
         gain = np.where(ok, var / (var + np.where(ok, r, 1.0)), 0.0)
-        self.k[idx] = k + gain * np.where(ok, z - k, 0.0)
+        k_new = k + gain * np.where(ok, z - k, 0.0)
+        lo, hi = s.scale_bounds
+        inside = (k_new >= lo) & (k_new <= hi)
+        self.rejected[idx] += np.count_nonzero(ok & ~inside, axis=1)
+        gain = np.where(inside, gain, 0.0)
+        self.k[idx] = np.where(inside, k_new, k)
         self.var[idx] = (1.0 - gain) * var
         self.t_last[idx] = t
         self.updates[idx] += 1

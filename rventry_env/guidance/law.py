@@ -96,10 +96,13 @@ class GuidanceLaw(Protocol):
     * ``episode_stats()`` returns one dict per episode since the last reset, merged into the
       evaluation's records (``replans``, solve times, ...), or an empty list;
     * ``episodes_per_task``: how many episodes one parallel evaluation task should hold (None:
-      as many as it is given; a law that takes seconds per episode says 1).
+      as many as it is given; a law that takes seconds per episode says 1);
+    * ``provenance``: where a learned law comes from (algorithm, starting point, steps, seed), written
+      into evaluation reports; None for a law that is not trained.
     """
 
     episodes_per_task: int | None
+    provenance: dict | None
 
     def reset(self, n_episodes: int) -> None: ...
 
@@ -112,6 +115,7 @@ class Law:
     """Defaults for :class:`GuidanceLaw`: no per-episode memory, no statistics, any batch size."""
 
     episodes_per_task: ClassVar[int | None] = None
+    provenance: dict | None = None
 
     def reset(self, n_episodes: int) -> None:
         """No per-episode memory."""
@@ -127,8 +131,7 @@ class Law:
 def check_law(law) -> GuidanceLaw:
     """``law`` itself, if it implements :class:`GuidanceLaw`; else a TypeError naming what is missing."""
     missing = [name for name in ("reset", "episode_stats", "__call__") if not callable(getattr(law, name, None))]
-    if not hasattr(law, "episodes_per_task"):
-        missing.append("episodes_per_task")
+    missing += [name for name in ("episodes_per_task", "provenance") if not hasattr(law, name)]
     if missing:
         raise TypeError(
             f"{type(law).__name__} is not a guidance law: it lacks {', '.join(missing)} "

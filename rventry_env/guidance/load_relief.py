@@ -30,9 +30,8 @@ import numpy as np
 
 from rventry_env.task import EntryTask
 from rventry_env.physics import EntryModel
-from rventry_env.physics.entry import entry_forces, entry_rhs
+from rventry_env.physics.entry import IDX, entry_forces, entry_rhs
 
-ALPHA = 10  # alpha's place in the state
 SEARCH_BITS = 4  # halvings per vectorized evaluation: 15 trial rates per vehicle
 
 
@@ -81,7 +80,7 @@ class LoadRelief:
         """The load factor (g) of states ``x_ahead`` (N, 12) with alpha set to ``alpha`` (N, M): (N, M)."""
         n, m = alpha.shape
         xs = np.repeat(x_ahead, m, axis=0)
-        xs[:, ALPHA] = alpha.ravel()
+        xs[:, IDX.alpha] = alpha.ravel()
         return (np.asarray(entry_forces(tuple(xs.T), self.model).aero_accel) / self.model.planet.g0).reshape(n, m)
 
     def __call__(self, rates, state, sensed_accel_b, count=None) -> np.ndarray:
@@ -105,7 +104,7 @@ class LoadRelief:
         self.active = over
         if np.any(over):
             self.steps += over if count is None else over & np.asarray(count, dtype=bool)
-            xs, k, alpha0 = x_ahead[over], calib[over], x[over, ALPHA]
+            xs, k, alpha0 = x_ahead[over], calib[over], x[over, IDX.alpha]
             lo = np.full(len(xs), -1.0)  # the full down-rate: taken when no rate meets the limit
             hi = rates[over, 0]  # over the limit
             left = self.iterations

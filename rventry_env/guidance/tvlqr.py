@@ -223,6 +223,12 @@ class NeighboringOptimalGuidance(Law):
         if self.estimator is not None:
             self.estimator.reset(n_episodes)
 
+    def episode_stats(self) -> list[dict]:
+        """With estimation: per episode, the estimator updates refused by its scale bounds."""
+        if self.estimator is None:
+            return []
+        return [{"estimator_rejected_updates": int(c)} for c in self.estimator.rejected]
+
     def _jacobians(self, xs: np.ndarray, us: np.ndarray):
         """(A, B) of the step at ``xs``, ``us`` for the nominal model."""
         a, b, _ = self.linearization.along(xs, us)

@@ -6,6 +6,8 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from rventry_env.physics.checks import check_number, check_numbers, check_part
+
 
 class Aerodynamics(Protocol):
     def coefficients(self, alpha, mach, ns) -> tuple:
@@ -30,6 +32,9 @@ class CAVHAerodynamics:
     cd_mach: float = 0.406
     cd_decay: float = 0.323
 
+    def __post_init__(self):
+        check_numbers(self, ("cl0", "cl_alpha", "cl_mach", "cl_decay", "cd0", "cd_alpha2", "cd_mach", "cd_decay"))
+
     def coefficients(self, alpha, mach, ns):
         a = alpha * (180.0 / math.pi)
         cl = self.cl0 + self.cl_alpha * a + self.cl_mach * ns.exp(-self.cl_decay * mach)
@@ -43,6 +48,10 @@ class ConstantAerodynamics:
 
     cd: float
     lift_to_drag: float = 0.0
+
+    def __post_init__(self):
+        check_number(self, "cd", low=0.0)
+        check_number(self, "lift_to_drag")
 
     def coefficients(self, alpha, mach, ns):
         zero = 0 * alpha
@@ -60,6 +69,11 @@ class ScaledAerodynamics:
     base: Aerodynamics
     cl_scale: object = 1.0
     cd_scale: object = 1.0
+
+    def __post_init__(self):
+        check_part(self, "base", "coefficients")
+        check_number(self, "cl_scale")
+        check_number(self, "cd_scale", low=0.0)
 
     def coefficients(self, alpha, mach, ns):
         cl, cd = self.base.coefficients(alpha, mach, ns)

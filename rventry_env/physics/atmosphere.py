@@ -12,6 +12,8 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
+from rventry_env.physics.checks import check_number, check_part, check_sequence
+
 
 class Atmosphere(Protocol):
     def density(self, h, ns):
@@ -31,6 +33,11 @@ class ExponentialAtmosphere:
     scale_height: float = 7200.0
     sound_speed: float = 300.0
 
+    def __post_init__(self):
+        check_number(self, "rho0", low=0.0)
+        check_number(self, "scale_height", low=0.0, low_open=True)
+        check_number(self, "sound_speed", low=0.0, low_open=True)
+
     def density(self, h, ns):
         return self.rho0 * ns.exp(-h / self.scale_height)
 
@@ -44,6 +51,10 @@ class ScaledAtmosphere:
 
     base: Atmosphere
     scale: object = 1.0
+
+    def __post_init__(self):
+        check_part(self, "base", "density", "speed_of_sound")
+        check_number(self, "scale", low=0.0)
 
     def density(self, h, ns):
         return self.scale * self.base.density(h, ns)
@@ -84,6 +95,11 @@ class DensityCorrection:
     knots: tuple = (0.0, 40e3, 80e3, 120e3)
     log_factors: tuple = (0.0, 0.0, 0.0, 0.0)
 
+    def __post_init__(self):
+        check_part(self, "base", "density", "speed_of_sound")
+        check_sequence(self, "knots")
+        check_sequence(self, "log_factors")
+
     def density(self, h, ns):
         return self.base.density(h, ns) * ns.exp(piecewise_linear(h, self.knots, self.log_factors, ns))
 
@@ -113,6 +129,7 @@ class TabulatedAtmosphere:
             raise ValueError("altitudes must be strictly increasing")
         if np.any(~np.isfinite(rho)) or np.any(rho <= 0):
             raise ValueError("densities must be positive and finite")
+        check_number(self, "sound_speed", low=0.0, low_open=True)
         object.__setattr__(self, "_log_rho", np.log(rho))
 
     def density(self, h, ns):

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+from rventry_env.physics.checks import check_number
 from rventry_env.physics.planet import EARTH
 
 
@@ -25,6 +26,9 @@ class PointMassGravity:
     """-mu / r^2 along a1 (Eq. ``Ex2-EOM-Ftot``)."""
 
     mu: float = EARTH.mu
+
+    def __post_init__(self):
+        check_number(self, "mu", low=0.0)
 
     def acceleration_a(self, r, e3_a, ns):
         return -self.mu / (r * r), 0.0, 0.0
@@ -43,6 +47,11 @@ class J2Gravity:
     mu: float = EARTH.mu
     j2: float = 1.08262668e-3
     radius: float = EARTH.radius
+
+    def __post_init__(self):
+        check_number(self, "mu", low=0.0)
+        check_number(self, "j2")
+        check_number(self, "radius", low=0.0, low_open=True)
 
     def acceleration_a(self, r, e3_a, ns):
         s = e3_a[0]

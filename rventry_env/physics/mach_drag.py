@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 from rventry_env.physics.aerodynamics import Aerodynamics
 from rventry_env.physics.atmosphere import piecewise_linear
+from rventry_env.physics.checks import check_part, check_sequence
 
 
 @dataclass(frozen=True)
@@ -30,6 +31,11 @@ class MachDragCorrection:
     base: Aerodynamics
     mach_knots: tuple = (5.0, 30.0)
     log_factors: tuple = (0.0, 0.0)
+
+    def __post_init__(self):
+        check_part(self, "base", "coefficients")
+        check_sequence(self, "mach_knots")
+        check_sequence(self, "log_factors")
 
     def coefficients(self, alpha, mach, ns):
         cl, cd = self.base.coefficients(alpha, mach, ns)

@@ -6,6 +6,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from rventry_env.physics.atmosphere import Atmosphere, ExponentialAtmosphere
+from rventry_env.physics.checks import check_part
 from rventry_env.physics.gravity import Gravity, PointMassGravity
 from rventry_env.physics.planet import Planet
 from rventry_env.physics.vehicle import Vehicle
@@ -31,6 +32,16 @@ class EntryModel:
     atmosphere: Atmosphere = field(default_factory=ExponentialAtmosphere)
     vehicle: Vehicle = field(default_factory=Vehicle)
     wind: Wind | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.planet, Planet):
+            raise ValueError(f"EntryModel.planet must be a Planet, got {self.planet!r:.80}")
+        if not isinstance(self.vehicle, Vehicle):
+            raise ValueError(f"EntryModel.vehicle must be a Vehicle (mass, reference area, aerodynamics), "
+                             f"got {self.vehicle!r:.80}")  # fmt: skip
+        check_part(self, "gravity", "acceleration_a")
+        check_part(self, "atmosphere", "density", "speed_of_sound")
+        check_part(self, "wind", "velocity_a", optional=True)
 
     def replace(self, **changes) -> "EntryModel":
         """A copy with some parts replaced."""

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rventry_env.physics.checks import check_number, check_numbers
+
 
 @dataclass(frozen=True)
 class Planet:
@@ -19,6 +21,10 @@ class Planet:
     mu: float = 3.986004418e14
     omega: float = 7.292115e-5
     g0: float = 9.80665
+
+    def __post_init__(self):
+        check_numbers(self, ("radius", "mu", "g0"), low=0.0, low_open=True)
+        check_number(self, "omega")
 
 
 EARTH = Planet()

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+from rventry_env.physics.checks import check_number
+
 
 class Wind(Protocol):
     def velocity_a(self, h, e3_a, ns) -> tuple:
@@ -26,6 +28,10 @@ class HorizontalWind:
 
     east: float = 0.0
     north: float = 0.0
+
+    def __post_init__(self):
+        check_number(self, "east")
+        check_number(self, "north")
 
     def velocity_a(self, h, e3_a, ns):
         _, c2, c3 = e3_a

@@ -102,16 +102,29 @@ def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
     x = np.array(x0, dtype=float, copy=True)
     dh, dv, dgam, dpsi, dalpha, dsigma = (d[..., i] for i in range(3, 9))
     if np.any(dh) or np.any(dv) or np.any(dgam) or np.any(dpsi):
-        # keep the physical lift direction: the new frames come from the east-down rule,
-        # so carry the bank across as the conventional angle mu, not as sigma
-        mu = cv.conventional_bank(x, x[..., IDX.sigma])
-        s = cv.spherical_from_rv_euler(x)
-        s[..., 0] += dh
-        s[..., 3] += dv
-        s[..., 4] += np.radians(dgam)
-        s[..., 5] += np.radians(dpsi)
-        x[..., IDX.translation] = cv.rv_euler_from_spherical(s)
-        x[..., IDX.sigma] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., IDX.sigma])
+        try:
+            # keep the physical lift direction: the new frames come from the east-down rule,
+            # so carry the bank across as the conventional angle mu, not as sigma
+            mu = cv.conventional_bank(x, x[..., IDX.sigma])
+            s = cv.spherical_from_rv_euler(x)
+            s[..., 0] += dh
+            s[..., 3] += dv
+            s[..., 4] += np.radians(dgam)
+            s[..., 5] += np.radians(dpsi)
+            x[..., IDX.translation] = cv.rv_euler_from_spherical(s)
+            x[..., IDX.sigma] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., IDX.sigma])
+        except cv.SingularConversionError as exc:
+            if np.any(dgam) or np.any(dpsi):
+                raise ValueError(
+                    "the dispersion of the flight-path angle or heading (Dispersion.flight_path_deg, "
+                    "Dispersion.heading_deg) cannot be applied to this initial state: at a pole or in vertical "
+                    f"flight the angle it perturbs is undefined ({exc}). Start it without them, or away from "
+                    "the pole and from vertical flight"
+                ) from None
+            # altitude and speed alone are the magnitudes r and v: no angle is needed
+            x = np.array(x0, dtype=float, copy=True)
+            x[..., IDX.r] += dh
+            x[..., IDX.v] += dv
     x[..., IDX.alpha] += np.radians(dalpha)
     x[..., IDX.sigma] += np.radians(dsigma)
     return x

@@ -47,6 +47,13 @@ def seed(text: str) -> int:
     return value
 
 
+def agent_spec(text: str) -> str:
+    """An agent's name or a saved policy's path: not empty."""
+    if not str(text).strip():
+        raise argparse.ArgumentTypeError(f"must name an agent or the path of a saved policy, got {text!r}")
+    return str(text)
+
+
 def interval(low: float, high: float, *, low_open: bool = False, high_open: bool = False):
     """A finite number between ``low`` and ``high`` (each end open or closed) as an argparse type."""
 
@@ -90,6 +97,7 @@ __all__ = [
     "positive_float",
     "non_negative_float",
     "seed",
+    "agent_spec",
     "interval",
     "number_list",
 ]

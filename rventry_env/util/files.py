@@ -12,6 +12,7 @@ so an unwritable destination is reported at once rather than after the run.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import json
 import math
 import os
@@ -24,9 +25,44 @@ class OutputError(ValueError):
     """A destination cannot be written (named in the message)."""
 
 
+# the files staged by the innermost output_set() in progress (None: each write replaces its file at once)
+_STAGED: contextvars.ContextVar[list | None] = contextvars.ContextVar("rventry_output_set", default=None)
+
+
+@contextlib.contextmanager
+def output_set() -> Iterator[None]:
+    """A command's outputs as one set: all replaced, or none.
+
+    Inside the block every :func:`atomic_write` (so :func:`write_json` and :func:`save_figure`)
+    writes its whole content to a temporary file beside its destination and leaves the
+    destination alone. When the block ends normally every staged file is renamed over its
+    destination (renames in one folder cannot fail for want of space); when it raises (a full
+    disk, a plot that fails, an interrupt) every staged file is removed and every previous
+    output stays as it was. A block inside another joins the outer set.
+    """
+    if _STAGED.get() is not None:
+        yield
+        return
+    staged: list[tuple[Path, Path]] = []
+    token = _STAGED.set(staged)
+    try:
+        yield
+    except BaseException:
+        for tmp, _ in staged:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        raise
+    else:
+        for tmp, dest in staged:
+            os.replace(tmp, dest)
+    finally:
+        _STAGED.reset(token)
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
-    """A temporary path beside ``path``; on normal exit it replaces ``path`` atomically.
+    """A temporary path beside ``path``; on normal exit it replaces ``path`` atomically
+    (inside an :func:`output_set`, at the end of the set, with the set's other files).
 
     :param path: the destination.
     :param suffix: the temporary file's suffix (default: the destination's, so that
@@ -36,6 +72,7 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
     if path.is_dir():
         raise OutputError(f"{path} is a directory, not a file")
     folder = path.parent
+    _check_no_file_in_the_way(folder, path)
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -49,7 +86,11 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
             os.fsync(f.fileno())
         # mkstemp makes the file private (0600); give it the mode a plain open() would
         os.chmod(tmp_path, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask())
-        os.replace(tmp_path, path)
+        staged = _STAGED.get()
+        if staged is None:
+            os.replace(tmp_path, path)
+        else:  # an output_set() renames it with the others at its end
+            staged.append((tmp_path, path))
     except BaseException:
         with contextlib.suppress(OSError):
             tmp_path.unlink()
@@ -146,7 +187,17 @@ def check_writable(*paths: str | Path | None, folders: tuple = ()) -> None:
         _probe(d, d)
 
 
+def _check_no_file_in_the_way(folder: Path, target: Path) -> None:
+    """Raise :class:`OutputError` naming it if a regular file stands where a folder of ``folder`` must be."""
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                raise OutputError(f"cannot write {target}: {part} is a file, not a folder")
+            return
+
+
 def _probe(folder: Path, target: Path) -> None:
+    _check_no_file_in_the_way(folder, target)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=".rventry-write-check.", dir=folder)
@@ -156,4 +207,4 @@ def _probe(folder: Path, target: Path) -> None:
         raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from None
 
 
-__all__ = ["OutputError", "atomic_path", "atomic_write", "json_safe", "dumps_json", "write_json", "save_figure", "check_writable"]
+__all__ = ["OutputError", "output_set", "atomic_path", "atomic_write", "json_safe", "dumps_json", "write_json", "save_figure", "check_writable"]

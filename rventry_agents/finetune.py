@@ -1,0 +1,193 @@
+"""PPO from the imitation student: the student's network as the actor's starting point.
+
+The DAgger student (:mod:`rventry_agents.imitation`) maps what a vehicle measures to commanded
+angles, and a tracker with load relief turns them into rates. PPO fine-tuning keeps that whole
+structure and lets PPO move only the network:
+
+* :class:`StudentVecEnv` presents the task to PPO in the student's own terms: the observation is
+  the student's input (the observation features without the angle-dependent ones, and the
+  accelerometer's log-scale estimates), standardized with the student's statistics; the action is
+  the student's output, standardized the same way, which the wrapper turns into rates with the
+  student's tracker and load relief;
+* :func:`init_actor_from_student` copies the student's layers into the PPO actor (an MLP of the
+  same widths with tanh), so the deterministic policy at step 0 *is* the student;
+* :class:`ActorCommands` is the other direction: a PPO policy's deterministic actor as a network
+  with ``commands()``, which :class:`~rventry_agents.imitation.LearnedGuidance` flies like the
+  student's own.
+
+The reward is the environment's, with its success bonus. The critic starts untrained: a
+``critic_warmup_steps`` phase trains the value function alone, with the actor frozen, before the
+actor moves (a warm-started actor with a random critic takes its first updates from noise), and
+``target_kl`` stops an update that overshoots the trust region.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env import VecEnvWrapper
+
+from rventry_agents.imitation import INPUTS, LOG_SCALE_GAIN, LearnedGuidance, tracking_rates
+from rventry_env.guidance.law import Measurement
+
+ACTION_BOUND = 8.0  # standardized commands: the student's outputs lie within a few of their spreads
+
+
+class StudentScales:
+    """The student's standardization: inputs (mean, std) and commands (out_mean, out_scale)."""
+
+    def __init__(self, mean, std, out_mean, out_scale):
+        self.mean, self.std = np.asarray(mean, np.float32), np.asarray(std, np.float32)
+        self.out_mean, self.out_scale = np.asarray(out_mean, np.float32), np.asarray(out_scale, np.float32)
+
+    @classmethod
+    def of(cls, network) -> "StudentScales":
+        """The scales of a single student network (an ensemble has one per member: distil it first)."""
+        from rventry_agents.networks import Student
+
+        if not isinstance(network, Student):
+            raise ValueError(f"PPO starts from one student network, not a {type(network).__name__}; distil an "
+                             "ensemble into one first ([distil] in the DAgger config)")  # fmt: skip
+        return cls(*(getattr(network, k).detach().numpy() for k in ("mean", "std", "out_mean", "out_scale")))
+
+    def as_dict(self) -> dict:
+        return {k: getattr(self, k).tolist() for k in ("mean", "std", "out_mean", "out_scale")}
+
+    def inputs(self, f: np.ndarray) -> np.ndarray:
+        """The standardized inputs (N, n_inputs) from recorded features ``f`` (N, 28)."""
+        return ((f[:, INPUTS] - self.mean) / self.std).astype(np.float32)
+
+    def commands(self, a: np.ndarray) -> np.ndarray:
+        """Commands (N, 3) from standardized actions."""
+        return np.asarray(a, np.float32) * self.out_scale + self.out_mean
+
+
+class StudentVecEnv(VecEnvWrapper):
+    """PPO's view of the task in the student's terms (see the module docstring).
+
+    :param venv: an :class:`~rventry_agents.sb3_vec.RvEntrySB3VecEnv` (its raw observations, the
+        states and the sensors of every copy).
+    :param law: the student's law: its tracker horizon and load relief (its network is not used).
+    :param scales: the student's standardization.
+    """
+
+    def __init__(self, venv, law: LearnedGuidance, scales: StudentScales):
+        n = len(scales.mean)
+        obs_space = spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)
+        act_space = spaces.Box(-ACTION_BOUND, ACTION_BOUND, shape=(3,), dtype=np.float32)
+        super().__init__(venv, observation_space=obs_space, action_space=act_space)
+        self.law, self.scales = law, scales
+        self._f = None
+
+    def _measure(self, obs: np.ndarray) -> Measurement:
+        inner = self.venv.venv
+        info = self.venv.last_infos
+        return Measurement.of(obs, info["time_s"], inner.state, info["sensed_accel_b"])
+
+    def reset(self):
+        obs = self.venv.reset()
+        self.law.reset(self.num_envs)
+        self._f = self.law.tracker(self._measure(obs))
+        return self.scales.inputs(self._f)
+
+    def step_async(self, actions: np.ndarray) -> None:
+        state = self.venv.venv.state
+        info = self.venv.last_infos
+        rates = tracking_rates(self.scales.commands(actions).astype(float), state, self.law.task,
+                               self.law.horizon.seconds(state, self.law.radius, self.law.task.dt))  # fmt: skip
+        if self.law.relief is not None:
+            rates = self.law.relief(rates, state, info["sensed_accel_b"]).astype(np.float32)
+        self.venv.step_async(rates)
+
+    def step_wait(self):
+        obs, reward, dones, infos = self.venv.step_wait()
+        estimator = self.law.tracker.estimator
+        ended = np.nonzero(dones)[0]
+        if ended.size:
+            # the terminal observation with the estimates the episode ended with, then fresh filters
+            final = np.stack([infos[i]["terminal_observation"] for i in ended])
+            logs = (LOG_SCALE_GAIN * estimator.log_scales()[ended]).astype(np.float32)
+            term = self.scales.inputs(np.concatenate([final.astype(np.float32), logs], axis=1))
+            for j, i in enumerate(ended):
+                infos[i]["terminal_observation"] = term[j]
+            estimator.reset_rows(ended)
+        self._f = self.law.tracker(self._measure(obs))
+        return self.scales.inputs(self._f), reward, dones, infos
+
+
+def init_actor_from_student(policy, network) -> None:
+    """Copy the student's layers into an SB3 ``ActorCriticPolicy`` of the same widths (tanh): the
+    actor's mean is then the student's standardized commands."""
+    import torch
+    from torch import nn
+
+    body = [m for m in network.body if isinstance(m, nn.Linear)]
+    actor = [m for m in policy.mlp_extractor.policy_net if isinstance(m, nn.Linear)] + [policy.action_net]
+    if [tuple(m.weight.shape) for m in body] != [tuple(m.weight.shape) for m in actor]:
+        raise ValueError(f"the PPO actor's layers {[tuple(m.weight.shape) for m in actor]} do not match the "
+                         f"student's {[tuple(m.weight.shape) for m in body]}: give [policy] net_arch the student's widths")
+    with torch.no_grad():
+        for src, dst in zip(body, actor):
+            dst.weight.copy_(src.weight)
+            dst.bias.copy_(src.bias)
+
+
+def set_actor_trainable(policy, trainable: bool) -> None:
+    """Freeze or free the actor (its layers and the action noise); the critic always trains."""
+    for module in (policy.mlp_extractor.policy_net, policy.action_net):
+        for p in module.parameters():
+            p.requires_grad_(trainable)
+    policy.log_std.requires_grad_(trainable)
+
+
+class ActorCommands:
+    """A PPO policy's deterministic actor as a student network: ``commands(x)`` for the inputs
+    ``x`` (N, n_inputs) in their own units, for :class:`~rventry_agents.imitation.LearnedGuidance`."""
+
+    def __init__(self, policy, scales: StudentScales):
+        import torch
+
+        self.policy, self.scales = policy, scales
+        self._mean, self._std = torch.from_numpy(scales.mean), torch.from_numpy(scales.std)
+        self._out_mean, self._out_scale = torch.from_numpy(scales.out_mean), torch.from_numpy(scales.out_scale)
+
+    def eval(self):
+        self.policy.set_training_mode(False)
+        return self
+
+    def commands(self, x):
+        z = (x - self._mean) / self._std
+        latent = self.policy.mlp_extractor.forward_actor(self.policy.extract_features(z, self.policy.pi_features_extractor))
+        return self.policy.action_net(latent) * self._out_scale + self._out_mean
+
+
+def load_start(start: str, task) -> LearnedGuidance:
+    """The student PPO starts from: an agent name (``dagger``) or a DAgger run's directory."""
+    from rventry_env.evaluation.agents import load_agent
+
+    law = load_agent(start, task)
+    if not isinstance(law, LearnedGuidance):
+        raise ValueError(f"PPO fine-tuning starts from an imitation student (the agent 'dagger' or a DAgger run), "
+                         f"not {start!r} ({type(law).__name__})")  # fmt: skip
+    return law
+
+
+def student_spec(law: LearnedGuidance, scales: StudentScales, start: str) -> dict:
+    """How to fly a fine-tuned policy (``policy.json``'s ``student``): the student it started from, its
+    standardization, its tracker horizon and its load relief."""
+    from rventry_agents.dagger import horizon_keys
+
+    return {"start": start, "scales": scales.as_dict(), **horizon_keys(law.horizon, "tracking"),
+            "load_relief_margin": law.load_relief_margin}  # fmt: skip
+
+
+def fine_tuned_law(policy, spec: dict, task) -> LearnedGuidance:
+    """A PPO policy trained from a student (``spec`` from :func:`student_spec`) as a guidance law."""
+    from rventry_agents.dagger import student_law
+
+    scales = StudentScales(**spec["scales"])
+    return LearnedGuidance(ActorCommands(policy, scales), task=task, **student_law(spec, task))
+
+
+__all__ = ["ACTION_BOUND", "ActorCommands", "StudentScales", "StudentVecEnv", "fine_tuned_law", "init_actor_from_student",
+           "load_start", "set_actor_trainable", "student_spec"]  # fmt: skip

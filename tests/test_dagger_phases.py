@@ -1,0 +1,207 @@
+"""The phases of a DAgger run (rventry_agents/dagger.py), each alone, and the run's reproducibility."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")
+
+from rventry_agents.dagger import (
+    RunClock,
+    Rounds,
+    Selected,
+    check_resumable,
+    choose_flight_tracker,
+    distil_selected,
+    new_network,
+    prepare_run,
+    refit_ensemble,
+    train_dagger,
+    write_run_record,
+)
+from rventry_agents.imitation import N_FEATURES, network_bytes
+
+SMALL = """
+[student]
+hidden = [16, 16]
+load_relief_margin = 0.02
+[expert]
+agent = "lqr"
+[data]
+dispersion = "standard"
+train_seed = 2_000_000
+[[rounds]]
+episodes = 2
+beta = 1.0
+[[rounds]]
+episodes = 1
+beta = 0.5
+[fit]
+epochs = 3
+batch_size = 512
+learning_rate = 1e-3
+seed = 0
+[select]
+episodes = 2
+seed = 100_000
+dispersion = "standard"
+[final]
+members = 2
+[flight]
+tracking = [[3.0, 2.0]]
+tracking_descent_mps = 2500.0
+"""
+DISTIL = "[distil]\nhidden = [8]\nepochs = 2\nemphasis_below_m = 20_000.0\nemphasis = 3\n"
+
+
+def _run(tmp_path, text=SMALL, seed=None, name="run"):
+    cfg = tmp_path / f"{name}.toml"
+    cfg.write_text(text)
+    return prepare_run(cfg, tmp_path / name, workers=1, seed=seed)
+
+
+def _rounds(run, n=600, seed=0) -> Rounds:
+    """Two rounds of recorded features and labels (synthetic, of the recorded shapes), the first selected."""
+    rng = np.random.default_rng(seed)
+    rounds = Rounds()
+    for k in range(2):
+        rounds.xs.append(rng.uniform(-1, 1, (n, N_FEATURES)).astype(np.float32))
+        rounds.ys.append(rng.uniform(0.0, 0.4, (n, 2)).astype(np.float32))
+        rounds.records.append({"round": k, "samples": n * (k + 1), "select_success_rate": 0.0,
+                               "select_miss_km_mean": 1e3 + k, "select_miss_km_p50": 1e3, "flown_success_rate": 0.0})  # fmt: skip
+    net = new_network(run.hidden, run.members, run.fit_seed, "round 0")
+    rounds.best = Selected(0, network_bytes(net), run.members, run.hidden)
+    return rounds
+
+
+def test_new_networks_start_from_the_runs_seed_and_stage():
+    import torch
+
+    a, b = new_network((8,), 1, 0, "round 2"), new_network((8,), 1, 0, "round 2")
+    torch.rand(100)  # whatever else drew from the global generator in between
+    c = new_network((8,), 1, 0, "round 2")
+    d, e = new_network((8,), 1, 0, "round 3"), new_network((8,), 1, 1, "round 2")
+    same = [torch.equal(p, q) for p, q in zip(a.state_dict().values(), b.state_dict().values())]
+    assert all(same) and network_bytes(a) == network_bytes(c)
+    assert network_bytes(a) != network_bytes(d) and network_bytes(a) != network_bytes(e)
+
+
+def test_prepare_run_reads_the_settings_the_phases_use(tmp_path):
+    run = _run(tmp_path, seed=3)
+    assert run.hidden == (16, 16) and run.members == 1 and run.expert == "lqr" and run.expert_settings == ()
+    assert run.fit_seed == 3 and run.first_seed == 2_000_000 + 3_000
+    assert run.fit_settings() == {"epochs": 3, "batch_size": 512, "lr": 1e-3, "seed": 3, "weight_decay": 0.0}
+    assert run.law["load_relief_margin"] == 0.02 and [h.max_s for h in run.trackers] == [3.0]
+
+
+def test_a_resume_with_another_config_is_refused_naming_the_fields(tmp_path):
+    check_resumable(_run(tmp_path), resume=False)
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["student"]["hidden"] == [16, 16]
+    check_resumable(_run(tmp_path), resume=True)  # the same config: accepted
+    # a longer run, a distillation or another tracker scan may be added on resume
+    check_resumable(_run(tmp_path, SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\n[fit]") + DISTIL),
+                    resume=True)  # fmt: skip
+    cases = {
+        "seed": (SMALL, 5, "seed (null -> 5)"),
+        "width": (SMALL.replace("hidden = [16, 16]", "hidden = [32]"), None, "student.hidden ([16, 16] -> [32])"),
+        "dispersion": (SMALL.replace('dispersion = "standard"\ntrain', 'dispersion = "wide"\ntrain'), None,
+                       'data.dispersion ("standard" -> "wide")'),
+        "margins": (SMALL.replace('agent = "lqr"', 'agent = "mpc"\nq_margin = 0.1'), None, "expert.q_margin (null -> 0.1)"),
+    }  # fmt: skip
+    for name, (text, seed, needle) in cases.items():
+        with pytest.raises(ValueError, match="cannot resume .*another config") as err:
+            check_resumable(_run(tmp_path, text, seed), resume=True)
+        assert needle in str(err.value), name
+    # a run from before run.json was kept: checked against its metadata
+    (tmp_path / "run" / "run.json").unlink()
+    (tmp_path / "run" / "metadata.json").write_text(json.dumps({"seed": 0, "config": _run(tmp_path).cfg}))
+    with pytest.raises(ValueError, match=r"fit.seed \(0 -> 4\)"):
+        check_resumable(_run(tmp_path, seed=4), resume=True)
+
+
+def test_the_ensemble_refit_is_selected_only_when_it_beats_the_best_round(tmp_path):
+    run = _run(tmp_path)
+    run.out.mkdir(exist_ok=True)  # prepare_run made it
+    rounds = _rounds(run)
+    best, final = refit_ensemble(run, rounds, RunClock(), resume=False)
+    assert final["members"] == 2 and final["samples"] == 1200
+    stored = json.loads((run.out / "final.json").read_text())
+    assert stored["fit_loss_last"] == final["fit_loss_last"]
+    beats = (final["select_success_rate"], -final["select_miss_km_mean"]) > (0.0, -1e3)
+    assert (best.source == "final") == beats
+    # on resume an ensemble of the same size and data is taken as it is
+    again, taken = refit_ensemble(run, rounds, RunClock(), resume=True)
+    assert taken == final and again == best
+    # none asked for: an earlier run's record goes
+    none = _run(tmp_path, SMALL.replace("members = 2", "members = 1"))
+    assert refit_ensemble(none, rounds, RunClock(), resume=False) == (rounds.best, None)
+    assert not (run.out / "final.json").exists()
+
+
+def test_the_distilled_network_flies_in_place_of_its_teacher(tmp_path):
+    run = _run(tmp_path, SMALL + DISTIL)
+    run.out.mkdir(exist_ok=True)  # prepare_run made it
+    rounds = _rounds(run)
+    best, rec = distil_selected(run, rounds, rounds.best, RunClock(), resume=False)
+    assert best.source == "distilled" and (best.members, best.hidden) == (1, (8,))
+    assert rec["teacher"] == 0 and rec["samples"] == 1200
+    student = json.loads((run.out / "student.json").read_text())
+    assert student["selected_round"] == "distilled" and student["distilled_from"] == 0
+    assert (run.out / "student.pt").read_bytes() == best.weights
+    plain = _run(tmp_path)
+    assert distil_selected(plain, rounds, rounds.best, RunClock(), resume=False) == (rounds.best, None)
+    assert not (run.out / "distil.json").exists()
+
+
+def test_the_tracker_scan_keeps_the_trained_horizon_unless_a_candidate_beats_it(tmp_path):
+    run = _run(tmp_path)
+    run.out.mkdir(exist_ok=True)  # prepare_run made it
+    rounds = _rounds(run)
+    chosen = choose_flight_tracker(run, rounds.best, None)
+    flight = json.loads((run.out / "flight.json").read_text())
+    assert flight["student"] == 0 and chosen in flight["candidates"]
+    trained, candidate = flight["candidates"]
+    better = (candidate["select_success_rate"], -candidate["select_miss_km_mean"]) > (
+        trained["select_success_rate"], -trained["select_miss_km_mean"])
+    assert chosen == (candidate if better else trained)
+    # the record: the selected round's figures, with the tracker chosen for it
+    write_run_record(run, rounds, rounds.best, None, None, chosen, RunClock())
+    meta = json.loads((run.out / "metadata.json").read_text())
+    assert meta["selected_round"] == 0 and meta["selected"] == {**rounds.records[0], "tracking": chosen}
+    assert (run.out / "learning_curve.png").stat().st_size > 5_000
+
+
+def _weights(out):
+    import torch
+
+    return {k: v.numpy() for k, v in torch.load(out / "student.pt", weights_only=True).items()}
+
+
+def _without_wall(records):
+    return [{k: v for k, v in r.items() if k != "wall_s"} for r in records]
+
+
+@pytest.mark.slow
+def test_two_runs_agree_and_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
+    three = SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\n[fit]")
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.toml").write_text(three)
+        train_dagger(tmp_path / f"{name}.toml", tmp_path / name, workers=1, progress_bar=False)
+    (tmp_path / "c.toml").write_text(SMALL)  # interrupted after two rounds, then resumed with all three
+    train_dagger(tmp_path / "c.toml", tmp_path / "c", workers=1, progress_bar=False)
+    (tmp_path / "c.toml").write_text(three)
+    train_dagger(tmp_path / "c.toml", tmp_path / "c", workers=1, progress_bar=False, resume=True)
+    runs = {name: tmp_path / name for name in "abc"}
+    rounds = {n: _without_wall(json.loads((p / "rounds.json").read_text())) for n, p in runs.items()}
+    assert rounds["a"] == rounds["b"] == rounds["c"]
+    finals = {n: _without_wall([json.loads((p / "final.json").read_text())]) for n, p in runs.items()}
+    assert finals["a"] == finals["b"] == finals["c"]
+    w = {n: _weights(p) for n, p in runs.items()}
+    for k in w["a"]:
+        np.testing.assert_array_equal(w["a"][k], w["b"][k])
+        np.testing.assert_array_equal(w["a"][k], w["c"][k])
+    for name in ("student.json", "flight.json"):
+        assert len({(p / name).read_text() for p in runs.values()}) == 1

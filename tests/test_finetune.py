@@ -1,0 +1,62 @@
+"""PPO from the imitation student: the actor starts as the student, trains, saves, reloads and flies."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+from rventry_agents.train import FINETUNE_CONFIG, train_sb3
+from rventry_env.evaluation.agents import load_agent
+from rventry_env.evaluation.rollout import rollout
+
+
+def _small(total: int, warmup: int) -> dict:
+    cfg = tomllib.loads(FINETUNE_CONFIG.read_text())
+    cfg["env"]["num_envs"] = 8
+    cfg["ppo"].update(n_steps=64, batch_size=256, n_epochs=1)
+    cfg["policy"]["critic_warmup_steps"] = warmup
+    cfg["train"].update(total_timesteps=total, eval_every=10**9, eval_episodes=2, checkpoint_every=10**9,
+                        torch_threads=1)  # fmt: skip
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def frozen(tmp_path_factory):
+    """A run that is all critic warm-up: the actor never moves from the student."""
+    return train_sb3("ppo", _small(512, 512), out=tmp_path_factory.mktemp("frozen"), progress_bar=False)
+
+
+@pytest.mark.slow
+def test_step_zero_flies_exactly_like_the_student(frozen):
+    student = rollout(load_agent("dagger"), seeds=[11, 12], dispersion="wide")
+    ppo = rollout(load_agent(str(frozen / "final_model.zip")), seeds=[11, 12], dispersion="wide")
+    for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost", "max_load_factor_g"):
+        np.testing.assert_array_equal(getattr(ppo, key), getattr(student, key))
+    meta = json.loads((frozen / "metadata.json").read_text())
+    assert meta["provenance"] == {"algorithm": "PPO (stable-baselines3)", "start": "dagger", "critic_warmup_steps": 512,
+                                  "timesteps": 512}  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_short_fine_tuning_trains_saves_reloads_and_flies_deterministically(tmp_path):
+    out = train_sb3("ppo", _small(2048, 512), out=tmp_path / "run", progress_bar=False)
+    law = load_agent(str(out / "final_model.zip"))
+    a = rollout(law, seeds=[3, 4], dispersion="standard")
+    b = rollout(load_agent(str(out / "final_model.zip")), seeds=[3, 4], dispersion="standard")
+    np.testing.assert_array_equal(a.miss_km, b.miss_km)
+    student = rollout(load_agent("dagger"), seeds=[3, 4], dispersion="standard")
+    assert not np.array_equal(a.cost, student.cost)  # the actor moved after the warm-up
+    assert a.provenance["start"] == "dagger" and a.provenance["algorithm"].startswith("PPO")
+    assert [sorted(s) for s in a.law_stats] == [["load_relief_steps"]] * 2  # the student's load relief flies too
+    assert json.loads((out / "policy.json").read_text())["student"]["start"] == "dagger"
+
+
+def test_fine_tuning_refuses_a_start_that_is_not_a_student(tmp_path):
+    cfg = _small(512, 0)
+    cfg["policy"]["start"] = "lqr"
+    with pytest.raises(ValueError, match="starts from an imitation student .* not 'lqr'"):
+        train_sb3("ppo", cfg, out=tmp_path / "run", progress_bar=False)
+    assert not (tmp_path / "run").exists()  # refused before anything was written
