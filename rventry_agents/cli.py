@@ -6,6 +6,7 @@ Registered with the ``rventry`` command through the ``rventry.commands`` entry p
 from __future__ import annotations
 
 import argparse
+import sys
 
 from rventry_env.util.args import positive_int, seed
 
@@ -33,6 +34,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                          help="go on with the interrupted run in --out from its latest evaluation")
         cmd.add_argument("--no-progress", action="store_true", help="no progress bar")
         cmd.set_defaults(func=_run_sb3, algorithm=algorithm)
+    jx = algos.add_parser("jax-ppo", help="rejax PPO end to end in JAX on the functional env (the [jax] extra)")
+    jx.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
+    jx.add_argument("--seed", type=seed, help="random seed (default: the config's)")
+    jx.add_argument("--out", default="runs/jax_ppo", help="output directory (default runs/jax_ppo)")
+    jx.add_argument("--config", help="TOML config (default rventry_agents/baselines/jax_ppo.toml)")
+    jx.add_argument("--max-wall-s", type=float, help="stop after the chunk that ends past this wall time (s)")
+    jx.set_defaults(func=_run_jax_ppo)
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
     dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
     dag.add_argument("--workers", type=positive_int, default=2, help="local processes flying the expert (default 2)")
@@ -49,6 +57,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     ship.add_argument("--dest", help="destination (default: a DAgger run's student to the learned policy, "
                                      "rventry_agents/data/dagger; an SB3 run to the PPO residual, rventry_agents/data/ppo)")
     ship.set_defaults(func=_ship)
+
+
+def _run_jax_ppo(args) -> int:
+    try:
+        from rventry_agents.jax_ppo import train_jax_ppo
+    except ImportError as exc:
+        print(f"rventry train jax-ppo needs the [jax] extra (pip install -e '.[jax]'): {exc}", file=sys.stderr)
+        return 2
+    meta = train_jax_ppo(args.config, args.timesteps, args.seed, args.out, max_wall_s=args.max_wall_s)
+    print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s (compilation {meta['compile_s']:.0f} s, "
+          f"then {meta['env_steps_per_s'] or float('nan'):,.0f} env-steps/s); written to {args.out}")
+    return 0
 
 
 def _run_sb3(args) -> int:

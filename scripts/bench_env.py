@@ -72,7 +72,27 @@ def _dive_actions(obs, t):
     return np.array([-0.05, 0.0]) if t < 300 else np.array([0.3, 0.4])
 
 
-def accuracy(substeps_list=(1, 2, 4)) -> list[dict]:
+S_TURN_PERIOD_S = 20.0  # one bank reversal every 20 s
+S_TURN_BANK_DEG = 90.0  # conventional bank held at +-90 deg (lift sideways) between reversals
+S_TURN_ALPHA_DEG = 20.0
+
+
+def _s_turn_actions(obs, t):
+    """An aggressive S-turn: alpha driven to 20 deg, the bank reversed between +-90 deg every 20 s at the full rate.
+
+    The conventional bank is read from the observation's lift shares (mu = atan2(right, up)); the
+    rates saturate while reversing, so the vehicle weaves at up to 30 deg/s of bank.
+    """
+    from rventry_env.envs.observation import feature_index
+
+    mu = np.arctan2(obs[feature_index("lift_right")], obs[feature_index("lift_up")])
+    target = np.radians(S_TURN_BANK_DEG) * (1.0 if int(t // S_TURN_PERIOD_S) % 2 == 0 else -1.0)
+    alpha = (obs[feature_index("alpha")] + 1.0) / 2.0 * 25.0  # deg, alpha_max = 25 deg
+    d_mu = (target - mu + np.pi) % (2 * np.pi) - np.pi
+    return np.clip([(S_TURN_ALPHA_DEG - alpha) / 10.0, np.degrees(d_mu) / 30.0], -1.0, 1.0)
+
+
+def accuracy(substeps_list=(1, 2, 4), scenarios=("reference", "dive", "s-turn")) -> list[dict]:
     """Env trajectories vs DOP853 (rtol 1e-12) under the *same* piecewise-constant controls."""
     from scipy.integrate import solve_ivp
 
@@ -85,7 +105,7 @@ def accuracy(substeps_list=(1, 2, 4)) -> list[dict]:
 
     model = EntryModel()
     out = []
-    for scenario in ("reference", "dive"):
+    for scenario in scenarios:
         for k in substeps_list:
             task = EntryTask(substeps=k)
             policy = ReferencePolicy(task)
@@ -96,8 +116,10 @@ def accuracy(substeps_list=(1, 2, 4)) -> list[dict]:
             while True:
                 if scenario == "reference":
                     a = policy(Measurement.single(obs, info, env.state))[0]
-                else:
+                elif scenario == "dive":
                     a = _dive_actions(obs, info["time_s"])
+                else:
+                    a = _s_turn_actions(obs, info["time_s"])
                 actions.append(np.asarray(a, float))
                 obs, _, term, trunc, info = env.step(a)
                 states.append(env.state.copy())

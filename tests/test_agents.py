@@ -62,7 +62,7 @@ def test_training_pipeline_trains_saves_and_reloads(tmp_path):
         ship(tmp_path / "nothing", tmp_path / "x")
     # a run's model without its observation statistics is refused, never flown on raw observations
     (shipped / "vecnormalize.pkl").unlink()
-    with pytest.raises(FileNotFoundError, match="vecnormalize.pkl are missing"):
+    with pytest.raises(FileNotFoundError, match=r"no observation statistics beside it \(vecnormalize.pkl\)"):
         SB3Policy(shipped)
 
 
@@ -106,6 +106,8 @@ def test_any_saved_sb3_algorithm_loads(tmp_path):
     from rventry_env.envs.rv_entry import RvEntryEnv
 
     SAC("MlpPolicy", RvEntryEnv(), learning_starts=10, buffer_size=100, device="cpu").save(tmp_path / "sac.zip")
+    # trained on raw observations, so it says so: a model without its statistics is otherwise refused
+    (tmp_path / "policy.json").write_text(json.dumps({"mode": "direct", "normalized": False}))
     policy = load_policy(str(tmp_path / "sac.zip"))
     assert type(policy.model).__name__ == "SAC"
     batch = rollout(policy, 2, seed=1, max_episode_steps=5)

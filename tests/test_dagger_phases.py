@@ -24,37 +24,10 @@ from rventry_agents.dagger import (
 )
 from rventry_agents.imitation import N_FEATURES, network_bytes
 
-SMALL = """
-[student]
-hidden = [16, 16]
-load_relief_margin = 0.02
-[expert]
-agent = "lqr"
-[data]
-dispersion = "standard"
-train_seed = 2_000_000
-[[rounds]]
-episodes = 2
-beta = 1.0
-[[rounds]]
-episodes = 1
-beta = 0.5
-[fit]
-epochs = 3
-batch_size = 512
-learning_rate = 1e-3
-seed = 0
-[select]
-episodes = 2
-seed = 100_000
-dispersion = "standard"
-[final]
-members = 2
-[flight]
-tracking = [[3.0, 2.0]]
-tracking_descent_mps = 2500.0
-"""
-DISTIL = "[distil]\nhidden = [8]\nepochs = 2\nemphasis_below_m = 20_000.0\nemphasis = 3\n"
+from dagger_configs import DISTIL  # noqa: E402  (tests/ is on the path)
+from dagger_configs import SMALL as _SMALL  # noqa: E402
+
+SMALL = _SMALL.replace("[select]\nepisodes = 3", "[select]\nepisodes = 2")  # one selection episode fewer
 
 
 def _run(tmp_path, text=SMALL, seed=None, name="run"):
@@ -175,9 +148,13 @@ def test_the_tracker_scan_keeps_the_trained_horizon_unless_a_candidate_beats_it(
 
 
 def _weights(out):
+    """The saved network's tensors (by name) and its self-description (widths, members, inputs)."""
     import torch
 
-    return {k: v.numpy() for k, v in torch.load(out / "student.pt", weights_only=True).items()}
+    saved = torch.load(out / "student.pt", weights_only=True)
+    tensors = saved["state_dict"] if "state_dict" in saved else saved
+    about = {k: v for k, v in saved.items() if k != "state_dict"} if "state_dict" in saved else {}
+    return {k: v.numpy() for k, v in tensors.items()}, about
 
 
 def _without_wall(records):
@@ -200,8 +177,9 @@ def test_two_runs_agree_and_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
     finals = {n: _without_wall([json.loads((p / "final.json").read_text())]) for n, p in runs.items()}
     assert finals["a"] == finals["b"] == finals["c"]
     w = {n: _weights(p) for n, p in runs.items()}
-    for k in w["a"]:
-        np.testing.assert_array_equal(w["a"][k], w["b"][k])
-        np.testing.assert_array_equal(w["a"][k], w["c"][k])
+    assert w["a"][1] == w["b"][1] == w["c"][1] and w["a"][0].keys() == w["c"][0].keys() and len(w["a"][0]) >= 4
+    for k in w["a"][0]:
+        np.testing.assert_array_equal(w["a"][0][k], w["b"][0][k])
+        np.testing.assert_array_equal(w["a"][0][k], w["c"][0][k])
     for name in ("student.json", "flight.json"):
         assert len({(p / name).read_text() for p in runs.values()}) == 1

@@ -23,7 +23,7 @@ def register_envs() -> None:
     register(
         id=ENV_ID,
         entry_point="rventry_env.envs.rv_entry:RvEntryEnv",
-        vector_entry_point="rventry_env.envs.vector:RvEntryVectorEnv",
+        vector_entry_point="rventry_env.envs.vector:make_vector_env",
     )
 
 

@@ -9,7 +9,6 @@ from dataclasses import replace
 import numpy as np
 from gymnasium import spaces
 
-from rventry_env.core import conversions as cv
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import Dispersion, EntryTask
 from rventry_env.physics.entry import N_STATE
@@ -228,6 +227,25 @@ def position_velocity_e(c_ae, c_ba, r, v):
     a1 = c_ae[0]
     b1 = tuple(c_ba[0][0] * c_ae[0][j] + c_ba[0][1] * c_ae[1][j] + c_ba[0][2] * c_ae[2][j] for j in range(3))
     return tuple(r * a for a in a1), tuple(v * b for b in b1), a1
+
+
+def flight_info(x, forces, c_ae, t, cost, radius: float, g0: float, ns) -> dict:
+    """The per-step info values of the vector environments (3-vectors as tuples of components)."""
+    r_e, v_e, a1 = position_velocity_e(c_ae, forces.c_ba, x[0], x[5])
+    lat, lon = latitude_longitude(a1, ns)
+    return {
+        "r_ecef_m": r_e,
+        "v_ecef_mps": v_e,
+        "latitude_deg": lat * RAD2DEG,
+        "longitude_deg": lon * RAD2DEG,
+        "altitude_m": x[0] - radius,
+        "speed_mps": x[5],
+        "dynamic_pressure_pa": forces.dynamic_pressure,
+        "load_factor_g": forces.aero_accel / g0,
+        "sensed_accel_b": tuple(forces.aero_b),
+        "cost": cost,
+        "time_s": t,
+    }
 
 
 def latitude_longitude(a1, ns):

@@ -47,7 +47,7 @@ class Outcome(NamedTuple):
     constraint_violation: Any
     is_success: Any
     terminal_penalty: Any
-    failure: Any  # "" on impact, else the failure's name
+    failure: Any  # "" on impact, else the failure's name (None from JAX: see failure_name)
 
 
 def terminal_metrics(x: tuple, c_ae, task: EntryTask, target_e, radius: float, ns) -> TerminalMetrics:
@@ -103,8 +103,8 @@ def episode_outcome(x: tuple, c_ae, status, terminated, max_load_g, min_q, task:
         (m.miss_km <= s.miss_km) & (m.vertical_error_deg <= s.vertical_error_deg)
         & (ns.fabs(m.speed_error_mps) <= s.speed_error_mps)
     )  # fmt: skip
-    if ns.name == "numpy":
-        success = impact & within & ~violation
+    if ns.array:
+        success = impact & within & ns.logical_not(violation)
         with np.errstate(invalid="ignore"):
             terms = terminal_penalty(m, w, ns)
     else:
@@ -112,12 +112,14 @@ def episode_outcome(x: tuple, c_ae, status, terminated, max_load_g, min_q, task:
         terms = terminal_penalty(m, w, ns)
     terms = ns.where(ns.isfinite(terms), terms, 0.0)
     penalty = ns.where(terminated, ns.where(impact, terms - w.success_bonus * success, terms + w.failure), 0.0)
-    return Outcome(m, violation, success, penalty, failure_name(status, terminated, ns))
+    # names are strings, which compiled code cannot carry: JAX's callers name the status codes on the host
+    failure = None if ns.name == "jax" else failure_name(status, terminated, ns)
+    return Outcome(m, violation, success, penalty, failure)
 
 
 def failure_name(status, terminated, ns):
     """``""`` on impact, the failure's name, or ``"time limit"`` where the episode was truncated."""
-    if ns.name != "numpy":
+    if not ns.array:
         return FAILURE_NAMES.get(int(status), "") if terminated else TIME_LIMIT
     names = np.array([FAILURE_NAMES.get(int(c), "") for c in np.asarray(status).ravel()], dtype=object)
     return np.where(terminated, names, TIME_LIMIT)

@@ -37,6 +37,7 @@ from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import EntryTask
 
 IMPACT_TOLERANCE_M = 1e-6
+MAX_IMPACT_ITERATIONS = 60
 
 # termination codes (0 = still flying; IDLE = not stepped this time, e.g. awaiting its reset)
 FLYING, IMPACT, SKIP_OUT, NON_FINITE, STALL, IDLE = 0, 1, 2, 3, 4, 5
@@ -108,7 +109,7 @@ class Propagator:
 
         :param u_alpha: commanded angle-of-attack rate (rad/s), already within bounds.
         :param u_sigma: commanded bank-angle rate (rad/s), already within bounds.
-        :param active: batched only: vehicles to step; the others stay as they are
+        :param active: arrays only: vehicles to step; the others stay as they are
             (status IDLE).
         """
         ns, task = self.ns, self.task
@@ -117,20 +118,20 @@ class Propagator:
         g0 = model.planet.g0
         h = task.dt / task.substeps
         w = self.weights
-        batched = ns.name == "numpy"
+        arrays = ns.array
 
-        if batched:
-            status = np.zeros(np.shape(x[0]), dtype=np.int8)
+        if arrays:
+            status = ns.zeros_int8(x[0])
             if active is not None:
-                status[~np.asarray(active, bool)] = IDLE
+                status = ns.int8(ns.where(active, FLYING, IDLE))
+            saturated = status != status  # all False, in the namespace's array type
         else:
-            status = FLYING
+            status, saturated = FLYING, False
         cost = 0.0 * x[0]
         path = 0.0 * x[0]
         elapsed = 0.0 * x[0]
         max_load = forces.aero_accel / g0
         min_q = forces.dynamic_pressure
-        saturated = False if not batched else np.zeros(np.shape(x[0]), dtype=bool)
 
         for _ in range(task.substeps):
             alpha0 = x[10]
@@ -139,7 +140,7 @@ class Propagator:
             saturated = saturated | (ns.fabs(ua - u_alpha) > 1e-12)
             u = (ua, u_sigma)
 
-            if batched:
+            if arrays:
                 # overflow and NaN are the env's to report (status NON_FINITE), not NumPy's warnings
                 with np.errstate(all="ignore"):
                     x_new, tau, f_new, new_status = self._advance(x, forces, u, h, model, status, radius)
@@ -151,16 +152,16 @@ class Propagator:
                     x_new, tau, f_new, new_status = x, 0.0, forces, NON_FINITE
             flying = status == FLYING
             step_cost = p.cost_over_hold(alpha0, ua, u_alpha, u_sigma, tau)
-            if batched and (np.all(flying) and not np.any(new_status)):
-                x, forces = x_new, f_new  # the common case: every vehicle flies on
-            elif batched:
+            if arrays and ns.known(ns.all(flying) & ns.logical_not(ns.any(new_status != FLYING))):
+                x, forces = x_new, f_new  # the common case, seen by NumPy: every vehicle flies on
+            elif arrays:
                 # vehicles that already ended stay frozen; a non-finite step keeps the last finite state
-                keep = ~flying | (new_status == NON_FINITE)
-                x = tuple(np.where(keep, a, b) for a, b in zip(x, x_new))
-                forces = _where_forces(keep, forces, f_new)
-                tau = np.where(keep, 0.0, tau)
-                step_cost = np.where(keep, 0.0, step_cost)
-                status = np.where(flying, new_status, status).astype(np.int8)
+                keep = ns.logical_not(flying) | (new_status == NON_FINITE)
+                x = tuple(ns.where(keep, a, b) for a, b in zip(x, x_new))
+                forces = _where_forces(keep, forces, f_new, ns)
+                tau = ns.where(keep, 0.0, tau)
+                step_cost = ns.where(keep, 0.0, step_cost)
+                status = ns.int8(ns.where(flying, new_status, status))
             else:
                 if new_status == NON_FINITE:
                     tau, step_cost = 0.0, 0.0
@@ -173,14 +174,13 @@ class Propagator:
             path = path + tau * (w.load_violation * load_x + w.q_violation * q_x)
             max_load = ns.fmax(max_load, forces.aero_accel / g0)
             min_q = ns.fmin(min_q, forces.dynamic_pressure)
-            if not ((status == FLYING).any() if batched else status == FLYING):
-                break
+            if ns.known(ns.logical_not(ns.any(status == FLYING))):
+                break  # nobody flies on (never known while JAX traces: its ended vehicles stay frozen)
         return StepOutcome(x, forces, elapsed, status, cost, path, max_load, min_q, saturated)
 
     def _advance(self, x: tuple, forces: EntryForces, u: tuple, h: float, model: EntryModel, status, radius: float):
         """One RK4 substep with the rates ``u`` held, the impact located inside it; the new status."""
         ns, task = self.ns, self.task
-        batched = ns.name == "numpy"
 
         def rhs(_t, y):
             return entry_rhs(y, u, model, ns)
@@ -189,22 +189,33 @@ class Propagator:
         x_new = _renormalize(rk4_step(rhs, 0.0, x, h, k1=k1), ns)
         tau = h + 0.0 * x[0]
         hit = x_new[0] < radius
-        if batched:
-            hit &= status == FLYING
-        if hit.any() if batched else hit:
-            idx = np.nonzero(hit)[0] if batched else None
-            u_hit = (u[0][idx], u[1][idx]) if batched else u
-            x_hit, tau_hit = self._locate_impact(_take(x, idx), _take(k1, idx), u_hit, h, take_model(model, idx), radius)
-            if batched:
+        if ns.array:
+            hit = hit & (status == FLYING)
+        if ns.name == "numpy":
+            if hit.any():  # root-find only for the vehicles that hit, on their sub-arrays
+                idx = np.nonzero(hit)[0]
+                x_hit, tau_hit = self._locate_impact(
+                    _take(x, idx), _take(k1, idx), (u[0][idx], u[1][idx]), h, take_model(model, idx), radius,
+                    _take(x_new, idx),
+                )  # fmt: skip
                 x_new = tuple(np.where(hit, _scatter(c, idx, ch), c) for c, ch in zip(x_new, x_hit))
                 tau = np.where(hit, _scatter(tau, idx, tau_hit), tau)
-            else:
-                x_new, tau = x_hit, tau_hit
+        elif ns.array:  # traced: every vehicle goes in, those that did not hit are done from the start
+            x_hit, tau_hit = self._locate_impact(x, k1, u, h, model, radius, x_new, todo=hit)
+            x_new = tuple(ns.where(hit, ch, c) for c, ch in zip(x_new, x_hit))
+            tau = ns.where(hit, tau_hit, tau)
+        elif hit:
+            x_new, tau = self._locate_impact(x, k1, u, h, model, radius, x_new)
         f_new = entry_forces(x_new, model, ns)
-        return x_new, tau, f_new, _classify(x_new, f_new, hit, task, radius, ns, batched)
+        return x_new, tau, f_new, _classify(x_new, f_new, hit, task, radius, ns)
 
-    def _locate_impact(self, x0: tuple, k1: tuple, u: tuple, h: float, model: EntryModel, radius: float):
-        """tau in (0, h] with r(RK4(x0, tau)) = radius, and the state there (Illinois regula falsi)."""
+    def _locate_impact(self, x0: tuple, k1: tuple, u: tuple, h: float, model: EntryModel, radius: float, xb: tuple,
+                       todo=None):  # fmt: skip
+        """tau in (0, h] with r(RK4(x0, tau)) = radius, and the state there (Illinois regula falsi).
+
+        :param xb: the RK4 state at ``h`` (the substep's end, below the surface).
+        :param todo: arrays: the vehicles to locate (the others keep ``xb`` and ``h``); None: all.
+        """
         ns = self.ns
 
         def rhs(_t, y):
@@ -213,14 +224,16 @@ class Propagator:
         def state_at(tau):
             return _renormalize(rk4_step(rhs, 0.0, x0, tau, k1=k1), ns)
 
-        a, fa = 0.0 * x0[0], x0[0] - radius
-        xb = state_at(h + 0.0 * x0[0])
-        b, fb = h + 0.0 * x0[0], xb[0] - radius
-        xc, c = xb, b
-        for _ in range(60):
+        def finished(fb):
             done = ns.fabs(fb) <= IMPACT_TOLERANCE_M
-            if np.all(done):
-                break
+            return done if todo is None else done | ns.logical_not(todo)
+
+        def going(carry):
+            return (carry[0] < MAX_IMPACT_ITERATIONS) & ns.logical_not(ns.all(finished(carry[4])))
+
+        def iterate(carry):
+            it, a, fa, b, fb, xc, c = carry
+            done = finished(fb)
             # converged vehicles keep their root (their secant would divide 0 by 0)
             denom = ns.where(done, 1.0, fb - fa)
             c = ns.where(done, b, b - fb * (b - a) / denom)
@@ -230,8 +243,12 @@ class Propagator:
             same = fc * fb > 0  # root not between b and c: keep a, halve its weight (Illinois)
             fa = ns.where(same, fa * 0.5, fb)
             a = ns.where(same, a, b)
-            b, fb = c, fc
-        return xc, c
+            return it + 1, a, fa, c, fc, xc, c
+
+        b = h + 0.0 * x0[0]
+        carry = (0, 0.0 * x0[0], x0[0] - radius, b, xb[0] - radius, xb, b)
+        carry = ns.while_loop(going, iterate, carry)
+        return carry[5], carry[6]
 
 
 def _scatter(full, idx, values):
@@ -247,17 +264,16 @@ def _renormalize(x: tuple, ns) -> tuple:
             x[6] / nb, x[7] / nb, x[8] / nb, x[9] / nb, x[10], x[11])  # fmt: skip
 
 
-def _classify(x, forces, hit, task: EntryTask, radius, ns, batched):
+def _classify(x, forces, hit, task: EntryTask, radius, ns):
     """Status after a substep: impact, skip-out above the ceiling, non-finite, stall, or flying."""
     h = x[0] - radius
-    if batched:
+    if ns.array:
         # one NaN or inf anywhere makes the sum non-finite: cheaper than testing 12 arrays
-        finite = np.isfinite(sum(x[1:], x[0]) + forces.aero_accel)
-        status = np.full(h.shape, FLYING, dtype=np.int8)
-        status = np.where(x[5] < task.min_speed, STALL, status)
-        status = np.where(h > task.ceiling_altitude, SKIP_OUT, status)
-        status = np.where(hit, IMPACT, status)
-        return np.where(finite, status, NON_FINITE).astype(np.int8)
+        finite = ns.isfinite(sum(x[1:], x[0]) + forces.aero_accel)
+        status = ns.where(x[5] < task.min_speed, STALL, FLYING)
+        status = ns.where(h > task.ceiling_altitude, SKIP_OUT, status)
+        status = ns.where(hit, IMPACT, status)
+        return ns.int8(ns.where(finite, status, NON_FINITE))
     if not (all(math.isfinite(c) for c in x) and math.isfinite(forces.aero_accel)):
         return NON_FINITE
     if hit:
@@ -269,11 +285,11 @@ def _classify(x, forces, hit, task: EntryTask, radius, ns, batched):
     return FLYING
 
 
-def _where_forces(keep, old: EntryForces, new: EntryForces) -> EntryForces:
+def _where_forces(keep, old: EntryForces, new: EntryForces, ns) -> EntryForces:
     def pick(a, b):
         if isinstance(a, tuple):
             return tuple(pick(ai, bi) for ai, bi in zip(a, b))
-        return np.where(keep, a, b)
+        return ns.where(keep, a, b)
 
     return EntryForces(*(pick(a, b) for a, b in zip(old, new)))
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium.utils import seeding
@@ -14,10 +14,9 @@ from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.allocator import keep_freed_memory
 from rventry_env.envs.observation import observe
-from rventry_env.envs.outcome import episode_outcome
-from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
+from rventry_env.envs.transition import Flight, advance
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion
 from rventry_env.physics.model import EntryModel, scaled_model
 
@@ -26,6 +25,21 @@ TERMINAL_KEYS = (
     "min_dynamic_pressure_pa", "constraint_violation", "terminal_penalty", "failure", "is_success",
 )  # fmt: skip
 RENDER_COPIES = 16
+
+
+class Stepped(NamedTuple):
+    """What a backend's step of all copies returns to :meth:`RvEntryVectorEnv.step` (NumPy arrays)."""
+
+    reward: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    alpha_saturated: np.ndarray
+    obs: np.ndarray
+    obs_clipped: np.ndarray
+    info: dict  # common.flight_info's values
+    outcome: Any  # outcome.Outcome, or None where no episode ended
+    info_max_load: np.ndarray
+    info_min_q: np.ndarray
 
 
 class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
@@ -167,29 +181,13 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         if np.any(restart):  # NEXT_STEP: these copies start over and ignore their action
             self._reset_copies(np.nonzero(restart)[0])
         restart = restart | self._frozen  # copies not stepped this time
-        p = self.task.problem
-        out = self._prop.step(
-            self._x, self._forces, a[:, 0] * p.u_alpha_max, a[:, 1] * p.u_sigma_max, self._model, active=~restart
-        )
-        self._x, self._forces = out.x, out.forces
-        self._c_ae = dcm(*self._x[1:5])  # once per step, for the observation and info
-        self._t = self._t + out.elapsed
-        self._steps += ~restart
-        self._cost = self._cost + out.cost
-        self._max_load = np.maximum(self._max_load, out.max_load_g)
-        self._min_q = np.minimum(self._min_q, out.min_q)
-        reward = -(out.cost + out.path_penalty)
-        terminated = (out.status != FLYING) & ~restart
-        truncated = ~terminated & ~restart
-        if self.max_episode_steps is not None:
-            truncated &= self._steps >= self.max_episode_steps
-        else:
-            truncated[:] = False
+        st = self._advance_all(a, ~restart)
+        terminated, truncated, obs = st.terminated, st.truncated, st.obs
         ended = terminated | truncated
-        obs, obs_clipped = self._observe()
-        infos = self._info(action_clipped & ~restart, out.alpha_saturated & ~restart, obs_clipped)
-        if np.any(ended):
-            reward = reward - self._finish(infos, out.status, terminated, ended)
+        infos = self._info_dict(st.info, action_clipped & ~restart, st.alpha_saturated & ~restart, st.obs_clipped)
+        reward = st.reward
+        if st.outcome is not None:
+            self._finish(infos, st.outcome, ended, st.info_max_load, st.info_min_q)
         self._record()
         if next_step:
             self._prev_done = ended
@@ -220,15 +218,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
 
         :param dispersion: this reset's dispersion (default: the constructor's).
         """
-        dispersion = self.dispersion if dispersion is None else dispersion
-        d = np.stack([draw_dispersion(self._rngs[i], dispersion) for i in idx])
-        x0 = self._initial[idx]
-        if not dispersion.is_zero:
-            x0 = apply_state_dispersion(x0, d)
-        self.dispersion_draw[idx] = d
-        self._density[idx] = 1 + d[:, 0]
-        self._lift[idx] = 1 + d[:, 1]
-        self._drag[idx] = 1 + d[:, 2]
+        x0 = self._draw(idx, dispersion)
         self._model = (
             self.model if np.all(self._density == 1) and np.all(self._lift == 1) and np.all(self._drag == 1)
             else scaled_model(self.model, self._density, self._lift, self._drag)
@@ -248,31 +238,53 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                     self._tracks[i] = Track()
             self._record(only=[i for i in idx if i < len(self._tracks)])
 
+    def _advance_all(self, a: np.ndarray, active: np.ndarray) -> "Stepped":
+        """One control step of the active copies (actions ``a`` clipped): the backend's part of ``step``."""
+        tr = advance(
+            Flight(self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q),
+            (a[:, 0], a[:, 1]), self._model, self._prop, self.max_episode_steps, self._target, active=active,
+        )  # fmt: skip
+        self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q = tr.flight
+        self._c_ae = tr.c_ae
+        obs, obs_clipped = self._observe()
+        info = common.flight_info(self._x, self._forces, self._c_ae, self._t, self._cost, self._radius, self._g0, NUMPY)
+        return Stepped(tr.reward, tr.terminated, tr.truncated, tr.out.alpha_saturated, obs, obs_clipped, info,
+                       tr.outcome, self._max_load, self._min_q)  # fmt: skip
+
+    def _draw(self, idx: np.ndarray, dispersion: Dispersion | None) -> np.ndarray:
+        """Draw new episodes for copies ``idx`` from their generators: their initial states (len(idx), 12);
+        the density, lift and drag factors go to ``_density``, ``_lift``, ``_drag``."""
+        dispersion = self.dispersion if dispersion is None else dispersion
+        d = np.stack([draw_dispersion(self._rngs[i], dispersion) for i in idx])
+        x0 = self._initial[idx]
+        if not dispersion.is_zero:
+            x0 = apply_state_dispersion(x0, d)
+        self.dispersion_draw[idx] = d
+        self._density[idx] = 1 + d[:, 0]
+        self._lift[idx] = 1 + d[:, 1]
+        self._drag[idx] = 1 + d[:, 2]
+        return x0
+
     def _observe(self):
         raw = observe(self._x, self._forces, self._c_ae, self._t, self.task, self._target, self._radius, self._g0, NUMPY)
         return common.observation_batch(raw, self._obs_low, self._obs_high)
 
     def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
-        f = self._forces
-        r_e, v_e, a1 = common.position_velocity_e(self._c_ae, f.c_ba, self._x[0], self._x[5])
-        lat, lon = common.latitude_longitude(a1, NUMPY)
+        values = common.flight_info(
+            self._x, self._forces, self._c_ae, self._t, self._cost, self._radius, self._g0, NUMPY
+        )
+        return self._info_dict(values, action_clipped, alpha_saturated, obs_clipped)
+
+    def _info_dict(self, values: dict, action_clipped, alpha_saturated, obs_clipped) -> dict:
+        """The step's info from :func:`common.flight_info`'s values (3-vectors as 3 component arrays)."""
         n = self.num_envs
         infos = {
-            "r_ecef_m": common.stack_columns(r_e, float),
-            "v_ecef_mps": common.stack_columns(v_e, float),
-            "latitude_deg": lat * common.RAD2DEG,
-            "longitude_deg": lon * common.RAD2DEG,
-            "altitude_m": self._x[0] - self._radius,
-            "speed_mps": self._x[5].copy(),
-            "dynamic_pressure_pa": np.array(f.dynamic_pressure, dtype=float),
-            "load_factor_g": f.aero_accel / self._g0,
-            "sensed_accel_b": common.stack_columns(np.broadcast_arrays(*f.aero_b), float),
-            "cost": self._cost.copy(),
-            "time_s": self._t.copy(),
-            "action_clipped": np.asarray(action_clipped, bool),
-            "alpha_saturated": np.broadcast_to(np.asarray(alpha_saturated, bool), (n,)).copy(),
-            "observation_clipped": obs_clipped,
-        }
+            k: (common.stack_columns(np.broadcast_arrays(*v), float) if isinstance(v, tuple) else np.array(v, dtype=float))
+            for k, v in values.items()
+        }  # fmt: skip
+        infos["action_clipped"] = np.asarray(action_clipped, bool)
+        infos["alpha_saturated"] = np.broadcast_to(np.asarray(alpha_saturated, bool), (n,)).copy()
+        infos["observation_clipped"] = np.asarray(obs_clipped, bool)
         for k in TERMINAL_KEYS:
             infos[k] = np.full(n, "", dtype=object) if k == "failure" else np.zeros(n, dtype=float)
             infos["_" + k] = np.zeros(n, dtype=bool)
@@ -280,21 +292,16 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         infos["is_success"] = np.zeros(n, dtype=bool)
         return infos
 
-    def _finish(self, infos: dict, status, terminated, ended) -> np.ndarray:
-        """Fill the end-of-episode keys for copies whose episode ended; return their terminal penalties."""
-        o = episode_outcome(
-            self._x, self._c_ae, status, terminated, self._max_load, self._min_q, self.task, self.reward, self._target,
-            self._radius, NUMPY,
-        )  # fmt: skip
+    def _finish(self, infos: dict, o, ended, max_load, min_q) -> None:
+        """Fill the end-of-episode keys for copies whose episode ended, from their outcome ``o``."""
         values = {
-            **o.metrics._asdict(), "max_load_factor_g": self._max_load, "min_dynamic_pressure_pa": self._min_q,
+            **o.metrics._asdict(), "max_load_factor_g": max_load, "min_dynamic_pressure_pa": min_q,
             "constraint_violation": o.constraint_violation, "terminal_penalty": o.terminal_penalty,
             "failure": o.failure, "is_success": o.is_success,
         }  # fmt: skip
         for k, v in values.items():
             infos[k] = np.where(ended, v, infos[k])
             infos["_" + k] = ended.copy()
-        return np.where(ended, o.terminal_penalty, 0.0)
 
     def _record(self, only=None):
         if self._tracks is None:
@@ -302,3 +309,19 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         lat, lon = common.latitude_longitude(self._c_ae[0], NUMPY)
         for i in range(len(self._tracks)) if only is None else only:
             self._tracks[i].append(self._t[i], self._x[0][i] - self._radius, self._x[5][i], lat[i], lon[i])
+
+
+def make_vector_env(num_envs: int = 1, backend: str = "numpy", dtype: str = "float64", **kwargs) -> RvEntryVectorEnv:
+    """``RvEntry-v0``'s vector entry point: ``backend="numpy"`` (default) or ``"jax"`` (the ``[jax]`` extra).
+
+    ``dtype`` (``"float64"`` or ``"float32"``) applies to the JAX backend; NumPy computes in float64.
+    """
+    if backend == "numpy":
+        if dtype != "float64":
+            raise ValueError(f"backend='numpy' computes in float64; dtype={dtype!r} needs backend='jax'")
+        return RvEntryVectorEnv(num_envs, **kwargs)
+    if backend == "jax":
+        from rventry_env.envs.jax_vector import RvEntryJaxVectorEnv
+
+        return RvEntryJaxVectorEnv(num_envs, dtype=dtype, **kwargs)
+    raise ValueError(f"backend must be 'numpy' or 'jax', got {backend!r}")

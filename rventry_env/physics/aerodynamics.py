@@ -8,6 +8,10 @@ from typing import Protocol
 
 from rventry_env.physics.checks import check_number, check_numbers, check_part
 
+# the largest coefficient, or coefficient scale, a part may have (any real one is a few units):
+# far beyond any vehicle, and small enough that every force stays finite in float64
+COEFFICIENT_MAX = 1e3
+
 
 class Aerodynamics(Protocol):
     def coefficients(self, alpha, mach, ns) -> tuple:
@@ -33,7 +37,9 @@ class CAVHAerodynamics:
     cd_decay: float = 0.323
 
     def __post_init__(self):
-        check_numbers(self, ("cl0", "cl_alpha", "cl_mach", "cl_decay", "cd0", "cd_alpha2", "cd_mach", "cd_decay"))
+        check_numbers(self, ("cl0", "cl_alpha", "cl_mach", "cd0", "cd_alpha2", "cd_mach"), low=-COEFFICIENT_MAX,
+                      high=COEFFICIENT_MAX)  # fmt: skip
+        check_numbers(self, ("cl_decay", "cd_decay"), low=0.0, high=COEFFICIENT_MAX)  # exp(-decay M) stays <= 1
 
     def coefficients(self, alpha, mach, ns):
         a = alpha * (180.0 / math.pi)
@@ -50,8 +56,8 @@ class ConstantAerodynamics:
     lift_to_drag: float = 0.0
 
     def __post_init__(self):
-        check_number(self, "cd", low=0.0)
-        check_number(self, "lift_to_drag")
+        check_number(self, "cd", low=0.0, high=COEFFICIENT_MAX)
+        check_number(self, "lift_to_drag", low=-COEFFICIENT_MAX, high=COEFFICIENT_MAX)
 
     def coefficients(self, alpha, mach, ns):
         zero = 0 * alpha
@@ -72,8 +78,8 @@ class ScaledAerodynamics:
 
     def __post_init__(self):
         check_part(self, "base", "coefficients")
-        check_number(self, "cl_scale")
-        check_number(self, "cd_scale", low=0.0)
+        check_number(self, "cl_scale", low=-COEFFICIENT_MAX, high=COEFFICIENT_MAX)
+        check_number(self, "cd_scale", low=0.0, high=COEFFICIENT_MAX)
 
     def coefficients(self, alpha, mach, ns):
         cl, cd = self.base.coefficients(alpha, mach, ns)

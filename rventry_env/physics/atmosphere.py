@@ -34,9 +34,9 @@ class ExponentialAtmosphere:
     sound_speed: float = 300.0
 
     def __post_init__(self):
-        check_number(self, "rho0", low=0.0)
-        check_number(self, "scale_height", low=0.0, low_open=True)
-        check_number(self, "sound_speed", low=0.0, low_open=True)
+        check_number(self, "rho0", low=0.0, high=1e3)  # Venus's surface: 65 kg/m^3
+        check_number(self, "scale_height", low=1.0, high=1e6)
+        check_number(self, "sound_speed", low=1.0, high=1e5)
 
     def density(self, h, ns):
         return self.rho0 * ns.exp(-h / self.scale_height)
@@ -54,7 +54,7 @@ class ScaledAtmosphere:
 
     def __post_init__(self):
         check_part(self, "base", "density", "speed_of_sound")
-        check_number(self, "scale", low=0.0)
+        check_number(self, "scale", low=0.0, high=1e3)
 
     def density(self, h, ns):
         return self.scale * self.base.density(h, ns)
@@ -111,13 +111,18 @@ class DensityCorrection:
 class TabulatedAtmosphere:
     """Density tabulated against altitude, interpolated linearly in log(density).
 
-    Beyond the table the end segments' log-slopes extend the profile. NumPy only
-    (``np.interp``); use an analytic model for collocation.
+    Beyond the table the end segments' log-slopes extend the profile. Array namespaces
+    only (NumPy, JAX: ``ns.interp``); use an analytic model for collocation. The table
+    is held as two arrays (``_altitudes``, ``_log_rho``), which the JAX environment
+    carries in its params.
     """
+
+    TABLE_FIELDS = ("altitudes", "densities")  # held as the arrays below: data, not structure
 
     altitudes: tuple
     densities: tuple
     sound_speed: float = 300.0
+    _altitudes: np.ndarray = field(init=False, repr=False, compare=False)
     _log_rho: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -129,21 +134,20 @@ class TabulatedAtmosphere:
             raise ValueError("altitudes must be strictly increasing")
         if np.any(~np.isfinite(rho)) or np.any(rho <= 0):
             raise ValueError("densities must be positive and finite")
-        check_number(self, "sound_speed", low=0.0, low_open=True)
+        check_number(self, "sound_speed", low=1.0, high=1e5)
+        object.__setattr__(self, "_altitudes", h)
         object.__setattr__(self, "_log_rho", np.log(rho))
 
     def density(self, h, ns):
-        if ns.name != "numpy":
-            raise TypeError("TabulatedAtmosphere evaluates on NumPy arrays only")
-        hs = np.asarray(self.altitudes, dtype=float)
-        lr = self._log_rho
-        h = np.asarray(h, dtype=float)
-        out = np.interp(h, hs, lr)
+        if not getattr(ns, "array", False):
+            raise TypeError("TabulatedAtmosphere evaluates on NumPy or JAX arrays only")
+        hs, lr = self._altitudes, self._log_rho
+        out = ns.interp(h, hs, lr)
         lo_slope = (lr[1] - lr[0]) / (hs[1] - hs[0])
         hi_slope = (lr[-1] - lr[-2]) / (hs[-1] - hs[-2])
-        out = np.where(h < hs[0], lr[0] + lo_slope * (h - hs[0]), out)
-        out = np.where(h > hs[-1], lr[-1] + hi_slope * (h - hs[-1]), out)
-        return np.exp(out)
+        out = ns.where(h < hs[0], lr[0] + lo_slope * (h - hs[0]), out)
+        out = ns.where(h > hs[-1], lr[-1] + hi_slope * (h - hs[-1]), out)
+        return ns.exp(out)
 
     def speed_of_sound(self, h, ns):
         return self.sound_speed + 0 * h

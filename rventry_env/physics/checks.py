@@ -5,8 +5,9 @@ a string, a zero scale height, a planet without standard gravity) is refused at 
 the part and the field, rather than failing at ``reset`` with ZeroDivisionError or flying NaN.
 
 Fields may also hold per-vehicle NumPy arrays (the environments' dispersions) or CasADi
-symbols (the identification's fitted parameters): arrays are checked element by element,
-symbols, whose value is not known yet, pass.
+symbols (the identification's fitted parameters) or JAX arrays (the JAX environments'
+params, traced): NumPy arrays are checked element by element; symbols and JAX arrays, whose
+values are not known while tracing, pass (the JAX environments' params come from checked parts).
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ import numpy as np
 
 
 def _symbolic(value) -> bool:
-    return type(value).__module__.split(".")[0] == "casadi"
+    # CasADi symbols, and JAX arrays (traced inside jit: the JAX environments rebuild parts there)
+    return type(value).__module__.split(".")[0] in ("casadi", "jax", "jaxlib")
 
 
 def check_number(part, name: str, *, low: float | None = None, high: float | None = None,

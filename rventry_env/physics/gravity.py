@@ -28,7 +28,7 @@ class PointMassGravity:
     mu: float = EARTH.mu
 
     def __post_init__(self):
-        check_number(self, "mu", low=0.0)
+        check_number(self, "mu", low=0.0, high=1e21)
 
     def acceleration_a(self, r, e3_a, ns):
         return -self.mu / (r * r), 0.0, 0.0
@@ -49,9 +49,9 @@ class J2Gravity:
     radius: float = EARTH.radius
 
     def __post_init__(self):
-        check_number(self, "mu", low=0.0)
-        check_number(self, "j2")
-        check_number(self, "radius", low=0.0, low_open=True)
+        check_number(self, "mu", low=0.0, high=1e21)
+        check_number(self, "j2", low=-1.0, high=1.0)  # the Earth's is 1.1e-3, Jupiter's 1.5e-2
+        check_number(self, "radius", low=1e3, high=1e9)
 
     def acceleration_a(self, r, e3_a, ns):
         s = e3_a[0]

@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from rventry_env.physics.atmosphere import Atmosphere, ExponentialAtmosphere
 from rventry_env.physics.checks import check_part
 from rventry_env.physics.gravity import Gravity, PointMassGravity
@@ -81,6 +83,38 @@ def with_aero_scales(model: EntryModel, drag_accel_scale=1.0, lift_to_drag_scale
     keeps a margin on q for that).
     """
     return scaled_model(model, density=drag_accel_scale, lift=lift_to_drag_scale)
+
+
+def numeric_leaves(obj) -> list:
+    """Every number and array in a model, depth first through its parts' fields (tuples stay structure).
+
+    With :func:`with_numeric_leaves` this splits a model into a fixed structure and its
+    numbers, which the JAX environment carries as arrays in its params (so a tabulated
+    profile, a per-vehicle array or a fitted factor is data, not compiled code).
+    """
+    if isinstance(obj, np.ndarray):
+        return [obj]
+    if isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        return [obj]
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return [leaf for f in dataclasses.fields(obj) for leaf in numeric_leaves(getattr(obj, f.name))]
+    return []
+
+
+def with_numeric_leaves(obj, leaves):
+    """``obj`` with its :func:`numeric_leaves` replaced, in order, from the iterator ``leaves``.
+
+    Parts are rebuilt without running their constructors' checks (the values may be
+    traced JAX arrays); the structure was checked when ``obj`` was made.
+    """
+    if isinstance(obj, np.ndarray) or (isinstance(obj, (int, float)) and not isinstance(obj, bool)):
+        return next(leaves)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        new = object.__new__(type(obj))
+        for f in dataclasses.fields(obj):
+            object.__setattr__(new, f.name, with_numeric_leaves(getattr(obj, f.name), leaves))
+        return new
+    return obj
 
 
 def _describe(obj):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rventry_env.physics.checks import check_number, check_numbers
+from rventry_env.physics.checks import check_number
 
 
 @dataclass(frozen=True)
@@ -23,8 +23,10 @@ class Planet:
     g0: float = 9.80665
 
     def __post_init__(self):
-        check_numbers(self, ("radius", "mu", "g0"), low=0.0, low_open=True)
-        check_number(self, "omega")
+        check_number(self, "radius", low=1e3, high=1e9)  # an asteroid to beyond Jupiter
+        check_number(self, "mu", low=0.0, low_open=True, high=1e21)  # the Sun's is 1.3e20
+        check_number(self, "omega", low=-1e-2, high=1e-2)  # a day of ten minutes
+        check_number(self, "g0", low=1e-3, high=1e3)
 
 
 EARTH = Planet()

@@ -12,6 +12,8 @@ from typing import Protocol
 
 from rventry_env.physics.checks import check_number
 
+WIND_MAX_MPS = 1e4  # a wind faster than any vehicle it blows on, and far below overflow
+
 
 class Wind(Protocol):
     def velocity_a(self, h, e3_a, ns) -> tuple:
@@ -30,8 +32,8 @@ class HorizontalWind:
     north: float = 0.0
 
     def __post_init__(self):
-        check_number(self, "east")
-        check_number(self, "north")
+        check_number(self, "east", low=-WIND_MAX_MPS, high=WIND_MAX_MPS)
+        check_number(self, "north", low=-WIND_MAX_MPS, high=WIND_MAX_MPS)
 
     def velocity_a(self, h, e3_a, ns):
         _, c2, c3 = e3_a

@@ -11,7 +11,7 @@ these; the reward an RL agent is paid stays with the environment
 """
 
 from rventry_env.task.definition import EntryTask, SuccessThresholds
-from rventry_env.task.dispersion import NAMED_SETS, Dispersion, apply_state_dispersion, draw_dispersion
+from rventry_env.task.dispersion import NAMED_SETS, Dispersion, apply_state_dispersion, disperse_state, draw_dispersion
 from rventry_env.task.problem import EntryProblem
 
 __all__ = [
@@ -21,5 +21,6 @@ __all__ = [
     "NAMED_SETS",
     "Dispersion",
     "apply_state_dispersion",
+    "disperse_state",
     "draw_dispersion",
 ]

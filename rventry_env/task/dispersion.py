@@ -12,9 +12,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from rventry_env.physics.entry import IDX
-from rventry_env.core import conversions as cv
+from rventry_env.core.backend import NUMPY
+from rventry_env.core import euler_parameters as ep
+from rventry_env.core.euler_parameters import dcm_column, rates_from_omega
 
 NAMED_SETS = ("standard", "wide")
+SINGULAR_TOL = 1e-9  # cos(latitude) or cos(flight-path angle) at or below this: a pole, vertical flight
 
 
 @dataclass(frozen=True)
@@ -99,35 +102,57 @@ def draw_dispersion(rng: np.random.Generator, dispersion: Dispersion) -> np.ndar
 
 def apply_state_dispersion(x0: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Initial states ``(..., 12)`` perturbed by draws ``d (..., 9)`` (see :class:`Dispersion`)."""
-    x = np.array(x0, dtype=float, copy=True)
-    dh, dv, dgam, dpsi, dalpha, dsigma = (d[..., i] for i in range(3, 9))
-    if np.any(dh) or np.any(dv) or np.any(dgam) or np.any(dpsi):
-        try:
-            # keep the physical lift direction: the new frames come from the east-down rule,
-            # so carry the bank across as the conventional angle mu, not as sigma
-            mu = cv.conventional_bank(x, x[..., IDX.sigma])
-            s = cv.spherical_from_rv_euler(x)
-            s[..., 0] += dh
-            s[..., 3] += dv
-            s[..., 4] += np.radians(dgam)
-            s[..., 5] += np.radians(dpsi)
-            x[..., IDX.translation] = cv.rv_euler_from_spherical(s)
-            x[..., IDX.sigma] += cv.wrap_angle(cv.paper_bank(x, mu) - x[..., IDX.sigma])
-        except cv.SingularConversionError as exc:
-            if np.any(dgam) or np.any(dpsi):
-                raise ValueError(
-                    "the dispersion of the flight-path angle or heading (Dispersion.flight_path_deg, "
-                    "Dispersion.heading_deg) cannot be applied to this initial state: at a pole or in vertical "
-                    f"flight the angle it perturbs is undefined ({exc}). Start it without them, or away from "
-                    "the pole and from vertical flight"
-                ) from None
-            # altitude and speed alone are the magnitudes r and v: no angle is needed
-            x = np.array(x0, dtype=float, copy=True)
-            x[..., IDX.r] += dh
-            x[..., IDX.v] += dv
-    x[..., IDX.alpha] += np.radians(dalpha)
-    x[..., IDX.sigma] += np.radians(dsigma)
-    return x
+    x = np.asarray(x0, dtype=float)
+    d = np.asarray(d, dtype=float)
+    if np.any(d[..., 5]) or np.any(d[..., 6]):
+        # where the flight-path angle or heading is undefined, the rotation that perturbs it is too
+        c_ae, c_ba = (ep.dcm_from_quaternion(x[..., s]) for s in (IDX.e_a, IDX.e_b))
+        cos_lat = np.hypot(c_ae[..., 0, 0], c_ae[..., 0, 1])
+        cos_gamma = np.hypot(c_ba[..., 1, 0], c_ba[..., 2, 0])
+        if np.any(cos_lat <= SINGULAR_TOL) or np.any(cos_gamma <= SINGULAR_TOL):
+            where = "at a pole" if np.any(cos_lat <= SINGULAR_TOL) else "in vertical flight"
+            raise ValueError(
+                "the dispersion of the flight-path angle or heading (Dispersion.flight_path_deg, "
+                "Dispersion.heading_deg) cannot be applied to this initial state: at a pole or in vertical "
+                f"flight the angle it perturbs is undefined (the state is {where}). Start it without them, or "
+                "away from the pole and from vertical flight"
+            )
+    out = disperse_state(tuple(np.moveaxis(x, -1, 0)), tuple(np.moveaxis(d, -1, 0)), NUMPY)
+    return np.stack(np.broadcast_arrays(*out), axis=-1)
 
 
-__all__ = ["NAMED_SETS", "Dispersion", "draw_dispersion", "apply_state_dispersion"]
+def disperse_state(x: tuple, d: tuple, ns) -> tuple:
+    """The state components ``x`` perturbed by the 9 dispersion draws ``d`` (components, Dispersion order).
+
+    Altitude and speed add to r and v. The flight-path angle turns the velocity frame B
+    about the horizontal normal to the velocity, n = b1 x a1 / |b1 x a1|, and the heading
+    turns it about the local vertical a1 (azimuth clockwise seen from above). Both are
+    exact rotations of the Euler parameters, q -> cos(t/2) q + sin(t/2) Q(k) q, with
+    Q(k) q = 2 x (the rates of Eq. ``QuatRate`` at unit angular velocity k). They carry
+    the lift direction along: the bank angle relative to the vertical plane (the
+    conventional mu) is unchanged, as the vertical plane turns with B. This equals the
+    round trip through spherical coordinates and the east-down frame rule to rounding
+    (tests/test_jax.py). Undefined at a pole and in vertical flight, like the angles themselves
+    (:func:`apply_state_dispersion` refuses them there; altitude and speed still apply). Plain
+    component arithmetic, so NumPy and JAX (the functional environment's reset) share it.
+    """
+    dh, dv, dgam, dpsi, dalpha, dsigma = d[3:9]
+    deg = math.pi / 180.0
+    r, v, alpha, sigma = x[IDX.r], x[IDX.v], x[IDX.alpha], x[IDX.sigma]
+    eb = tuple(x[IDX.e_b])
+    _, u2, u3 = dcm_column(*eb, 0)  # a1 in B
+    c = ns.sqrt(u2 * u2 + u3 * u3)
+    c = ns.where(c > 0.0, c, 1.0)  # vertical flight: no turn to make (its angles are refused above)
+    eb = _turn(eb, (0.0, -u3 / c, u2 / c), dgam * deg, ns)
+    eb = _turn(eb, dcm_column(*eb, 0), -dpsi * deg, ns)
+    return (r + dh, *x[IDX.e_a], v + dv, *eb, alpha + dalpha * deg, sigma + dsigma * deg)
+
+
+def _turn(q: tuple, axis: tuple, angle, ns) -> tuple:
+    """Euler parameters of a frame turned by ``angle`` about the unit ``axis`` (its own components)."""
+    k = rates_from_omega(*q, *axis)
+    cos, sin = ns.cos(0.5 * angle), ns.sin(0.5 * angle)
+    return tuple(cos * qi + 2.0 * sin * ki for qi, ki in zip(q, k))
+
+
+__all__ = ["NAMED_SETS", "Dispersion", "draw_dispersion", "apply_state_dispersion", "disperse_state"]
