@@ -179,3 +179,32 @@ def test_every_listed_alias_member_flies_the_accepted_trajectory(tmp_path, spec,
     mass = next(m for m in members if "mass" in m["effects"])
     truth = 1 / 1.05 if answer == "drag_coefficient" else 0.95
     assert mass["parameters"]["mass_scale"] == pytest.approx(truth, rel=0.01)
+
+
+@pytest.mark.slow
+def test_a_true_pair_is_found_when_no_single_candidate_is_credible(tmp_path):
+    """mass x 0.95 + J2: each alone ends on its entry-state bound; the pair fits to the noise."""
+    rep = _run(tmp_path, ["mass=0.95", "j2_gravity"], noise=(5.0, 0.05), rate=0.5, seed=1)
+    assert sorted(rep["effects"]) == ["j2_gravity", "mass"], rep["steps"]
+    assert rep["parameters"]["mass_scale"] == pytest.approx(0.95, rel=0.002)
+    assert any(s["step"] == "pairs" and s["accepted"] for s in rep["steps"])
+    assert not rep["unexplained"], rep["statement"]
+
+
+def test_forward_selection_stops_at_its_replay_budget(tmp_path, monkeypatch):
+    from rventry_env.validation.search import phases
+
+    monkeypatch.setattr(phases, "SEARCH_REPLAY_BUDGET", 0)
+    rep = _run(tmp_path, ["drag_coefficient=1.1", "wind=120"], noise=(10.0, 0.1), rate=0.5)
+    stopped = [s for s in rep["steps"] if s["step"] == "stopped"]
+    assert len(stopped) == 1 and "budget" in stopped[0]["note"] and stopped[0]["from"]
+    assert not [s for s in rep["steps"] if isinstance(s["step"], int) and s["step"] > 1]  # no step after it
+
+
+def test_density_knots_go_as_fine_as_the_record_resolves():
+    from rventry_env.validation.search.effects import knot_counts
+
+    dense = np.linspace(60e3, 40e3, 3001)
+    assert max(knot_counts(dense)) == 16  # 20 km: knots 1.3 km apart (24 would be 0.87 km)
+    assert max(knot_counts(dense[::60])) == 4  # 51 samples: at most 5 knots, 10 samples each
+    assert knot_counts(np.full(100, 50e3)) == (2,)  # a level flight resolves no shape

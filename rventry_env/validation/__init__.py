@@ -1,20 +1,22 @@
 """The model-validation loop: replay measured flight data, name the missing effect, add it.
 
-Rooms (one-way dependencies, physics knows nothing of this package):
+One room (physics knows nothing of this package); inside it, sub-rooms in the order a record
+goes through them:
 
 * :mod:`~rventry_env.validation.record` reads and validates a flight record;
-* :mod:`~rventry_env.validation.replay.replay_setup`, :mod:`~rventry_env.validation.replay.controls`,
-  :mod:`~rventry_env.validation.replay.record_replay` fly it with the rv-Euler entry model;
-* :mod:`~rventry_env.validation.search.effects`, :mod:`~rventry_env.validation.search.aliases`,
-  :mod:`~rventry_env.validation.replay.sensitivity`, :mod:`~rventry_env.validation.search.fit`,
-  :mod:`~rventry_env.validation.search.statistics`, :mod:`~rventry_env.validation.identify`
-  trace the residual to an effect and build the identified model;
-* :mod:`~rventry_env.validation.intake.outliers`, :mod:`~rventry_env.validation.intake.consistency`,
-  :mod:`~rventry_env.validation.search.adequacy` reject bad rows, check the sidecar against the record,
-  and test what remains against the noise;
-* :mod:`~rventry_env.validation.synthetic.truth`, :mod:`~rventry_env.validation.synthetic.simulate`
-  make synthetic records through an independent Cartesian truth model;
-* :mod:`~rventry_env.validation.apollo4` ships the Apollo 4 flight record.
+  :mod:`~rventry_env.validation.apollo4` ships the Apollo 4 flight record;
+* :mod:`~rventry_env.validation.replay` flies it with the rv-Euler entry model, with exact
+  sensitivities;
+* :mod:`~rventry_env.validation.intake` rejects gross outliers, estimates the noise, and checks
+  the sidecar's entry state against the first samples;
+* :mod:`~rventry_env.validation.search` fits the candidate effects, selects and names them
+  (with their aliases), and tests what remains against the noise;
+* :mod:`~rventry_env.validation.trace` traces what no candidate explains to a force channel;
+* :mod:`~rventry_env.validation.report` builds the report, the plots and the model file;
+* :mod:`~rventry_env.validation.synthetic` makes synthetic records through an independent
+  Cartesian truth model;
+* :mod:`~rventry_env.validation.identify` runs the phases in order; :mod:`~rventry_env.validation.cli`
+  is ``rventry identify`` and ``rventry simulate-record``.
 
 Typical use::
 

@@ -157,10 +157,15 @@ def identify(
     state = first_step(ctx, base, candidates, max_effects, threshold, say)
     forward_selection(ctx, state, candidates, max_effects, threshold, say)
     backward_elimination(ctx, state, threshold, say)
-    try_pairs(ctx, state, max_effects, threshold, say)
-    adeq = adequacy(state.current, screened.sigma, screened.noise_source, screened.group_names, screened.groups,
-                    ctx.sigma, {g: screened.estimate_is.get(g) for g in screened.group_names},
-                    screened.robust_noise)  # fmt: skip
+
+    def test_residual():
+        return adequacy(state.current, screened.sigma, screened.noise_source, screened.group_names, screened.groups,
+                        ctx.sigma, {g: screened.estimate_is.get(g) for g in screened.group_names},
+                        screened.robust_noise)  # fmt: skip
+
+    adeq = test_residual()
+    if adeq["unexplained"] and try_pairs(ctx, state, max_effects, threshold, say):
+        adeq = test_residual()  # a pair replaced the greedy answer
     aliases = name_canonical_member(ctx, state)
     trace = trace_residual(ctx, state.current, threshold, say) if adeq["unexplained"] else None
     report = build_report(record, replay, controls, ctx.setup, screened, ctx, state, adeq, aliases, threshold,

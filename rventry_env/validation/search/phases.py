@@ -328,7 +328,7 @@ def _pair_structure(ctx: FitContext, pair: tuple, fits: list[FitResult]):
     return dataclasses.replace(st, density_knots=dk or st.density_knots, mach_knots=mk or st.mach_knots)
 
 
-def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: float, say=_quiet) -> SearchState:
+def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: float, say=_quiet) -> bool:
     """Fit every admissible pair of the best single candidates, so a true pair is not lost to an alias.
 
     The greedy search accepts the best single effect first; when that is an alias of one member
@@ -337,10 +337,12 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
     first-step fits that are not stretched to a physical bound are paired with each other and
     with every effect that has no free parameter (:data:`FIXED_EFFECTS`); a credible pair
     replaces the answer when it beats it by the threshold (by any margin when the answer has as
-    many effects).
+    many effects). Run when the greedy answer leaves a residual that is not noise.
+
+    :return: True when a pair replaced the answer.
     """
     if max_effects < 2:
-        return state
+        return False
     c0 = ctx.setup.start_lift_scale
     ranked = [row["effect"] for row in state.steps[0]["tried"] if not row["at_bound"]]
     top = [e for e in ranked if e in state.first][:PAIR_CANDIDATES]
@@ -360,7 +362,7 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
         start = min(members, key=lambda f: f.bic)
         fits[" + ".join(pair)] = ctx.fit(st, start)
     if not fits:
-        return state
+        return False
     state.step_fits.append(fits)
     cmp = compare_fits(state.current, list(fits.values()), ctx.sigma, 0.0, list(fits))
     margin = threshold if len(state.chosen) < 2 else 0.0
@@ -372,7 +374,7 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
     if replace:
         state.current = fits[best["effect"]]
         say(f"accepted the pair {best['effect']}: it beats {' + '.join(state.steps[-1]['from']) or 'the baseline'}")
-    return state
+    return replace
 
 
 def backward_elimination(ctx: FitContext, state: SearchState, threshold: float, say=_quiet) -> SearchState:

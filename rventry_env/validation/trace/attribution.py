@@ -31,12 +31,12 @@ from rventry_env.validation.search.effects import WIND_MAX_MPS, build_model
 from rventry_env.validation.search.statistics import bic, bic_effective, effective_size, whiteness
 from rventry_env.validation.trace.forcing import CHANNELS, UNITS, ChannelForcing, channel_parameters
 
-KNOT_COUNTS = (2, 3, 4, 6, 8, 12, 16)
+KNOT_COUNTS = (2, 3, 4, 6, 8, 12)
 MIN_ALTITUDE_SPACING = 1e3  # m between knots of an altitude profile
 MIN_TIME_SPACING = 10.0  # s between knots of a time profile
 VALUES_PER_PARAMETER = 8  # a fit needs at least this many measured values per parameter
 REFINE_ITERATIONS = 4
-REFINE_LEADERS = 2  # corrections per axis refined to convergence after the one-step screening
+REFINE_LEADERS = 1  # corrections per axis refined to convergence after the one-step screening
 AERO_MAX = 1.0  # an aerodynamic correction beyond 100 % of the drag is not a correction
 BAND_FRACTION = 0.5  # the band: where the correction is at least this fraction of its peak
 
@@ -50,10 +50,14 @@ def _span(replay, axis: str) -> tuple[float, float]:
 
 
 def knot_counts(replay, axis: str, n_values: int) -> list[int]:
-    """Knot counts the record resolves on an axis: not closer than the minimum spacing, enough values."""
+    """Knot counts the record resolves on an axis: not closer than the minimum spacing, enough values.
+
+    The largest fit is a pair with the wind (three profiles of ``k`` coefficients) with the
+    entry state: it needs :data:`VALUES_PER_PARAMETER` measured values per parameter.
+    """
     lo, hi = _span(replay, axis)
     spacing = MIN_TIME_SPACING if axis == "time" else MIN_ALTITUDE_SPACING
-    most = n_values // (VALUES_PER_PARAMETER * 2 * len(CHANNELS))  # every channel of a pair fitted at once
+    most = (n_values // VALUES_PER_PARAMETER - replay.init.size) // 3
     return [k for k in KNOT_COUNTS if k == 2 or ((hi - lo) / (k - 1) >= spacing and k <= most)]
 
 
@@ -344,10 +348,11 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
                 fits.append({"channels": combo, "axis": axis, "knots": k, "lin": lin, "cols": cols, "step": step,
                              "r": r_new, "rss": rss, "n": nval, "k_params": len(cols), "bic_white": b})  # fmt: skip
                 best_here = min(best_here, b)
-            # knots by BIC: stop once two finer counts in a row bring nothing
-            if best_here < best_prev:
+            # knots by BIC: stop once two finer counts in a row do not gain the threshold
+            if best_here < best_prev - threshold:
                 best_prev, worse = best_here, 0
             else:
+                best_prev = min(best_prev, best_here)
                 worse += 1
                 if worse >= 2:
                     break
@@ -394,21 +399,26 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     }
     best = eligible[0] if eligible else None
     gain = b_final - best["bic"] if best else -math.inf
+    if best is not None:
+        lin, cols, theta = best["lin"], best["cols"], best["theta"]
+        r, jac = lin.evaluate(theta)
+        ctx.nfev += 1
+        a = jac[:, cols]
+        dof = max(len(r) - len(cols), 1)
+        cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
+        cov = np.zeros((len(theta), len(theta)))
+        cov[np.ix_(cols, cols)] = cov_c
+        attribution = _describe(ctx, lin, theta, cov, best["channels"])
     if best is None or not gain > threshold:
-        what = (f"the best ({' + '.join(best['channels'])} over {best['axis']}) gains {gain:.1f} in BIC, not more "
-                f"than {threshold:g}") if best else "every leading correction is outside its physical bounds"
+        # the leading correction is reported as such, not as an attribution
+        what = (f"the best ({' + '.join(best['channels'])} over {best['axis']}: "
+                + "; ".join(f"{e['channel']} {e['size']:+.3g} {e['size_unit']} over {_fmt_band(e)}" for e in attribution)
+                + f") gains {gain:.1f} in BIC on {n_eff:.1f} effective samples, not more than {threshold:g}"
+                ) if best else "every leading correction is outside its physical bounds"  # fmt: skip
         out.update({"attribution": [], "rivals": [], "points_to": [],
+                    "leading": {"attribution": attribution, "bic_gain": gain, "significant": False} if best else None,
                     "statement": f"No force channel explains the residual: {what}."})  # fmt: skip
         return out
-    lin, cols, theta = best["lin"], best["cols"], best["theta"]
-    r, jac = lin.evaluate(theta)
-    ctx.nfev += 1
-    a = jac[:, cols]
-    dof = max(len(r) - len(cols), 1)
-    cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
-    cov = np.zeros((len(theta), len(theta)))
-    cov[np.ix_(cols, cols)] = cov_c
-    attribution = _describe(ctx, lin, theta, cov, best["channels"])
     resid = _residual_matrix(lin, r) * ctx.sigma[None, :]
     rivals = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"],
                "bic_behind": f["bic"] - best["bic"]}
