@@ -176,18 +176,19 @@ def test_white_noise_is_standard_normal_and_independent_of_which_vehicles_are_dr
 
 def test_an_accelerometer_bias_grows_the_navigation_error_as_half_b_t_squared():
     bias = np.array([[1e-3, -2e-3, 0.5e-3]])
-    dr, dv = np.zeros((1, 3)), np.zeros((1, 3))
+    dr, dv = (np.zeros(1),) * 3, (np.zeros(1),) * 3  # components, one vehicle
     for _ in range(300):
-        dr, dv = propagate_navigation_error(dr, dv, bias, np.array([1.0]))
-    np.testing.assert_allclose(dr, 0.5 * bias * 300.0**2, rtol=1e-12)
-    np.testing.assert_allclose(dv, bias * 300.0, rtol=1e-12)
+        dr, dv = propagate_navigation_error(dr, dv, tuple(bias.T), np.array([1.0]))
+    np.testing.assert_allclose(np.stack(dr, axis=-1), 0.5 * bias * 300.0**2, rtol=1e-12)
+    np.testing.assert_allclose(np.stack(dv, axis=-1), bias * 300.0, rtol=1e-12)
 
 
 def test_accelerometer_errors_follow_the_documented_formula():
     a = (np.array([-50.0]), np.array([20.0]), np.array([3.0]))
-    z = np.zeros((1, 3))
+    z = (np.zeros(1),) * 3  # per axis, one vehicle
     assert np.allclose(accelerometer(a, z, z, z, z), a)
-    s = accelerometer(a, np.array([[0.1, 0.2, 0.3]]), np.array([[0.01, 0.0, 0.0]]), np.array([[0.0, 0.0, 1e-3]]), z)
+    comps = lambda v: tuple(np.array([c]) for c in v)  # noqa: E731
+    s = accelerometer(a, comps([0.1, 0.2, 0.3]), comps([0.01, 0.0, 0.0]), comps([0.0, 0.0, 1e-3]), z)
     # theta = (0, 0, 1e-3): theta x a = (-1e-3 a2, 1e-3 a1, 0)
     np.testing.assert_allclose([c[0] for c in s], [-50.0 * 1.01 - 0.02 + 0.1, 20.0 - 0.05 + 0.2, 3.3])
 

@@ -14,7 +14,10 @@ source serves eager NumPy and traced JAX:
 * ``while_loop(cond, body, carry)``: a Python loop for NumPy, ``lax.while_loop`` for JAX;
 * ``known(flag)``: a Python bool that is True only where ``flag`` is a concrete True
   (NumPy: ``bool(flag)``; JAX: always False, since a traced value is never known), for
-  shortcuts that skip work but never change a result.
+  shortcuts that skip work but never change a result;
+* ``when(flag, fn)``: ``fn()`` where the scalar ``flag`` holds, else None (NumPy, floats); JAX:
+  ``lax.cond``, whose untaken branch gives ``fn``'s result filled with zeros (under ``vmap`` both
+  run and the zeros are selected where ``flag`` is False).
 """
 
 from __future__ import annotations
@@ -39,7 +42,11 @@ def is_zero(x) -> bool:
     return type(x) in _SCALAR_TYPES and x == 0
 
 
-def _array_namespace(xp, name: str, **control) -> SimpleNamespace:
+def _py_when(flag, fn):
+    return fn() if flag else None
+
+
+def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNamespace:
     """The namespace of an array library with NumPy's API (NumPy itself, ``jax.numpy``)."""
     return SimpleNamespace(
         name=name,
@@ -58,6 +65,7 @@ def _array_namespace(xp, name: str, **control) -> SimpleNamespace:
         interp=xp.interp,
         array=True,
         int8=lambda x: xp.asarray(x).astype(xp.int8),
+        index=lambda x: xp.asarray(x).astype(index_dtype),  # integer part of x >= 0, for indexing
         zeros_int8=lambda like: xp.zeros(xp.shape(like), dtype=xp.int8),
         any=xp.any,
         all=xp.all,
@@ -66,7 +74,7 @@ def _array_namespace(xp, name: str, **control) -> SimpleNamespace:
     )
 
 
-NUMPY = _array_namespace(np, "numpy", float_dtype=np.float64, known=bool, while_loop=_py_while)
+NUMPY = _array_namespace(np, "numpy", float_dtype=np.float64, known=bool, while_loop=_py_while, when=_py_when)
 
 
 # Plain Python floats: one vehicle stepped without NumPy's per-call overhead.
@@ -90,6 +98,7 @@ MATH = SimpleNamespace(
     logical_not=lambda b: not b,
     known=bool,
     while_loop=_py_while,
+    when=_py_when,
 )
 
 
@@ -127,8 +136,16 @@ def _jax_namespace(dtype) -> SimpleNamespace:
     import jax
     import jax.numpy as jnp
 
+    def when(flag, fn):
+        zeros = lambda: jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(fn))  # noqa: E731
+        return jax.lax.cond(flag, fn, zeros)
+
     # a traced value is never known while tracing: the shortcuts give way to the masked path
-    return _array_namespace(jnp, "jax", float_dtype=dtype, known=lambda flag: False, while_loop=jax.lax.while_loop)
+    def take_rows(values, i):  # values[n, i[n]] for each row n of an (N, K) table
+        return jnp.take_along_axis(values, i[:, None], axis=1)[:, 0]
+
+    return _array_namespace(jnp, "jax", index_dtype=jnp.int32, float_dtype=dtype, known=lambda flag: False,
+                            while_loop=jax.lax.while_loop, when=when, take_rows=take_rows)  # fmt: skip
 
 
 _JAX: dict = {}

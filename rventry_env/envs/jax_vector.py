@@ -4,11 +4,21 @@
 backend="jax", dtype="float64")`` (or ``"float32"``). Everything a user sees is the
 NumPy vector environment's (:class:`~rventry_env.envs.vector.RvEntryVectorEnv`, its
 subclass): spaces, seeding, autoreset modes, infos, errors. Episodes are drawn on the
-host with the same per-copy ``np_random`` generators, so the same seed flies the same
-episodes as ``backend="numpy"``. The step of all copies
-(:func:`~rventry_env.envs.transition.advance`, the NumPy environment's own code) runs
-under ``jax.jit`` on the default JAX device (CPU, or a GPU where JAX finds one);
-observations, rewards and infos come back as NumPy arrays.
+host with the same per-copy ``np_random`` generators and the same
+:class:`~rventry_env.envs.uncertainty.FlightState`, so the same seed flies the same
+episodes as ``backend="numpy"``, every dispersion set included. The step of all copies
+(:func:`~rventry_env.envs.transition.advance`, the NumPy environment's own code, and the
+sensors and navigation of :func:`~rventry_env.envs.uncertainty.sense`) runs under
+``jax.jit`` on the default JAX device (CPU, or a GPU where JAX finds one).
+
+What keeps it fast: the flights stay on the device between steps; one compiled call per
+step returns everything the host needs in three arrays (observations, the float values
+of the info and the outcome, and the flags), fetched in one transfer; the model's scalar
+numbers are compiled in as constants and only its per-copy arrays (scale factors,
+profiles) are arguments, sent when a reset changes them; the outcome is evaluated only on
+steps where an episode ended. The accelerometer's white noise is the NumPy environment's
+counter-based stream (:func:`~rventry_env.physics.sensors.white_noise`), evaluated on the
+host and sent in.
 """
 
 from __future__ import annotations
@@ -25,12 +35,104 @@ from gymnasium.vector import AutoresetMode
 from rventry_env.core.backend import NUMPY, jax_ns
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import common
-from rventry_env.envs.functional import DTYPES
+from rventry_env.envs.functional import DTYPES, _structure
 from rventry_env.envs.outcome import Outcome, TerminalMetrics, failure_name
 from rventry_env.envs.propagation import Propagator
-from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
+from rventry_env.envs.transition import advance, observe_flight, start_flight
+from rventry_env.envs.uncertainty import SensorErrors, sense
 from rventry_env.envs.vector import RvEntryVectorEnv, Stepped
 from rventry_env.physics.model import numeric_leaves, scaled_model, with_numeric_leaves
+from rventry_env.physics.sensors import white_noise
+
+# rows of the packed float output: the state, flight_info's values, then the step's numbers
+_INFO_ROWS = (("r_ecef_m", 3), ("v_ecef_mps", 3), ("latitude_deg", 1), ("longitude_deg", 1), ("altitude_m", 1),
+              ("speed_mps", 1), ("dynamic_pressure_pa", 1), ("load_factor_g", 1), ("sensed_accel_b", 3), ("cost", 1),
+              ("time_s", 1))  # fmt: skip
+_STEP_ROWS = ("reward", "max_load", "min_q", "miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg",
+              "penalty")  # fmt: skip
+_FLAGS = ("terminated", "truncated", "saturated", "violation", "success", "status")
+
+
+def _row_slices(rows) -> dict:
+    out, i = {}, 0
+    for name, k in rows:
+        out[name] = slice(i, i + k)
+        i += k
+    return out
+
+
+class _Compiled:
+    """The compiled step, restart and view of one model structure (its scalar numbers compiled in)."""
+
+    def __init__(self, env: "RvEntryJaxVectorEnv", template, dynamic: tuple, sensing: bool):
+        self.env, self.template, self.dynamic, self.sensing = env, template, dynamic, sensing
+        leaves = numeric_leaves(template)
+        self.scalars = [None if i in dynamic else float(v) for i, v in enumerate(leaves)]
+        self.step = jax.jit(self._step)
+        self.restart = jax.jit(self._restart)
+        self.view = jax.jit(self._view)
+
+    def model(self, dyn):
+        it = iter(dyn)
+        return with_numeric_leaves(self.template, iter([next(it) if v is None else v for v in self.scalars]))
+
+    def _restart(self, carry, x0, mask, dyn, errors):
+        env = self.env
+        fresh = start_flight(tuple(x0), self.model(dyn), env._jprop)
+        nav = (errors.dr, errors.dv) if self.sensing else None
+        if carry is None:
+            return fresh, nav
+        flight = jax.tree.map(lambda new, old: jnp.where(mask, new, old), fresh, carry[0])
+        return flight, nav if nav is None else jax.tree.map(lambda new, old: jnp.where(mask, new, old), nav, carry[1])
+
+    def _seen(self, flight, c_ae, nav, errors, model, elapsed):
+        """The state and features the observation is made of (the navigated ones where sensing errs)."""
+        if not self.sensing:
+            return flight, c_ae, None, None, nav
+        seen = sense(flight.x, flight.forces, c_ae, nav[0], nav[1], errors, self.env._base_model, elapsed,
+                     self.env._ns)  # fmt: skip
+        return seen.flight(flight), seen.c_ae, seen.x, seen.sensed_b, (seen.dr, seen.dv)
+
+    def _pack(self, flight, c_ae, model, nav, errors, elapsed):
+        env, ns = self.env, self.env._ns
+        seen_flight, seen_c_ae, nav_x, sensed, nav = self._seen(flight, c_ae, nav, errors, model, elapsed)
+        raw = jnp.stack(observe_flight(seen_flight, seen_c_ae, model, env._jprop, env._target)).astype(jnp.float32)
+        lo, hi = env._obs_low[:, None], env._obs_high[:, None]
+        clipped = jnp.any((raw < lo) | (raw > hi), axis=0)
+        obs = jnp.clip(raw, lo, hi).T
+        info = common.flight_info(flight.x, flight.forces, c_ae, flight.t, flight.cost, env._radius, env._g0, ns)
+        if sensed is not None:
+            info["sensed_accel_b"] = sensed
+        rows = [*flight.x]
+        for name, _ in _INFO_ROWS:
+            v = info[name]
+            rows.extend(v if isinstance(v, tuple) else (v,))
+        if nav_x is not None:
+            rows.extend(nav_x)
+        n = flight.x[0].shape
+        rows = jnp.stack([jnp.broadcast_to(jnp.asarray(r, ns.float_dtype), n) for r in rows])
+        return obs, rows, clipped, nav
+
+    def _view(self, carry, dyn, errors):
+        flight, nav = carry
+        model = self.model(dyn)
+        obs, rows, clipped, _ = self._pack(flight, dcm(*flight.x[1:5]), model, nav, errors, None)
+        return obs, rows, clipped
+
+    def _step(self, carry, dyn, a, active, errors):
+        env, ns = self.env, self.env._ns
+        flight, nav = carry
+        model = self.model(dyn)
+        tr = advance(flight, (a[:, 0], a[:, 1]), model, env._jprop, env.max_episode_steps, env._target, active)
+        obs, rows, clipped, nav = self._pack(tr.flight, tr.c_ae, model, nav, errors, tr.out.elapsed)
+        o = tr.outcome
+        n = rows.shape[1]
+        extra = jnp.stack([jnp.broadcast_to(jnp.asarray(v, ns.float_dtype), (n,)) for v in (
+            tr.reward, tr.flight.max_load, tr.flight.min_q, *o.metrics, o.terminal_penalty)])  # fmt: skip
+        flags = jnp.stack([jnp.broadcast_to(jnp.asarray(v).astype(jnp.int8), (n,)) for v in (
+            tr.terminated, tr.truncated, tr.out.alpha_saturated, o.constraint_violation, o.is_success, tr.out.status,
+            clipped)])  # fmt: skip
+        return (tr.flight, nav), obs, jnp.concatenate([rows, extra]), flags
 
 
 class RvEntryJaxVectorEnv(RvEntryVectorEnv):
@@ -52,106 +154,122 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         self.dtype = dtype
         self._ns = jax_ns(dtype)
         self._jprop = Propagator(self.task, self._ns, self.reward)
-        f = self._ns.float_dtype
-        self._leaves = tuple(jnp.asarray(v, dtype=f) for v in numeric_leaves(self.model))
-        self._flight = None
+        self._base_model = self.model
+        self._carry = None
+        self._fn: _Compiled | None = None
+        self._compiled: dict = {}
         self._x0 = None  # (12, N) host: initial states of the current episodes
-        self._step_fn = jax.jit(self._step_all)
-        self._restart_fn = jax.jit(self._restart)
-        self._view_fn = jax.jit(self._view)
+        self._rows = None  # host: the packed rows of the last step or view
+        self._rows_at = _row_slices((("x", 12), *_INFO_ROWS, ("nav", 12)))
+
+    @property
+    def _step_fn(self):
+        """The compiled step of the current model structure (one compilation per structure)."""
+        return self._fn.step
 
     @property
     def state(self) -> np.ndarray:
         """States of all copies, float64, shape (N, 12), state order of docs/conventions.md (a copy)."""
-        if self._flight is None:
+        if self._rows is None:
             raise RuntimeError("the environment has no state before reset()")
-        return np.stack([np.asarray(c, dtype=np.float64) for c in self._flight.x], axis=-1)
+        return np.ascontiguousarray(self._rows[self._rows_at["x"]].T, dtype=np.float64)
 
     # ------------------------------------------------------------------ backend hooks
     def _reset_copies(self, idx: np.ndarray, dispersion=None) -> list:
-        d = self.dispersion if dispersion is None else dispersion
-        if d.mass or d.flight is not None:
-            raise ValueError(f"backend='jax' flies the scalar dispersion sets; the {d.name!r} set's mass and "
-                             "flight-grade errors (profiles, sensors) need backend='numpy'")  # fmt: skip
         x0, extras = self._draw(idx, dispersion)
-        if self._x0 is None or self._flight is None or len(idx) == self.num_envs:
+        if self._x0 is None or self._carry is None or len(idx) == self.num_envs:
             self._x0 = np.empty((12, self.num_envs))
         self._x0[:, idx] = x0.T
         mask = np.zeros(self.num_envs, bool)
         mask[idx] = True
+        errs = self._errors
+        host = (errs.model(self._density, self._lift, self._drag) if errs.any_model
+                else scaled_model(self.model, self._density, self._lift, self._drag))  # fmt: skip
+        leaves = numeric_leaves(host)
+        dynamic = tuple(i for i, v in enumerate(leaves) if np.ndim(v) > 0)
+        sensing = bool(errs.any_sensing)
+        key = (_structure(host), tuple(float(leaves[i]) for i in range(len(leaves)) if i not in dynamic), dynamic,
+               sensing)  # fmt: skip
+        fn = self._compiled.get(key)
+        if fn is None:
+            fn = self._compiled[key] = _Compiled(self, host, dynamic, sensing)
+        if fn is not self._fn:
+            self._carry = None  # a new structure: every copy restarts (only a full reset changes it)
+        self._fn = fn
         f = self._ns.float_dtype
-        scales = jnp.asarray(np.stack([self._density, self._lift, self._drag]), f)
-        self._scales = scales
-        self._flight = self._restart_fn(self._flight, jnp.asarray(self._x0, f), scales, jnp.asarray(mask), self._leaves)
+        self._dyn = tuple(jnp.asarray(np.ascontiguousarray(leaves[i]), f) for i in dynamic)
+        self._sensor = self._sensor_errors() if sensing else None
+        self._carry = fn.restart(self._carry, jnp.asarray(self._x0, f), jnp.asarray(mask), self._dyn, self._sensor)
         return extras
 
+    def _sensor_errors(self, noise=None) -> SensorErrors:
+        """The copies' accelerometer errors and navigation fixes on the device (noise: this step's)."""
+        e, f = self._errors, self._ns.float_dtype
+        if noise is None:
+            noise = white_noise(e.key, e.step) * e.noise[:, None]
+        cols = lambda a: tuple(jnp.asarray(np.ascontiguousarray(a[:, j]), f) for j in range(3))  # noqa: E731
+        rows = lambda a: tuple(jnp.asarray(a[j], f) for j in range(3))  # noqa: E731
+        return SensorErrors(cols(e.bias), cols(e.scale), cols(e.misalignment), cols(noise), jnp.asarray(e.senses),
+                            rows(e.dr), rows(e.dv))  # fmt: skip
+
     def _measure(self, elapsed=None, active=None) -> None:
-        """No sensor or navigation errors fly with backend='jax' (refused at reset): laws see the truth."""
-        self._nav = self._sensed = None
+        """Observation and info values of the current flights (after a reset of some copies)."""
+        obs, rows, clipped = jax.device_get(self._fn.view(self._carry, self._dyn, self._sensor))
+        self._set_rows(rows)
+        self._view_out = (np.array(obs), np.asarray(clipped, bool))
+
+    def _set_rows(self, rows) -> None:
+        self._rows = rows
+        if self._fn.sensing:
+            nav = np.ascontiguousarray(rows[self._rows_at["nav"]].T, dtype=np.float64)
+            self._nav, self._sensed = nav, self._info_values()["sensed_accel_b"]
+            self._sensed = np.ascontiguousarray(np.stack(self._sensed, axis=-1), dtype=np.float64)
+        else:
+            self._nav = self._sensed = None
 
     def _observe(self):
-        obs, clipped, _ = self._view_fn(self._flight, self._scales, self._leaves)
-        return np.asarray(obs), np.asarray(clipped)
+        return self._view_out
+
+    def _info_values(self) -> dict:
+        r = self._rows
+        out = {}
+        for name, k in _INFO_ROWS:
+            v = r[self._rows_at[name]]
+            out[name] = tuple(v) if k == 3 else v[0]
+        return out
 
     def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
-        _, _, info = self._view_fn(self._flight, self._scales, self._leaves)
-        return self._info_dict(_to_host(info), action_clipped, alpha_saturated, obs_clipped)
+        return self._info_dict(self._info_values(), action_clipped, alpha_saturated, obs_clipped)
 
     def _advance_all(self, a: np.ndarray, active: np.ndarray) -> Stepped:
         f = self._ns.float_dtype
-        self._flight, out = self._step_fn(
-            self._flight, self._scales, jnp.asarray(a, f), jnp.asarray(active), self._leaves
-        )
-        out = _to_host(out)
-        terminated, truncated = out["terminated"], out["truncated"]
+        sensor = None
+        if self._fn.sensing:  # the noise sample of the step's end, the NumPy environment's counter advanced alike
+            self._errors.step += np.asarray(active, np.int64)
+            sensor = self._sensor._replace(noise=self._sensor_errors().noise)
+        self._carry, obs, rows, flags = self._fn.step(self._carry, self._dyn, jnp.asarray(a, f), jnp.asarray(active),
+                                                      sensor)  # fmt: skip
+        obs, rows, flags = jax.device_get((obs, rows, flags))
+        if self._fn.sensing:
+            self._sensor = sensor._replace(dr=self._carry[1][0], dv=self._carry[1][1])
+        n_info = self._rows_at["nav"].stop if self._fn.sensing else self._rows_at["nav"].start
+        self._set_rows(rows[:n_info])
+        step = dict(zip(_STEP_ROWS, rows[n_info:]))
+        flag = dict(zip(_FLAGS, flags[:-1]))
+        terminated, truncated = flag["terminated"].astype(bool), flag["truncated"].astype(bool)
         ended = terminated | truncated
         outcome = None
         if ended.any():
             outcome = Outcome(
-                TerminalMetrics(*out["metrics"]), out["violation"], out["success"], out["penalty"],
-                failure_name(out["status"], terminated, NUMPY),
+                TerminalMetrics(*(step[k] for k in TerminalMetrics._fields)), flag["violation"].astype(bool),
+                flag["success"].astype(bool), step["penalty"], failure_name(flag["status"], terminated, NUMPY),
             )  # fmt: skip
-        return Stepped(out["reward"].astype(np.float64), terminated, truncated, out["saturated"], out["obs"],
-                       out["obs_clipped"], out["info"], outcome, out["max_load"], out["min_q"])  # fmt: skip
+        return Stepped(step["reward"].astype(np.float64), terminated, truncated, flag["saturated"].astype(bool),
+                       np.array(obs), flags[-1].astype(bool), self._info_values(), outcome, step["max_load"],
+                       step["min_q"])  # fmt: skip
 
     def _record(self, only=None):
         return None  # no rendering with backend='jax'
-
-    # ------------------------------------------------------------------ compiled parts
-    def _model(self, leaves, scales):
-        return scaled_model(with_numeric_leaves(self.model, iter(leaves)), scales[0], scales[1], scales[2])
-
-    def _restart(self, flight, x0, scales, mask, leaves):
-        fresh = start_flight(tuple(x0), self._model(leaves, scales), self._jprop)
-        if flight is None:
-            return fresh
-        return jax.tree.map(lambda new, old: jnp.where(mask, new, old), fresh, flight)
-
-    def _view(self, flight: Flight, scales, leaves, c_ae=None):
-        model = self._model(leaves, scales)
-        c_ae = dcm(*flight.x[1:5]) if c_ae is None else c_ae
-        raw = jnp.stack(observe_flight(flight, c_ae, model, self._jprop, self._target)).astype(jnp.float32)
-        lo, hi = self._obs_low[:, None], self._obs_high[:, None]
-        clipped = jnp.any((raw < lo) | (raw > hi), axis=0)
-        obs = jnp.clip(raw, lo, hi).T
-        info = common.flight_info(flight.x, flight.forces, c_ae, flight.t, flight.cost, self._radius, self._g0, self._ns)
-        return obs, clipped, info
-
-    def _step_all(self, flight: Flight, scales, a, active, leaves):
-        model = self._model(leaves, scales)
-        tr = advance(flight, (a[:, 0], a[:, 1]), model, self._jprop, self.max_episode_steps, self._target, active)
-        obs, clipped, info = self._view(tr.flight, scales, leaves, tr.c_ae)
-        o = tr.outcome
-        return tr.flight, {
-            "reward": tr.reward, "terminated": tr.terminated, "truncated": tr.truncated, "status": tr.out.status,
-            "saturated": tr.out.alpha_saturated, "obs": obs, "obs_clipped": clipped, "info": info,
-            "metrics": tuple(o.metrics), "violation": o.constraint_violation, "success": o.is_success,
-            "penalty": o.terminal_penalty, "max_load": tr.flight.max_load, "min_q": tr.flight.min_q,
-        }  # fmt: skip
-
-
-def _to_host(tree):
-    return jax.tree.map(np.asarray, jax.device_get(tree))
 
 
 __all__ = ["RvEntryJaxVectorEnv"]

@@ -42,7 +42,7 @@ class Transition(NamedTuple):
     reward: Any  # running cost and path penalty, and the terminal penalty where an episode terminated
     terminated: Any
     truncated: Any
-    outcome: Outcome | None  # None where no episode ended (known only to NumPy)
+    outcome: Outcome | None  # None where no episode ended (NumPy); zeros there (JAX)
 
 
 def start_flight(x0: tuple, model: EntryModel, prop: Propagator) -> Flight:
@@ -81,12 +81,12 @@ def advance(flight: Flight, actions: tuple, model: EntryModel, prop: Propagator,
         truncated = truncated & (new.steps >= max_steps)
     ended = terminated | truncated
     reward = -(out.cost + out.path_penalty)
-    outcome = None
-    if not ns.known(ns.logical_not(ns.any(ended))):
-        outcome = episode_outcome(
-            out.x, c_ae, out.status, terminated, new.max_load, new.min_q, task, prop.weights, target_e,
-            model.planet.radius, ns,
-        )
+    # the outcome only where an episode ended (JAX: a branch taken at run time; zeros otherwise)
+    outcome = ns.when(ns.any(ended), lambda: episode_outcome(
+        out.x, c_ae, out.status, terminated, new.max_load, new.min_q, task, prop.weights, target_e,
+        model.planet.radius, ns,
+    ))  # fmt: skip
+    if outcome is not None:
         reward = reward - ns.where(ended, outcome.terminal_penalty, 0.0)
     return Transition(new, c_ae, out, reward, terminated, truncated, outcome)
 

@@ -138,70 +138,113 @@ class FlightState:
         return out
 
     # ------------------------------------------------------------------ sensing
+    def sensor_errors(self, noise: np.ndarray) -> "SensorErrors":
+        """The copies' accelerometer errors, this sample's ``noise`` (N, 3) and navigation errors."""
+        cols = lambda a: tuple(a[:, j] for j in range(3))  # noqa: E731
+        return SensorErrors(cols(self.bias), cols(self.scale), cols(self.misalignment), cols(noise), self.senses,
+                            tuple(self.dr), tuple(self.dv))  # fmt: skip
+
+    def noise_sample(self) -> np.ndarray:
+        """(N, 3): this step's accelerometer noise (the counter-based stream of each copy's key)."""
+        return white_noise(self.key, self.step) * self.noise[:, None]
+
     def sense(self, x: tuple, forces, c_ae, g0: float, elapsed=None, active=None):
         """The navigation state (N, 12), the sensed specific force (N, 3) and the features the
-        observation is built from (:class:`Sensed`, and C_AE of the navigation state).
-
-        The navigated position and velocity are the true ones plus the errors (E components);
-        the navigation frames are the true frames turned by the smallest rotations that carry
-        a1 and b1 onto them, so the bank angle keeps its meaning (sigma is the vehicle's own).
+        observation is built from (:class:`Sensed`, and C_AE of the navigation state); see :func:`sense`.
 
         :param elapsed: time flown since the last call (N,) (None at a reset: nothing flown).
         :param active: copies stepped since the last call (their noise sample advances).
         """
         n = self.n
-        col = lambda c: np.broadcast_to(np.asarray(c, dtype=float), (n,))  # noqa: E731
         if elapsed is not None:
             self.step += np.ones(n, np.int64) if active is None else np.asarray(active, np.int64)
-        noise = white_noise(self.key, self.step) * self.noise[:, None]
-        true_b = tuple(col(c) for c in forces.aero_b)
-        sensed_b = accelerometer(true_b, self.bias, self.scale, self.misalignment, noise)
-        c_ba = tuple(tuple(col(c) for c in row) for row in forces.c_ba)
-        c_ae = tuple(tuple(col(c) for c in row) for row in c_ae)
+            elapsed = np.broadcast_to(np.asarray(elapsed, dtype=float), (n,))
+        seen = sense(x, forces, c_ae, tuple(self.dr), tuple(self.dv), self.sensor_errors(self.noise_sample()),
+                     self.base, elapsed, NUMPY)  # fmt: skip
         if elapsed is not None:
-            err_b = tuple(sensed_b[i] - true_b[i] for i in range(3))
-            err_a = tuple(sum(err_b[i] * c_ba[i][j] for i in range(3)) for j in range(3))
-            err_e = np.array([sum(err_a[j] * c_ae[j][k] for j in range(3)) for k in range(3)])
-            dt = np.where(self.senses, col(elapsed), 0.0)
-            dr, dv = propagate_navigation_error(self.dr.T, self.dv.T, err_e.T, dt)
-            self.dr, self.dv = np.ascontiguousarray(dr.T), np.ascontiguousarray(dv.T)
-        r, v = col(x[0]), col(x[5])
-        # the errors in A (position) and in B (velocity) components
-        dr_a = tuple(sum(c_ae[j][k] * self.dr[k] for k in range(3)) for j in range(3))
-        dv_a = tuple(sum(c_ae[j][k] * self.dv[k] for k in range(3)) for j in range(3))
-        dv_b = tuple(sum(c_ba[i][j] * dv_a[j] for j in range(3)) for i in range(3))
-        p = (r + dr_a[0], dr_a[1], dr_a[2])  # navigated position, A components
-        r_nav = np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
-        w = (v + dv_b[0], dv_b[1], dv_b[2])  # navigated velocity, B components
-        v_nav = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-        q_a = _turn(p, r_nav)  # C_A'A
-        q_b = _turn(w, v_nav)  # C_B'B
-        e_a = _compose(q_a, tuple(col(c) for c in x[1:5]))  # C_A'E = C_A'A C_AE
-        e_b = _compose(_compose(q_b, tuple(col(c) for c in x[6:10])), (-q_a[0], -q_a[1], -q_a[2], q_a[3]))
-        nav_x = (r_nav, *e_a, v_nav, *e_b, col(x[10]), col(x[11]))
-        truth = tuple(col(c) for c in x)
-        senses = self.senses
-        nav_x = tuple(np.where(senses, a, b) for a, b in zip(nav_x, truth))
-        sensed = tuple(np.where(senses, a, b) for a, b in zip(sensed_b, true_b))
-        # air data from the accelerometer: q = |a| m / (S |C|) with the nominal coefficients at
-        # the navigated Mach number; the load factor is the sensed one
-        base = self.base
-        mach = nav_x[5] / base.atmosphere.speed_of_sound(nav_x[0] - base.planet.radius, NUMPY)
-        cl, cd = base.vehicle.aerodynamics.coefficients(nav_x[10], mach, NUMPY)
-        a_mag = np.sqrt(sensed[0] * sensed[0] + sensed[1] * sensed[1] + sensed[2] * sensed[2])
-        q_hat = a_mag * base.vehicle.mass / (base.vehicle.reference_area * np.hypot(cl, cd))
-        q = np.where(senses, q_hat, col(forces.dynamic_pressure))
-        load = np.where(senses, a_mag, col(forces.aero_accel))
-        feats = Sensed(dcm(*nav_x[6:10]), q, load)
-        nav = np.stack(nav_x, axis=-1)
-        return nav, np.stack(sensed, axis=-1), feats, dcm(*nav_x[1:5])
+            self.dr, self.dv = np.array(seen.dr), np.array(seen.dv)
+        stack = lambda cs: np.stack(np.broadcast_arrays(*cs), axis=-1)  # noqa: E731
+        return stack(seen.x), stack(seen.sensed_b), seen.features, seen.c_ae
 
 
-def _turn(u: tuple, norm):
+class SensorErrors(NamedTuple):
+    """The accelerometer errors and navigation errors of N copies, as components (each (N,))."""
+
+    bias: tuple  # 3 components, B axes (m/s^2)
+    scale: tuple
+    misalignment: tuple  # rad
+    noise: tuple  # this sample's white noise (m/s^2)
+    senses: object  # (N,) bool: the copies whose sensors or navigation err
+    dr: tuple  # navigation position error, E components (m)
+    dv: tuple  # navigation velocity error, E components (m/s)
+
+
+class Seen(NamedTuple):
+    """What the vehicles' sensors and navigation make of the truth (:func:`sense`)."""
+
+    x: tuple  # the navigation state, 12 components
+    sensed_b: tuple  # the sensed specific force, B components
+    features: Sensed  # the observation's sensed features
+    c_ae: tuple  # C_AE of the navigation state
+    dr: tuple  # the navigation errors after the step
+    dv: tuple
+
+
+def sense(x: tuple, forces, c_ae, dr: tuple, dv: tuple, errors: SensorErrors, base: EntryModel, elapsed, ns) -> Seen:
+    """The sensors' and the navigation's view of the true state ``x`` (with ``forces`` and ``c_ae`` at it).
+
+    Component arithmetic on ``ns`` (the NumPy environments and the JAX one share it). Where
+    ``elapsed`` is given (time flown since the last call, per copy), the navigation errors first
+    integrate the accelerometer's error over it
+    (:func:`~rventry_env.physics.sensors.propagate_navigation_error`). The navigated position and
+    velocity are the true ones plus the errors (E components); the navigation frames are the true
+    frames turned by the smallest rotations that carry a1 and b1 onto them, so the bank angle keeps
+    its meaning (sigma is the vehicle's own). Air data come from the accelerometer:
+    q = |a| m / (S |C|) with ``base``'s nominal coefficients at the navigated Mach number, and the
+    load factor is the sensed one. Copies whose ``errors.senses`` is False see the truth.
+    """
+    z = 0.0 * errors.noise[0]  # one value per copy: broadcasts the shared parts
+    col = lambda c: c + z  # noqa: E731
+    senses = errors.senses
+    true_b = tuple(col(c) for c in forces.aero_b)
+    sensed_b = accelerometer(true_b, errors.bias, errors.scale, errors.misalignment, errors.noise)
+    c_ba = forces.c_ba
+    if elapsed is not None:
+        err_b = tuple(sensed_b[i] - true_b[i] for i in range(3))
+        err_a = tuple(err_b[0] * c_ba[0][j] + err_b[1] * c_ba[1][j] + err_b[2] * c_ba[2][j] for j in range(3))
+        err_e = tuple(err_a[0] * c_ae[0][k] + err_a[1] * c_ae[1][k] + err_a[2] * c_ae[2][k] for k in range(3))
+        dr, dv = propagate_navigation_error(dr, dv, err_e, ns.where(senses, elapsed, 0.0))
+    r, v = x[0], x[5]
+    # the errors in A (position) and in B (velocity) components
+    dr_a = tuple(c_ae[j][0] * dr[0] + c_ae[j][1] * dr[1] + c_ae[j][2] * dr[2] for j in range(3))
+    dv_a = tuple(c_ae[j][0] * dv[0] + c_ae[j][1] * dv[1] + c_ae[j][2] * dv[2] for j in range(3))
+    dv_b = tuple(c_ba[i][0] * dv_a[0] + c_ba[i][1] * dv_a[1] + c_ba[i][2] * dv_a[2] for i in range(3))
+    p = (r + dr_a[0], dr_a[1], dr_a[2])  # navigated position, A components
+    r_nav = ns.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+    w = (v + dv_b[0], dv_b[1], dv_b[2])  # navigated velocity, B components
+    v_nav = ns.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    q_a = _turn(p, r_nav, ns)  # C_A'A
+    q_b = _turn(w, v_nav, ns)  # C_B'B
+    e_a = _compose(q_a, tuple(x[1:5]))  # C_A'E = C_A'A C_AE
+    e_b = _compose(_compose(q_b, tuple(x[6:10])), (-q_a[0], -q_a[1], -q_a[2], q_a[3]))
+    nav_x = (r_nav, *e_a, v_nav, *e_b, x[10], x[11])
+    nav_x = tuple(ns.where(senses, a, b) for a, b in zip(nav_x, x))
+    sensed = tuple(ns.where(senses, a, b) for a, b in zip(sensed_b, true_b))
+    mach = nav_x[5] / base.atmosphere.speed_of_sound(nav_x[0] - base.planet.radius, ns)
+    cl, cd = base.vehicle.aerodynamics.coefficients(nav_x[10], mach, ns)
+    a_mag = ns.sqrt(sensed[0] * sensed[0] + sensed[1] * sensed[1] + sensed[2] * sensed[2])
+    q_hat = a_mag * base.vehicle.mass / (base.vehicle.reference_area * ns.sqrt(cl * cl + cd * cd))
+    q = ns.where(senses, q_hat, forces.dynamic_pressure)
+    load = ns.where(senses, a_mag, forces.aero_accel)
+    feats = Sensed(dcm(*nav_x[6:10]), q, load)
+    return Seen(nav_x, sensed, feats, dcm(*nav_x[1:5]), dr, dv)
+
+
+def _turn(u: tuple, norm, ns):
     """Euler parameters of the frame turned by the smallest rotation carrying its first axis onto
     the direction of ``u`` (components in the frame; ``norm`` = |u|)."""
     c = 1.0 + u[0] / norm
-    s = np.sqrt(2.0 * c)
+    s = ns.sqrt(2.0 * c)
     return (0.0 * c, -u[2] / norm / s, u[1] / norm / s, 0.5 * s)
 
 
@@ -217,4 +260,4 @@ def _compose(p: tuple, q: tuple) -> tuple:
     )
 
 
-__all__ = ["FlightState", "Sensed"]
+__all__ = ["FlightState", "Sensed", "SensorErrors", "Seen", "sense"]

@@ -9,8 +9,9 @@
 * :func:`propagate_navigation_error` - the position and velocity error of an inertial
   navigation system, integrated from the entry fix through the accelerometer's error.
 
-Component arithmetic on tuples of arrays (the ``ns`` style of the force models), with
-parameters per vehicle. Magnitudes and their sources: docs/uncertainty.md.
+Component arithmetic on tuples of components (the ``ns`` style of the force models: NumPy and
+JAX share it), with parameters per vehicle; the noise stream is NumPy's (the JAX Gymnasium
+environment evaluates it on the host and sends it in). Magnitudes and their sources: docs/uncertainty.md.
 """
 
 from __future__ import annotations
@@ -47,20 +48,21 @@ def white_noise(key, step, k: int = 3) -> np.ndarray:
     return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
 
 
-def accelerometer(aero_b: tuple, bias, scale, misalignment, noise) -> tuple:
+def accelerometer(aero_b: tuple, bias: tuple, scale: tuple, misalignment: tuple, noise: tuple) -> tuple:
     """The sensed specific force (B components): (1 + s_i) a_i + (theta x a)_i + b_i + n_i.
 
-    :param aero_b: the true aerodynamic specific force, 3 components (m/s^2).
-    :param bias, scale, misalignment, noise: (N, 3) per axis: bias (m/s^2), scale-factor error,
+    Component arithmetic (NumPy or JAX arrays, floats): every argument is 3 components.
+
+    :param aero_b: the true aerodynamic specific force (m/s^2).
+    :param bias, scale, misalignment, noise: per axis: bias (m/s^2), scale-factor error,
         small rotation of the sensor axes (rad), this sample's noise (m/s^2).
     """
-    a = tuple(np.asarray(c, dtype=float) for c in aero_b)
-    t = tuple(misalignment[:, i] for i in range(3))
+    a, t = aero_b, misalignment
     cross = (t[1] * a[2] - t[2] * a[1], t[2] * a[0] - t[0] * a[2], t[0] * a[1] - t[1] * a[0])
-    return tuple((1.0 + scale[:, i]) * a[i] + cross[i] + bias[:, i] + noise[:, i] for i in range(3))
+    return tuple((1.0 + scale[i]) * a[i] + cross[i] + bias[i] + noise[i] for i in range(3))
 
 
-def propagate_navigation_error(dr, dv, accel_error, dt):
+def propagate_navigation_error(dr: tuple, dv: tuple, accel_error: tuple, dt) -> tuple[tuple, tuple]:
     """Position and velocity errors after ``dt`` with the acceleration error held over it.
 
     An inertial system integrates its accelerometer: its velocity error grows by the sensed
@@ -69,11 +71,11 @@ def propagate_navigation_error(dr, dv, accel_error, dt):
     of order (g/r) dr dt^2) and the frame's rotation are left out: over a 10-minute flight with
     errors of hundreds of metres they are below a millimetre per second.
 
-    :param dr, dv, accel_error: (N, 3), the same axes (Earth-fixed E components).
-    :param dt: (N,) s.
+    :param dr, dv, accel_error: 3 components each, the same axes (Earth-fixed E components).
+    :param dt: s (a number or one per vehicle).
     """
-    dt = np.asarray(dt, dtype=float)[:, None]
-    return dr + dv * dt + 0.5 * accel_error * dt * dt, dv + accel_error * dt
+    new_dr = tuple(dr[i] + dv[i] * dt + 0.5 * accel_error[i] * dt * dt for i in range(3))
+    return new_dr, tuple(dv[i] + accel_error[i] * dt for i in range(3))
 
 
 __all__ = ["white_noise", "accelerometer", "propagate_navigation_error"]

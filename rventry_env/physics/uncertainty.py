@@ -6,7 +6,7 @@ batch of N vehicles flies N different profiles in one array operation; see
 :func:`rventry_env.envs.propagation.take_model`), or as one row / plain numbers for one
 vehicle. Profiles live on a uniform altitude grid (``start``, ``step``) and are interpolated
 linearly by :func:`uniform_table`, which evaluates on Python floats (``MATH``), NumPy arrays
-(one row for all, or one row per vehicle) and CasADi symbols, so the single environment, the
+and JAX arrays (one row for all, or one row per vehicle) and CasADi symbols, so the single environment, the
 vector environment and the collocation transcription share one profile part. On CasADi the
 profile is a cubic B-spline interpolant through the same knots: the linear one has a kink at
 every knot, and IPOPT's Newton steps stalled on them (the oracle's first draw ran out of
@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rventry_env.core.backend import NUMPY
 from rventry_env.physics.aerodynamics import Aerodynamics
 from rventry_env.physics.atmosphere import Atmosphere
 
@@ -53,41 +54,47 @@ def uniform_table(x, start: float, step: float, values, ns):
         i = min(int(u), k_max - 1)
         w = u - i
         return float(values[i]) * (1.0 - w) + float(values[i + 1]) * w
-    return table_gather(values, *table_index(x, start, step, k_max))
+    return table_gather(values, *table_index(x, start, step, k_max, ns), ns)
 
 
-def table_index(x, start: float, step: float, k_max: int):
-    """(i, w): the grid interval of each ``x`` (NumPy) and the weight of its upper end."""
-    u = (np.asarray(x, dtype=float) - start) * (1.0 / step)
-    np.clip(u, 0.0, float(k_max), out=u)
-    i = u.astype(np.intp)
-    np.minimum(i, k_max - 1, out=i)
+def table_index(x, start: float, step: float, k_max: int, ns=NUMPY):
+    """(i, w): the grid interval of each ``x`` (array namespaces) and the weight of its upper end."""
+    u = ns.fmin(ns.fmax((x - start) * (1.0 / step), 0.0), float(k_max))
+    i = ns.fmin(ns.index(u), k_max - 1)
     return i, u - i
 
 
 _ROW_OFFSETS: dict = {}
 
 
-def table_gather(values, i, w):
+def table_gather(values, i, w, ns=NUMPY):
     """Linear interpolation in ``values`` (K,) or (N, K) at the intervals ``i`` with weights ``w``."""
+    lo, hi = _gather_pair(values, i, ns)
+    return lo + (hi - lo) * w
+
+
+def _gather_pair(values, i, ns):
+    """values[.., i] and values[.., i + 1]: one profile, or each vehicle's row of a table."""
+    if ns.name != "numpy":
+        if np.ndim(values) == 1:
+            return values[i], values[i + 1]
+        return ns.take_rows(values, i), ns.take_rows(values, i + 1)
     v = np.asarray(values)
     if v.ndim == 1:
-        lo, hi = v[i], v[i + 1]
-    else:
-        # a Fortran-ordered table keeps each altitude's values for all vehicles together: vehicles
-        # flying at similar altitudes then read neighbouring memory (2-3x faster at N = 8192)
-        n, k = v.shape
-        fortran = v.flags.f_contiguous and not v.flags.c_contiguous
-        key = (n, k, fortran)
-        offsets = _ROW_OFFSETS.get(key)
-        if offsets is None:
-            offsets = _ROW_OFFSETS[key] = np.arange(n, dtype=np.intp) * (1 if fortran else k)
-        flat = v.reshape(-1, order="F" if fortran else "C")
-        base = i * n + offsets if fortran else offsets + i
-        lo = np.take(flat, base)
-        base += n if fortran else 1
-        hi = np.take(flat, base)
-    return lo + (hi - lo) * w
+        return v[i], v[i + 1]
+    # a Fortran-ordered table keeps each altitude's values for all vehicles together: vehicles
+    # flying at similar altitudes then read neighbouring memory (2-3x faster at N = 8192)
+    n, k = v.shape
+    fortran = v.flags.f_contiguous and not v.flags.c_contiguous
+    key = (n, k, fortran)
+    offsets = _ROW_OFFSETS.get(key)
+    if offsets is None:
+        offsets = _ROW_OFFSETS[key] = np.arange(n, dtype=np.intp) * (1 if fortran else k)
+    flat = v.reshape(-1, order="F" if fortran else "C")
+    base = i * n + offsets if fortran else offsets + i
+    lo = np.take(flat, base)
+    base += n if fortran else 1
+    return lo, np.take(flat, base)
 
 
 _CASADI_TABLES: dict = {}
@@ -161,9 +168,9 @@ class ProfileWind:
 
     def velocity_a(self, h, e3_a, ns):
         _, c2, c3 = e3_a
-        if ns.name == "numpy":  # one look-up of the interval serves both components
-            at = table_index(h, self.start, self.step, np.shape(self.east)[-1] - 1)
-            east, north = table_gather(self.east, *at), table_gather(self.north, *at)
+        if getattr(ns, "array", False):  # one look-up of the interval serves both components
+            at = table_index(h, self.start, self.step, np.shape(self.east)[-1] - 1, ns)
+            east, north = table_gather(self.east, *at, ns), table_gather(self.north, *at, ns)
         else:
             east = uniform_table(h, self.start, self.step, self.east, ns)
             north = uniform_table(h, self.start, self.step, self.north, ns)
