@@ -129,11 +129,15 @@ def _fly_both(dtype: str, dispersion: str, n: int = 6, seed: int = 7):
     rng = np.random.default_rng(seed)
     worst_obs, ended_np, ended_j, finals = np.abs(o_np - o_j).max(), np.zeros(n, bool), np.zeros(n, bool), {}
     rewards = [0.0, 0.0]
+    sensing = {"navigation_state": 0.0, "sensed_accel_b": 0.0}
     while not ended_np.all():
         a = np.clip(np.array([0.0, 0.03]) + rng.normal(0, 0.2, (n, 2)), -1, 1)
         o_np, r_np, te_np, tr_np, i_np = venv_np.step(a)
         o_j, r_j, te_j, tr_j, i_j = venv_j.step(a)
         worst_obs = max(worst_obs, np.abs(o_np - o_j).max())
+        for k in sensing:
+            scale = np.maximum(np.abs(i_np[k]), 1.0)
+            sensing[k] = max(sensing[k], float(np.max(np.abs(i_np[k] - i_j[k]) / scale)))
         rewards[0] += r_np.sum()
         rewards[1] += r_j.sum()
         ended_np |= te_np | tr_np
@@ -141,6 +145,7 @@ def _fly_both(dtype: str, dispersion: str, n: int = 6, seed: int = 7):
         for i in np.nonzero(te_np | tr_np)[0]:
             finals[i] = (i_np["miss_km"][i], i_j["miss_km"][i], i_np["failure"][i], i_j["failure"][i],
                          i_np["r_ecef_m"][i], i_j["r_ecef_m"][i])  # fmt: skip
+    venv_j.sensing_difference = sensing  # relative, the largest over the episodes
     return worst_obs, ended_j, finals, rewards, venv_j
 
 
@@ -153,6 +158,22 @@ def test_whole_dispersed_episodes_agree_with_numpy_float64():
         assert miss_j == pytest.approx(miss_np, rel=1e-9) and f_j == f_np
         np.testing.assert_allclose(r_j, r_np, atol=1e-4)
     assert venv_j.unwrapped._step_fn._cache_size() == 1  # compiled once for the whole run
+
+
+@pytest.mark.parametrize("name", ["flight", "peer"])
+def test_flight_grade_sets_fly_the_same_episodes_per_draw_in_jax(name):
+    """Gaussian draws, mass, NRLMSIS and Gauss-Markov profiles, winds, Mach-varying aerodynamics, and for
+    ``flight`` the accelerometer (its noise included: the same counter-based stream) and the navigation."""
+    worst_obs, ended_j, finals, rewards, venv_j = _fly_both("float64", name, n=3, seed=5)
+    assert ended_j.all()
+    assert worst_obs <= 1e-5
+    assert rewards[1] == pytest.approx(rewards[0], rel=1e-9)
+    for miss_np, miss_j, f_np, f_j, r_np, r_j in finals.values():
+        assert miss_j == pytest.approx(miss_np, rel=1e-9, abs=1e-9) and f_j == f_np
+        np.testing.assert_allclose(r_j, r_np, atol=1e-4)
+    assert max(venv_j.sensing_difference.values()) <= 1e-9
+    u = venv_j.unwrapped
+    assert u._fn.sensing == (name == "flight") and u._step_fn._cache_size() == 1
 
 
 def test_float32_error_at_impact_is_bounded():

@@ -42,7 +42,6 @@ from rventry_env.envs.transition import advance, observe_flight, start_flight
 from rventry_env.envs.uncertainty import SensorErrors, sense
 from rventry_env.envs.vector import RvEntryVectorEnv, Stepped
 from rventry_env.physics.model import numeric_leaves, scaled_model, with_numeric_leaves
-from rventry_env.physics.sensors import white_noise
 
 # rows of the packed float output: the state, flight_info's values, then the step's numbers
 _INFO_ROWS = (("r_ecef_m", 3), ("v_ecef_mps", 3), ("latitude_deg", 1), ("longitude_deg", 1), ("altitude_m", 1),
@@ -91,7 +90,7 @@ class _Compiled:
             return flight, c_ae, None, None, nav
         seen = sense(flight.x, flight.forces, c_ae, nav[0], nav[1], errors, self.env._base_model, elapsed,
                      self.env._ns)  # fmt: skip
-        return seen.flight(flight), seen.c_ae, seen.x, seen.sensed_b, (seen.dr, seen.dv)
+        return flight._replace(x=seen.x, forces=seen.features), seen.c_ae, seen.x, seen.sensed_b, (seen.dr, seen.dv)
 
     def _pack(self, flight, c_ae, model, nav, errors, elapsed):
         env, ns = self.env, self.env._ns
@@ -206,7 +205,7 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         """The copies' accelerometer errors and navigation fixes on the device (noise: this step's)."""
         e, f = self._errors, self._ns.float_dtype
         if noise is None:
-            noise = white_noise(e.key, e.step) * e.noise[:, None]
+            noise = e.noise_sample()
         cols = lambda a: tuple(jnp.asarray(np.ascontiguousarray(a[:, j]), f) for j in range(3))  # noqa: E731
         rows = lambda a: tuple(jnp.asarray(a[j], f) for j in range(3))  # noqa: E731
         return SensorErrors(cols(e.bias), cols(e.scale), cols(e.misalignment), cols(noise), jnp.asarray(e.senses),
@@ -246,12 +245,13 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         sensor = None
         if self._fn.sensing:  # the noise sample of the step's end, the NumPy environment's counter advanced alike
             self._errors.step += np.asarray(active, np.int64)
-            sensor = self._sensor._replace(noise=self._sensor_errors().noise)
+            noise = self._errors.noise_sample()
+            sensor = self._sensor._replace(noise=tuple(jnp.asarray(np.ascontiguousarray(noise[:, j]), f) for j in range(3)))
         self._carry, obs, rows, flags = self._fn.step(self._carry, self._dyn, jnp.asarray(a, f), jnp.asarray(active),
                                                       sensor)  # fmt: skip
         obs, rows, flags = jax.device_get((obs, rows, flags))
         if self._fn.sensing:
-            self._sensor = sensor._replace(dr=self._carry[1][0], dv=self._carry[1][1])
+            self._sensor = sensor
         n_info = self._rows_at["nav"].stop if self._fn.sensing else self._rows_at["nav"].start
         self._set_rows(rows[:n_info])
         step = dict(zip(_STEP_ROWS, rows[n_info:]))
