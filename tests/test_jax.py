@@ -207,18 +207,52 @@ def test_functional_env_is_pure_scans_and_flies_every_named_set_from_one_compila
 
     fly = jax.jit(lambda s, p, k: jax.lax.scan(body, (s, p), jax.random.split(k, 30)))
     h0 = EntryTask().problem.initial_state(RADIUS)[0]
-    for name in ("none", "standard", "wide"):
+    for name in ("none", "standard", "wide", "peer", "peer-0.1"):
         params = env.make_params(dispersion=name)
         obs, state = reset(keys, params)
         obs2, _ = reset(keys, params)
         np.testing.assert_array_equal(obs, obs2)  # pure: the same key, the same start
         half = Dispersion.parse(name)
         h = np.asarray(state.flight.x[0])
-        assert np.all(np.abs(h - h0) <= half.altitude_m + 1e-6) and (np.ptp(h) > 0) == (half.altitude_m > 0)
+        assert np.all(np.abs(h - h0) <= half.largest("altitude_m") + 1e-6) and (np.ptp(h) > 0) == (half.altitude_m > 0)
         (st, _), (r, d) = fly(state, params, jax.random.PRNGKey(1))
         assert np.all(np.isfinite(np.asarray(r))) and r.shape == (30, 8)
         assert np.all(np.asarray(st.flight.steps) == 30)
     assert reset._cache_size() == 1 and fly._cache_size() == 1  # the sets are data: one compilation
+
+
+def test_functional_env_draws_clipped_gaussians_and_the_mass_of_the_peer_sets():
+    env = RvEntryFunctional(dtype="float64")
+    n = 4000
+    keys = jax.random.split(jax.random.PRNGKey(3), n)
+    reset = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))
+    nominal = EntryTask().problem.initial_state(RADIUS)
+    for name in ("peer", "peer-0.1", "standard"):
+        d = Dispersion.parse(name)
+        _, st = reset(keys, env.make_params(dispersion=name))
+        dh = np.asarray(st.flight.x[0]) - nominal[0]
+        mass = np.asarray(st.scales[:, 3]) - 1.0
+        for draw, sigma in ((dh, d.altitude_m), (mass, d.mass)):
+            if d.shape == "gaussian":  # clipped at 3 sigma: the std of a clipped unit normal is 0.9866
+                assert np.abs(draw).max() <= 3.0 * sigma * (1 + 1e-9) and np.abs(draw).max() > 2.5 * sigma
+                assert np.std(draw) == pytest.approx(0.9866 * sigma, rel=0.05)
+            else:
+                assert np.abs(draw).max() <= sigma * (1 + 1e-9) and np.std(draw) == pytest.approx(sigma / 3**0.5, rel=0.05)
+        assert (np.ptp(mass) > 0) == (d.mass > 0)
+    # the mass factor is the model's: the drag acceleration of the drawn vehicle is the NumPy one of that mass
+    i = int(np.argmax(np.abs(mass)))
+    x = tuple(float(c[i]) for c in st.flight.x)
+    s = np.asarray(st.scales[i])
+    veh = MODEL.vehicle
+    m = scaled_model(MODEL.replace(vehicle=type(veh)(mass=veh.mass * s[3], reference_area=veh.reference_area,
+                                                     aerodynamics=veh.aerodynamics)), s[0], s[1], s[2])  # fmt: skip
+    f_np = entry_forces(tuple(np.array([c]) for c in x), m, NUMPY)
+    assert float(st.flight.forces.drag_accel[i]) == pytest.approx(float(f_np.drag_accel[0]), rel=1e-12)
+
+
+def test_functional_env_refuses_the_flight_grade_errors_naming_where_they_fly():
+    with pytest.raises(ValueError, match="flight-grade errors.*Gymnasium vector env"):
+        RvEntryFunctional(dtype="float64").make_params(dispersion="flight")
 
 
 def test_functional_env_agrees_with_the_vector_env_over_a_nominal_episode():
