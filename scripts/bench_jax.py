@@ -237,9 +237,11 @@ def main():
     if "functional" not in args.skip:
         res["functional"] = [functional_speed(args.num_envs, d, max(5, int(50 * q)), task.substeps)
                              for d in ("float64", "float32")]
+        numpy = res.get("vector", {}).get("vehicle_steps_per_s", {}).get("numpy")
         for f in res["functional"]:
-            print(f"functional env (scan of vmap-ed steps), {f['dtype']}, N = {f['num_envs']}: "
-                  f"{f['vehicle_steps_per_s']:,.0f} vehicle-steps/s"
+            ratio = f" ({f['vehicle_steps_per_s'] / numpy:.2f}x the NumPy vector env above)" if numpy else ""
+            print(f"functional env (jit of lax.scan over vmap-ed gymnax steps, autoreset: what JAX RL libraries run), "
+                  f"{f['dtype']}, N = {f['num_envs']}: {f['vehicle_steps_per_s']:,.0f} vehicle-steps/s{ratio}"
                   + ("  (target >= 5e6)" if f["dtype"] == "float32" else "") + f"; compile {f['first_call_s']:.1f} s")
     if "agreement" not in args.skip:
         a = agreement(max(4, int(64 * q)), task.substeps)
@@ -256,6 +258,9 @@ def main():
         print(f"PPO training: rejax on the functional env {j['env_steps_per_s']:,.0f} env-steps/s "
               f"(compile {j['compile_s']:.0f} s), SB3 {s3['env_steps_per_s']:,.0f} env-steps/s: "
               f"{j['env_steps_per_s'] / s3['env_steps_per_s']:.1f}x (target >= 3x)")  # fmt: skip
+    res["machine"]["load_average_end"] = os.getloadavg()
+    print(f"load average (1, 5, 15 min) at the end: {', '.join(f'{v:.1f}' for v in os.getloadavg())} on "
+          f"{os.cpu_count()} CPUs (figures taken on a busy machine are noisy: compare only those of one run)")
     if args.json:
         from rventry_env.util.files import write_json
 
