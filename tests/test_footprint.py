@@ -144,3 +144,26 @@ def test_the_jax_faces_refuse_a_footprint():
 
     with pytest.raises(ValueError, match="flies the fixed target"):
         RvEntryFunctional(task=FOOTPRINT, max_episode_steps=10)
+
+
+def test_aimed_at_moves_the_problem_target_and_refuses_a_non_unit_vector():
+    v = footprint_target(EntryProblem(), R, 200e3, -100e3)
+    aimed = FOOTPRINT.aimed_at(v)
+    np.testing.assert_allclose(aimed.problem.target_unit_vector(), v, atol=1e-15)
+    assert aimed.targets == "fixed" and aimed.problem.initial_state(R).tolist() == EntryProblem().initial_state(R).tolist()
+    with pytest.raises(ValueError, match="a target must be a unit vector"):
+        FOOTPRINT.aimed_at([1.0, 1.0, 0.0])
+
+
+@pytest.mark.slow
+def test_replanning_guidance_flies_the_target_it_is_told():
+    """mpc on a coarse mesh, one footprint episode 300 km long of the nominal and 150 km left of
+    it: it plans to the target it is told and lands on it."""
+    from rventry_env.guidance.replanning import ReplanningGuidance, ReplanningSettings
+
+    law = ReplanningGuidance(FOOTPRINT, settings=ReplanningSettings(mesh_intervals=10, mesh_degree=4, replan_s=60.0))
+    batch = rollout(law, 1, seed=0, task=FOOTPRINT)
+    target = np.array([batch.targets["target_latitude_deg"][0], batch.targets["target_longitude_deg"][0]])
+    nominal = np.degrees([EntryProblem().target_latitude, EntryProblem().target_longitude])
+    assert np.linalg.norm(target - nominal) > 0.5  # seed 0 draws a target well away from the nominal
+    assert batch.is_success[0] and batch.miss_km[0] < 0.5, (batch.miss_km, batch.failure)

@@ -9,7 +9,7 @@ not the task's.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -156,6 +156,16 @@ class EntryTask:
         u = rng.uniform(-1.0, 1.0, size=2)
         return footprint_target(self.problem, radius, u[0] * self.footprint.downrange_m,
                                 u[1] * self.footprint.crossrange_m)  # fmt: skip
+
+    def aimed_at(self, target_e) -> "EntryTask":
+        """This task with its problem's target moved to the unit vector ``target_e`` (3,) in E:
+        the fixed-target problem a planner solves for one footprint episode."""
+        t = np.asarray(target_e, dtype=float)
+        if t.shape != (3,) or not np.all(np.isfinite(t)) or abs(np.linalg.norm(t) - 1.0) > 1e-9:
+            raise ValueError(f"a target must be a unit vector (3,) in E components, got {target_e!r}")
+        problem = replace(self.problem, target_latitude=math.asin(max(-1.0, min(1.0, float(t[2])))),
+                          target_longitude=math.atan2(float(t[1]), float(t[0])))  # fmt: skip
+        return replace(self, problem=problem, targets="fixed")
 
     def record(self) -> dict:
         """What a policy trained on this task depends on, JSON-ready: the control step, the
