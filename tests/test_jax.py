@@ -250,9 +250,56 @@ def test_functional_env_draws_clipped_gaussians_and_the_mass_of_the_peer_sets():
     assert float(st.flight.forces.drag_accel[i]) == pytest.approx(float(f_np.drag_accel[0]), rel=1e-12)
 
 
-def test_functional_env_refuses_the_flight_grade_errors_naming_where_they_fly():
-    with pytest.raises(ValueError, match="flight-grade errors.*Gymnasium vector env"):
+def test_functional_env_refuses_flight_grade_params_without_their_structure():
+    with pytest.raises(ValueError, match="flight-grade errors.*compiled structure.*dispersion='flight'"):
         RvEntryFunctional(dtype="float64").make_params(dispersion="flight")
+
+
+def test_functional_flight_grade_env_flies_a_pool_draw_as_the_numpy_truth_model_and_navigation_do():
+    """A reset picks one of the pool's NumPy draws; its forces, first step and navigated observation
+    are those of the NumPy FlightState's truth model and sensors for that draw (noise off)."""
+    import dataclasses
+
+    from rventry_env.core.euler_parameters import dcm
+    from rventry_env.envs.observation import observe
+    from rventry_env.envs.uncertainty import FlightState
+    from rventry_env.task import FLIGHT_ERRORS
+
+    quiet = dataclasses.replace(Dispersion.flight_set(), flight=dataclasses.replace(FLIGHT_ERRORS, accel_noise_mps2=0.0))
+    env = RvEntryFunctional(dispersion=quiet, dtype="float64", pool_size=4)
+    params = env.default_params
+    _, st = env.reset(jax.random.PRNGKey(5), params)
+    pool = params.pool
+    i = int(np.argmin(np.abs(np.asarray(pool.log_factors) - np.asarray(st.errors.row.log_factors)).sum(axis=1)))
+    fs = FlightState(1, MODEL)
+    for name, src in (("log_factors", pool.log_factors), ("wind_east", pool.wind_east), ("wind_north", pool.wind_north),
+                      ("aero", pool.aero), ("bias", pool.bias), ("scale", pool.scale),
+                      ("misalignment", pool.misalignment)):  # fmt: skip
+        getattr(fs, name)[0] = np.asarray(src[i])
+    s = np.asarray(st.scales)
+    fs.mass[0], fs.any_model, fs.any_wind = s[3], True, True
+    fs.dr[:, 0], fs.dv[:, 0], fs.senses[0] = np.asarray(pool.dr[i]), np.asarray(pool.dv[i]), True
+    model = fs.model(s[0:1], s[1:2], s[2:3])
+    x = tuple(np.array([float(c)]) for c in st.flight.x)
+    prop = Propagator(EntryTask(), NUMPY)
+    f_np = prop.forces(x, model)
+    for k in ("density", "dynamic_pressure", "mach", "cl", "cd", "drag_accel", "lift_accel"):
+        assert float(getattr(st.flight.forces, k)) == pytest.approx(float(getattr(f_np, k)[0]), rel=1e-12), k
+    # the first step: the same state as NumPy's step with the same model
+    a = np.array([0.3, -0.4])
+    obs, st1, _, _, _ = jax.jit(env.step_env)(jax.random.PRNGKey(6), st, jnp.asarray(a), params)
+    p = EntryTask().problem
+    out = prop.step(x, f_np, np.array([a[0] * p.u_alpha_max]), np.array([a[1] * p.u_sigma_max]), model)
+    np.testing.assert_allclose(np.asarray([float(c) for c in st1.flight.x]), np.concatenate(out.x), rtol=1e-11)
+    # what the navigation makes of it: the NumPy sensors' view of the same truth, errors integrated alike
+    nav, _, feats, nav_c_ae = fs.sense(out.x, out.forces, dcm(*out.x[1:5]), MODEL.planet.g0, out.elapsed)
+    want = observe(tuple(nav[:, j] for j in range(12)), feats, nav_c_ae, out.elapsed, EntryTask(), env.target,
+                   RADIUS, MODEL.planet.g0, NUMPY)  # fmt: skip
+    want = np.clip(np.array([float(c[0]) if np.ndim(c) else float(c) for c in want], dtype=np.float32), env.obs_low,
+                   env.obs_high)  # fmt: skip
+    np.testing.assert_allclose(np.asarray(obs), want, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(st1.errors.dr), fs.dr[:, 0], rtol=1e-12)
+    assert np.abs(np.asarray(st1.errors.dr) - np.asarray(pool.dr[i])).max() > 0  # the errors did move
 
 
 def test_functional_env_agrees_with_the_vector_env_over_a_nominal_episode():

@@ -27,9 +27,19 @@ environments' own rule. The numbers come from ``key`` through :func:`uniforms`: 
 gymnax environments, every step also draws the reset it may need (gymnax's autoreset), and
 ``jax.random.uniform`` for ten numbers per vehicle cost as much as the physics of the step
 (XLA CPU, N = 8192: 1.4 ms against 0.13 ms for two words); the hash keeps the draws
-deterministic in ``key`` and costs a few integer operations per number. The flight-grade sets
-(``flight``: profiles, Mach-varying aerodynamics, sensors and navigation) fly with
-``backend="jax"`` in the Gymnasium vector environment, which draws them on the host.
+deterministic in ``key`` and costs a few integer operations per number.
+
+The flight-grade errors (the ``flight`` set: NRLMSIS and Gauss-Markov density profiles, wind
+profiles, Mach-varying C_L and C_D, accelerometer and navigation errors) need their structure
+compiled in: an environment made with such a dispersion flies them (and any other set, as zero
+errors). Drawing a vehicle's profiles takes NRLMSIS and about 330 normals, too much to repeat for
+every vehicle at every step of a scan, so :meth:`RvEntryFunctional.make_params` draws a pool of
+``pool_size`` vehicles' flight-grade errors on the host with the NumPy environments' own draw
+(:func:`~rventry_env.task.draw_extras`, seeded by ``seed``) and each reset picks one of them with
+its fresh scalar and mass draws; the accelerometer's white noise is drawn from the step's key. New
+params (another seed) are a new pool, without recompiling. The observation is then built from the
+navigation state and the sensed features (:func:`~rventry_env.envs.uncertainty.sense`, the NumPy
+environments' code).
 
 ``info`` carries ``terminated``, ``truncated`` (gymnax's ``done`` is their union),
 ``status`` (the propagation's ending code), ``observation_clipped`` and, valid where
@@ -73,6 +83,31 @@ class EnvParams(NamedTuple):
     gaussian: Any  # True: clipped normals (the dispersion's shape "gaussian"); False: uniform
     clip_sigmas: Any  # where the normals are clipped
     max_steps_in_episode: Any  # time limit in control steps
+    pool: Any = None  # flight-grade environments: the FlightPool the resets pick from
+
+
+class FlightPool(NamedTuple):
+    """``pool_size`` vehicles' flight-grade errors (rows), drawn on the host by the NumPy draw."""
+
+    log_factors: Any  # (P, K) ln(density / model density) on the altitude grid
+    wind_east: Any  # (P, K) m/s
+    wind_north: Any
+    aero: Any  # (P, 4) lift P1, P2, drag P1, P2
+    bias: Any  # (P, 3) accelerometer bias, scale factor, misalignment
+    scale: Any
+    misalignment: Any
+    noise: Any  # (P,) white-noise rms per sample
+    senses: Any  # (P,) bool
+    dr: Any  # (P, 3) navigation errors at the entry fix (E components)
+    dv: Any
+
+
+class FlightDraw(NamedTuple):
+    """One episode's flight-grade errors and its navigation errors so far."""
+
+    row: FlightPool  # one row of the pool
+    dr: Any  # (3,)
+    dv: Any
 
 
 class EnvState(NamedTuple):
@@ -80,6 +115,7 @@ class EnvState(NamedTuple):
 
     flight: Flight
     scales: Any  # (4,) this episode's density, C_L, C_D and mass factors
+    errors: Any = None  # flight-grade environments: this episode's FlightDraw
 
     @property
     def time(self):
@@ -99,11 +135,13 @@ class RvEntryFunctional(environment.Environment):
     :param max_episode_steps: the default params' time limit (control steps).
     :param dtype: ``"float32"`` (default: what RL wants, and GPUs) or ``"float64"``.
     :param reward: the :class:`~rventry_env.envs.reward.RewardWeights` (default: the benchmark's).
+    :param pool_size: flight-grade environments: how many vehicles' flight-grade errors the params
+        hold for the resets to pick from (see the module docstring).
     """
 
     def __init__(self, model=None, task=None, dt=None, substeps=None, dispersion=None,
                  max_episode_steps: int = MAX_EPISODE_STEPS, dtype: str = "float32",
-                 reward: RewardWeights | None = None):  # fmt: skip
+                 reward: RewardWeights | None = None, pool_size: int = 256):  # fmt: skip
         super().__init__()
         if dtype not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
@@ -119,6 +157,12 @@ class RvEntryFunctional(environment.Environment):
         self.reward = common.make_reward(reward)
         self.dispersion = Dispersion.parse(dispersion)
         self.task.check_dispersion(self.dispersion)
+        self.flight_grade = _flight_grade(self.dispersion)
+        if isinstance(pool_size, bool) or not isinstance(pool_size, (int, np.integer)) or pool_size < 1:
+            raise ValueError(f"pool_size must be a positive integer, got {pool_size!r}")
+        self.pool_size = int(pool_size)
+        if self.flight_grade and self.model.wind is not None:
+            raise ValueError("a dispersion with flight-grade errors needs a model without a wind of its own")
         self.max_episode_steps = int(max_episode_steps)
         self.prop = Propagator(self.task, self.ns, self.reward)
         self.target = tuple(float(c) for c in self.task.problem.target_unit_vector())
@@ -128,7 +172,7 @@ class RvEntryFunctional(environment.Environment):
 
     # gymnax's step/reset are jitted with ``self`` static: hash and compare by configuration
     def _key(self):
-        return (type(self), self.model, self.task, self.reward, self.dtype)
+        return (type(self), self.model, self.task, self.reward, self.dtype, self.flight_grade, self.pool_size)
 
     def __hash__(self):
         return hash(self._key())
@@ -142,12 +186,13 @@ class RvEntryFunctional(environment.Environment):
         return self.make_params()
 
     def make_params(self, model: EntryModel | None = None, dispersion=None, max_episode_steps: int | None = None,
-                    nominal=None) -> EnvParams:  # fmt: skip
+                    nominal=None, seed: int = 0) -> EnvParams:  # fmt: skip
         """Params for a model with this environment's structure (its parts' types and tuples).
 
         :param model: default: the environment's. Another model must have the same structure
             (e.g. the same parts with other numbers, or per-vehicle arrays in their place).
         :param nominal: an initial state (12,), checked like ``reset(options={"state": ...})``.
+        :param seed: flight-grade environments: the seed of the pool of flight-grade draws.
         """
         model = self.model if model is None else common.make_model(model)
         leaves = numeric_leaves(model)
@@ -159,18 +204,34 @@ class RvEntryFunctional(environment.Environment):
         if common.check_max_steps(steps) is None:
             raise ValueError("the functional environment needs a time limit (max_episode_steps)")
         x0 = self._nominal if nominal is None else common.check_state(nominal, model.planet.radius, self.task)
-        if dispersion.flight is not None and not dispersion.flight.is_zero:
-            raise ValueError(f"the functional environment flies the scalar and mass dispersions (none, standard, wide, "
-                             f"peer, peer-0.1, custom); the {dispersion.name!r} set's flight-grade errors (profiles, "
-                             "Mach-varying aerodynamics, sensors, navigation) need the Gymnasium vector env "
-                             "(backend='jax' or 'numpy')")  # fmt: skip
+        if _flight_grade(dispersion) and not self.flight_grade:
+            raise ValueError(f"the {dispersion.name!r} set's flight-grade errors (profiles, Mach-varying aerodynamics, "
+                             "sensors, navigation) are compiled structure: make the environment with a flight-grade "
+                             f"dispersion, e.g. RvEntryFunctional(dispersion={dispersion.name!r})")  # fmt: skip
         half = [getattr(dispersion, f) for f in SCALAR_FIELDS]
         # refuses angles that are undefined at this start
         apply_state_dispersion(x0, np.asarray([dispersion.largest(f) for f in SCALAR_FIELDS]))
         f = self.ns.float_dtype
         return EnvParams(tuple(jnp.asarray(v, dtype=f) for v in leaves), jnp.asarray(x0, f),
                          jnp.asarray([*half, dispersion.mass], f), jnp.asarray(dispersion.shape == "gaussian"),
-                         jnp.asarray(dispersion.clip_sigmas, f), jnp.asarray(steps, jnp.int32))  # fmt: skip
+                         jnp.asarray(dispersion.clip_sigmas, f), jnp.asarray(steps, jnp.int32),
+                         self._pool(model, dispersion, seed) if self.flight_grade else None)  # fmt: skip
+
+    def _pool(self, model: EntryModel, dispersion: Dispersion, seed: int) -> FlightPool:
+        """The pool of flight-grade draws (zeros for a set without them)."""
+        from rventry_env.envs.uncertainty import FlightState
+        from rventry_env.task import draw_extras
+
+        errs = FlightState(self.pool_size, model)
+        if _flight_grade(dispersion):
+            rng = np.random.default_rng(seed)
+            for i in range(self.pool_size):
+                errs.assign(i, dispersion, draw_extras(rng, dispersion, self.task.problem))
+        f = self.ns.float_dtype
+        a = lambda v: jnp.asarray(np.ascontiguousarray(v), f)  # noqa: E731
+        return FlightPool(a(errs.log_factors), a(errs.wind_east), a(errs.wind_north), a(errs.aero), a(errs.bias),
+                          a(errs.scale), a(errs.misalignment), a(errs.noise), jnp.asarray(errs.senses), a(errs.dr.T),
+                          a(errs.dv.T))  # fmt: skip
 
     # ------------------------------------------------------------------ gymnax API
     def reset_env(self, key, params: EnvParams):
@@ -178,16 +239,22 @@ class RvEntryFunctional(environment.Environment):
         d = dispersion_draw(key, params, ns.float_dtype)
         x0 = disperse_state(tuple(params.nominal), tuple(d[:9]), ns)
         scales = 1.0 + jnp.concatenate([d[:3], d[9:]])
-        model = self._model(params, scales)
+        errors = None
+        if self.flight_grade:
+            pick = uniforms(key, 1, ns.float_dtype, offset=2 * d.shape[0])[0]
+            i = jnp.minimum((pick * self.pool_size).astype(jnp.int32), self.pool_size - 1)
+            row = jax.tree.map(lambda v: v[i], params.pool)
+            errors = FlightDraw(row, row.dr, row.dv)
+        model = self._model(params, scales, errors)
         flight = start_flight(x0, model, self.prop)
-        obs, _ = self._observe(flight, dcm(*x0[1:5]), model)
-        return obs, EnvState(flight, scales)
+        obs, _, _ = self._observe(key, flight, dcm(*x0[1:5]), model, params, errors, None)
+        return obs, EnvState(flight, scales, errors)
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         a = jnp.clip(jnp.asarray(action, dtype=self.ns.float_dtype), -1.0, 1.0)
-        model = self._model(params, state.scales)
+        model = self._model(params, state.scales, state.errors)
         tr = advance(state.flight, (a[0], a[1]), model, self.prop, params.max_steps_in_episode, self.target)
-        obs, clipped = self._observe(tr.flight, tr.c_ae, model)
+        obs, clipped, errors = self._observe(key, tr.flight, tr.c_ae, model, params, state.errors, tr.out.elapsed)
         done = tr.terminated | tr.truncated
         o = tr.outcome
         info = {
@@ -196,7 +263,7 @@ class RvEntryFunctional(environment.Environment):
             **o.metrics._asdict(), "constraint_violation": o.constraint_violation, "is_success": o.is_success,
             "terminal_penalty": o.terminal_penalty,
         }  # fmt: skip
-        return obs, EnvState(tr.flight, state.scales), tr.reward, done, info
+        return obs, EnvState(tr.flight, state.scales, errors), tr.reward, done, info
 
     def observation_space(self, params: EnvParams | None = None):
         return spaces.Box(jnp.asarray(self.obs_low), jnp.asarray(self.obs_high), self.obs_low.shape, jnp.float32)
@@ -213,15 +280,61 @@ class RvEntryFunctional(environment.Environment):
         return 2
 
     # ------------------------------------------------------------------ helpers
-    def _model(self, params: EnvParams, scales) -> EntryModel:
+    def _model(self, params: EnvParams, scales, errors=None) -> EntryModel:
         model = with_numeric_leaves(self.model, iter(params.model))
         model = scaled_model(model, scales[0], scales[1], scales[2])
-        return with_mass_factor(model, scales[3])
+        model = with_mass_factor(model, scales[3])
+        if errors is None:
+            return model
+        from rventry_env.physics.uncertainty import MachVaryingAerodynamics, ProfileAtmosphere, ProfileWind
+        from rventry_env.task.flight import GRID_START_M, GRID_STEP_M
 
-    def _observe(self, flight: Flight, c_ae, model):
-        raw = jnp.stack(observe_flight(flight, c_ae, model, self.prop, self.target)).astype(jnp.float32)
+        row = errors.row
+        aero = _unchecked(MachVaryingAerodynamics, base=model.vehicle.aerodynamics, lift_p1=row.aero[0],
+                          lift_p2=row.aero[1], drag_p1=row.aero[2], drag_p2=row.aero[3])  # fmt: skip
+        return _replaced(model, vehicle=_replaced(model.vehicle, aerodynamics=aero), atmosphere=_unchecked(
+            ProfileAtmosphere, base=model.atmosphere, start=GRID_START_M, step=GRID_STEP_M, log_factors=row.log_factors),
+            wind=_unchecked(ProfileWind, start=GRID_START_M, step=GRID_STEP_M, east=row.wind_east,
+                            north=row.wind_north))  # fmt: skip
+
+    def _observe(self, key, flight: Flight, c_ae, model, params: EnvParams, errors, elapsed):
+        """The observation (clipped into the Box), whether it needed clipping, and the episode's errors
+        (navigation errors advanced over ``elapsed``): what the sensors and navigation make of the truth."""
+        seen_x, seen_forces, seen_c_ae = flight.x, flight.forces, c_ae
+        if errors is not None:
+            from rventry_env.envs.uncertainty import SensorErrors, sense
+
+            row, f = errors.row, self.ns.float_dtype
+            u = uniforms(key, 6, f, offset=64)
+            noise = jnp.sqrt(-2.0 * jnp.log(u[:3])) * jnp.cos(2.0 * jnp.pi * u[3:]) * row.noise
+            sensor = SensorErrors(tuple(row.bias), tuple(row.scale), tuple(row.misalignment), tuple(noise), row.senses,
+                                  tuple(errors.dr), tuple(errors.dv))  # fmt: skip
+            base = with_numeric_leaves(self.model, iter(params.model))  # the nominal model: what air data assume
+            seen = sense(flight.x, flight.forces, c_ae, sensor.dr, sensor.dv, sensor, base, elapsed, self.ns)
+            seen_x, seen_forces, seen_c_ae = seen.x, seen.features, seen.c_ae
+            errors = errors._replace(dr=jnp.stack(seen.dr), dv=jnp.stack(seen.dv))
+        seen_flight = flight._replace(x=seen_x, forces=seen_forces)
+        raw = jnp.stack(observe_flight(seen_flight, seen_c_ae, model, self.prop, self.target)).astype(jnp.float32)
         clipped = jnp.any((raw < self.obs_low) | (raw > self.obs_high))
-        return jnp.clip(raw, self.obs_low, self.obs_high), clipped
+        return jnp.clip(raw, self.obs_low, self.obs_high), clipped, errors
+
+
+def _flight_grade(dispersion: Dispersion) -> bool:
+    return dispersion.flight is not None and not dispersion.flight.is_zero
+
+
+def _unchecked(cls, **fields):
+    """A frozen part built around traced values, without its constructor's checks (its structure is the
+    checked one of a part the host built, or a profile the pool's draws filled)."""
+    new = object.__new__(cls)
+    for f in dataclasses.fields(cls):
+        object.__setattr__(new, f.name, fields[f.name] if f.name in fields else f.default)
+    return new
+
+
+def _replaced(obj, **changes):
+    """``obj`` with some fields replaced, without its constructor's checks (the values may be traced)."""
+    return _unchecked(type(obj), **{**{f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}, **changes})
 
 
 _GOLDEN32 = 0x9E3779B9
@@ -236,11 +349,11 @@ def _mix32(z):
     return z ^ (z >> 16)
 
 
-def uniforms(key, k: int, dtype):
+def uniforms(key, k: int, dtype, offset: int = 0):
     """``k`` numbers uniform in (0, 1) from ``key``: two words of ``jax.random.bits``, each number
-    the hash of them and its counter (53 bits for float64, 24 for float32)."""
+    the hash of them and its counter (``offset`` + 0 .. k-1; 53 bits for float64, 24 for float32)."""
     w = jax.random.bits(key, (2,), jnp.uint32)
-    j = jnp.arange(k, dtype=jnp.uint32)
+    j = jnp.arange(offset, offset + k, dtype=jnp.uint32)
     hi = _mix32(w[0] ^ _mix32(w[1] + j * jnp.uint32(_GOLDEN32)))
     if dtype == jnp.float32:
         return ((hi >> 8).astype(dtype) + 0.5) * (1.0 / 16777216.0)
@@ -261,15 +374,7 @@ def dispersion_draw(key, params: EnvParams, dtype):
 
 def with_mass_factor(model: EntryModel, factor) -> EntryModel:
     """The model with its vehicle's mass times ``factor`` (a traced value: built without the checks)."""
-    veh = object.__new__(type(model.vehicle))
-    for f in dataclasses.fields(model.vehicle):
-        object.__setattr__(veh, f.name, getattr(model.vehicle, f.name))
-    object.__setattr__(veh, "mass", model.vehicle.mass * factor)
-    new = object.__new__(type(model))
-    for f in dataclasses.fields(model):
-        object.__setattr__(new, f.name, getattr(model, f.name))
-    object.__setattr__(new, "vehicle", veh)
-    return new
+    return _replaced(model, vehicle=_replaced(model.vehicle, mass=model.vehicle.mass * factor))
 
 
 def _structure(obj):
@@ -284,4 +389,4 @@ def _structure(obj):
     return obj
 
 
-__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "DTYPES", "uniforms", "dispersion_draw", "with_mass_factor"]
+__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "DTYPES", "uniforms", "dispersion_draw", "with_mass_factor"]
