@@ -176,6 +176,26 @@ def test_flight_grade_sets_fly_the_same_episodes_per_draw_in_jax(name):
     assert u._fn.sensing == (name == "flight") and u._step_fn._cache_size() == 1
 
 
+def test_autoresets_into_another_set_structure_keep_flying_with_numpy():
+    """A one-off reset dispersion without flight-grade errors, then autoresets into the constructor's
+    flight set: the running flights carry on and the new episodes fly NumPy's draws."""
+    kw = dict(num_envs=3, vectorization_mode="vector_entry_point", dispersion="flight", max_episode_steps=8)
+    venvs = [gym.make_vec("RvEntry-v0", **kw), gym.make_vec("RvEntry-v0", backend="jax", **kw)]
+    states = _batch(3, 0)  # copy 0 starts 20 m up, diving: it ends at once and restarts mid-flight of the others
+    obs = [v.reset(seed=2, options={"dispersion": "none", "state": states})[0] for v in venvs]
+    rng = np.random.default_rng(0)
+    ends = []
+    for t in range(20):
+        a = np.clip(rng.normal(0, 0.3, (3, 2)), -1, 1)
+        out = [v.step(a) for v in venvs]
+        np.testing.assert_allclose(out[1][0], out[0][0], atol=1e-5)
+        np.testing.assert_array_equal(out[1][3], out[0][3])
+        np.testing.assert_allclose(out[1][4]["navigation_state"], out[0][4]["navigation_state"], rtol=1e-9)
+        ends.append(out[0][2] | out[0][3])
+    assert venvs[1].unwrapped._fn.sensing
+    assert ends[0][0] and not ends[0][1:].any()  # copy 0 alone ended first
+
+
 def test_float32_error_at_impact_is_bounded():
     """Float32 physics drifts from float64; the README states the figure, this bounds it (100 m)."""
     _, ended, finals, _, _ = _fly_both("float32", "standard", n=4, seed=11)

@@ -194,12 +194,17 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         fn = self._compiled.get(key)
         if fn is None:
             fn = self._compiled[key] = _Compiled(self, host, dynamic, sensing)
-        if fn is not self._fn:
-            self._carry = None  # a new structure: every copy restarts (only a full reset changes it)
-        self._fn = fn
         f = self._ns.float_dtype
-        self._dyn = tuple(jnp.asarray(np.ascontiguousarray(leaves[i]), f) for i in dynamic)
         self._sensor = self._sensor_errors() if sensing else None
+        if fn is not self._fn and self._carry is not None:
+            # an autoreset drew a set of another structure (a reset's one-off dispersion before it): the
+            # flights go on; the navigation errors start from the host's (zero where nothing sensed before)
+            nav = None
+            if sensing:
+                nav = self._carry[1] if self._fn.sensing else (self._sensor.dr, self._sensor.dv)
+            self._carry = (self._carry[0], nav)
+        self._fn = fn
+        self._dyn = tuple(jnp.asarray(np.ascontiguousarray(leaves[i]), f) for i in dynamic)
         self._carry = fn.restart(self._carry, jnp.asarray(self._x0, f), jnp.asarray(mask), self._dyn, self._sensor)
         return extras
 
