@@ -292,10 +292,10 @@ class RvEntryFunctional(environment.Environment):
         row = errors.row
         aero = _unchecked(MachVaryingAerodynamics, base=model.vehicle.aerodynamics, lift_p1=row.aero[0],
                           lift_p2=row.aero[1], drag_p1=row.aero[2], drag_p2=row.aero[3])  # fmt: skip
-        return _replaced(model, vehicle=_replaced(model.vehicle, aerodynamics=aero), atmosphere=_unchecked(
-            ProfileAtmosphere, base=model.atmosphere, start=GRID_START_M, step=GRID_STEP_M, log_factors=row.log_factors),
-            wind=_unchecked(ProfileWind, start=GRID_START_M, step=GRID_STEP_M, east=row.wind_east,
-                            north=row.wind_north))  # fmt: skip
+        atmosphere = _unchecked(ProfileAtmosphere, base=model.atmosphere, start=GRID_START_M, step=GRID_STEP_M,
+                                log_factors=row.log_factors)  # fmt: skip
+        wind = _unchecked(ProfileWind, start=GRID_START_M, step=GRID_STEP_M, east=row.wind_east, north=row.wind_north)
+        return _replaced(model, vehicle=_replaced(model.vehicle, aerodynamics=aero), atmosphere=atmosphere, wind=wind)
 
     def _observe(self, key, flight: Flight, c_ae, model, params: EnvParams, errors, elapsed):
         """The observation (clipped into the Box), whether it needed clipping, and the episode's errors
@@ -389,4 +389,5 @@ def _structure(obj):
     return obj
 
 
-__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "DTYPES", "uniforms", "dispersion_draw", "with_mass_factor"]
+__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "DTYPES", "uniforms",
+           "dispersion_draw", "with_mass_factor"]  # fmt: skip

@@ -208,15 +208,16 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         self._carry = fn.restart(self._carry, jnp.asarray(self._x0, f), jnp.asarray(mask), self._dyn, self._sensor)
         return extras
 
-    def _sensor_errors(self, noise=None) -> SensorErrors:
-        """The copies' accelerometer errors and navigation fixes on the device (noise: this step's)."""
+    def _sensor_errors(self) -> SensorErrors:
+        """The copies' accelerometer errors, this sample's noise and the navigation fixes, on the device."""
         e, f = self._errors, self._ns.float_dtype
-        if noise is None:
-            noise = e.noise_sample()
-        cols = lambda a: tuple(jnp.asarray(np.ascontiguousarray(a[:, j]), f) for j in range(3))  # noqa: E731
         rows = lambda a: tuple(jnp.asarray(a[j], f) for j in range(3))  # noqa: E731
-        return SensorErrors(cols(e.bias), cols(e.scale), cols(e.misalignment), cols(noise), jnp.asarray(e.senses),
-                            rows(e.dr), rows(e.dv))  # fmt: skip
+        return SensorErrors(self._columns(e.bias), self._columns(e.scale), self._columns(e.misalignment),
+                            self._columns(e.noise_sample()), jnp.asarray(e.senses), rows(e.dr), rows(e.dv))  # fmt: skip
+
+    def _columns(self, a: np.ndarray) -> tuple:
+        """The 3 columns of an (N, 3) host array as device arrays."""
+        return tuple(jnp.asarray(np.ascontiguousarray(a[:, j]), self._ns.float_dtype) for j in range(3))
 
     def _measure(self, elapsed=None, active=None) -> None:
         """Observation and info values of the current flights (after a reset of some copies)."""
@@ -252,8 +253,7 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         sensor = None
         if self._fn.sensing:  # the noise sample of the step's end, the NumPy environment's counter advanced alike
             self._errors.step += np.asarray(active, np.int64)
-            noise = self._errors.noise_sample()
-            sensor = self._sensor._replace(noise=tuple(jnp.asarray(np.ascontiguousarray(noise[:, j]), f) for j in range(3)))
+            sensor = self._sensor._replace(noise=self._columns(self._errors.noise_sample()))
         self._carry, obs, rows, flags = self._fn.step(self._carry, self._dyn, jnp.asarray(a, f), jnp.asarray(active),
                                                       sensor)  # fmt: skip
         obs, rows, flags = jax.device_get((obs, rows, flags))
