@@ -460,15 +460,10 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         cov = np.zeros((len(theta), len(theta)))
         cov[np.ix_(cols, cols)] = cov_c
         attribution = _describe(ctx, lin, theta, cov, best["channels"])
-    if best is None or not gain > threshold:
-        # the leading correction is reported as such, not as an attribution
-        what = (f"the best ({' + '.join(best['channels'])} over {best['axis']}: "
-                + "; ".join(f"{e['channel']} {e['size']:+.3g} {e['size_unit']} over {_fmt_band(e)}" for e in attribution)
-                + f") gains {gain:.1f} in BIC on {n_eff:.1f} effective samples, not more than {threshold:g}"
-                ) if best else "every leading correction is outside its physical bounds"  # fmt: skip
-        out.update({"attribution": [], "rivals": [], "points_to": [],
-                    "leading": {"attribution": attribution, "bic_gain": gain, "significant": False} if best else None,
-                    "statement": f"No force channel explains the residual: {what}."})  # fmt: skip
+    if best is None:
+        out.update({"attribution": [], "rivals": [], "points_to": [], "leading": None,
+                    "statement": "No force channel explains the residual: every leading correction is outside its "
+                                 "physical bounds."})  # fmt: skip
         return out
     resid = _residual_matrix(lin, r) * ctx.sigma[None, :]
     rivals = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"],
@@ -478,13 +473,25 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     from rventry_env.validation.report.diagnostics import error_metrics
 
     names = " + ".join(best["channels"])
-    bands = "; ".join(f"{e['channel']} {e['size']:+.3g} {e['size_unit']} over {_fmt_band(e)}" for e in attribution)
+    bands = "; ".join(f"{e['channel']} {e['size']:+.3g} +/- {e['coefficient_stderr_max']:.2g} {e['size_unit']} over "
+                      f"{_fmt_band(e)}{_mach_text(e)}" for e in attribution)  # fmt: skip
+    after = error_metrics(resid, ctx.replay.record.kind)
+    out["residual_after_trace"] = resid  # for the plot; not written to the report
+    if not gain > threshold:
+        # the leading correction is reported as such, not as an attribution
+        out.update({"attribution": [], "rivals": [], "points_to": [],
+                    "leading": {"attribution": attribution, "bic_gain": gain, "significant": False, "rivals": rivals,
+                                "after_leading": after, "would_point_to": pts},
+                    "statement": f"No force channel explains the residual significantly: the leading correction, "
+                                 f"{names} over {best['axis']} ({bands}), gains {gain:.1f} in BIC on {n_eff:.1f} "
+                                 f"effective samples, not more than {threshold:g}. Were it real, it would point to: "
+                                 + "; ".join(pts) + "."})  # fmt: skip
+        return out
     out.update({
         "attribution": attribution,
         "bic_gain": gain,
         "rivals": rivals,
-        "after_trace": error_metrics(resid, ctx.replay.record.kind),
-        "residual_after_trace": resid,  # for the plot; not written to the report
+        "after_trace": after,
         "points_to": pts,
         "statement": f"Traced to {names} over {best['axis']}: {bands}. It points to: " + "; ".join(pts) + ".",
     })  # fmt: skip
