@@ -162,6 +162,8 @@ class LearnedGuidance(Law):
         measurement's ``flying`` mask).
     """
 
+    retargets = True  # its inputs see the target through the observation's target features
+
     def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
                  horizon: Horizon | None = None, load_relief_margin: float | None = None):  # fmt: skip
         model = EntryModel() if model is None else model

@@ -61,7 +61,10 @@ class Predictor:
 
 
 class _Direct(Law):
-    """A direct policy: the model's action is the environment's."""
+    """A direct policy: the model's action is the environment's (it aims where the observation's
+    target features point, so it flies any target it is told)."""
+
+    retargets = True
 
     def __init__(self, predict):
         self.predict = predict
@@ -186,6 +189,12 @@ class SB3Policy(Law):
 
     def episode_stats(self) -> list[dict]:
         return self._act.episode_stats()
+
+    @property
+    def retargets(self) -> bool:
+        """As the law it flies: direct and student-mode policies aim by the observation, a residual
+        on TV-LQR tracks the fixed-target reference."""
+        return bool(getattr(self._act, "retargets", False))
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_mean is None:

@@ -6,12 +6,16 @@ For each set and law this runs what ``rventry evaluate --agent LAW --dispersion 
 ``out/oracle_SET.json`` (``rventry oracle --dispersion SET --episodes 50 --json out/oracle_SET.json``)
 when it is there.
 
+``--targets footprint`` flies each set on the footprint task (a target per episode within
++/-300 km downrange and +/-150 km crossrange, told to the law); a law that cannot re-target is
+listed as refused.
+
 ``--effects`` instead flies the laws on the ``flight`` set's parts one at a time (its scalar
 dispersions alone, the climatology alone, the density perturbation alone, the winds alone, the
 Mach-dependent aerodynamics alone, the sensors and navigation alone): which effect breaks which law.
 
 Run: ``python scripts/bench_sets.py [--sets flight peer peer-0.1] [--laws ...] [--episodes 200]
-[--mpc-episodes 20] [--workers 2] [--effects] --json out/bench_sets.json``
+[--mpc-episodes 20] [--workers 2] [--targets footprint] [--effects] --json out/bench_sets.json``
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ def main():
     ap.add_argument("--episodes", type=int, default=200)
     ap.add_argument("--mpc-episodes", type=int, default=20)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--targets", choices=("fixed", "footprint"), default="fixed")
     ap.add_argument("--effects", action="store_true", help="the flight set's effects one at a time")
     ap.add_argument("--json", required=True)
     args = ap.parse_args()
@@ -40,13 +45,20 @@ def main():
     from rventry_env.evaluation.cli import run_agent
     from rventry_env.util.files import write_json
 
-    out: dict = {"episodes": args.episodes, "mpc_episodes": args.mpc_episodes, "sets": {}}
+    out: dict = {"episodes": args.episodes, "mpc_episodes": args.mpc_episodes, "targets": args.targets, "sets": {}}
     for s in args.sets:
         rows = {}
         for law in args.laws:
             n = args.mpc_episodes if law == "mpc" else args.episodes
             t0 = time.time()
-            _, summary = run_agent(law, n, s, 0, history=False, workers=args.workers)
+            try:
+                _, summary = run_agent(law, n, s, 0, history=False, workers=args.workers, targets=args.targets)
+            except ValueError as exc:
+                if "cannot re-target" not in str(exc):
+                    raise
+                rows[law] = {"refused": str(exc)}
+                print(f"{s:9s} {law:10s} refused: cannot re-target", flush=True)
+                continue
             rows[law] = {k: summary[k] for k in ("episodes", "success_rate", "success_rate_ci", "precision_success_rate",
                                                  "precision_success_rate_ci", "miss_m", "endings",
                                                  "constraint_violation_rate")}  # fmt: skip
@@ -55,11 +67,11 @@ def main():
                   f"precision {summary['precision_success_rate']:.2f}, {time.time() - t0:.0f} s", flush=True)  # fmt: skip
         ceiling = None
         path = Path("out") / f"oracle_{s}.json"
-        if path.exists():
+        if path.exists() and args.targets == "fixed":
             ceiling = json.loads(path.read_text())["summary"]
         out["sets"][s] = {"laws": rows, "oracle": ceiling}
         write_json(args.json, out)
-        print(table(s, rows, ceiling))
+        print(table(s if args.targets == "fixed" else f"{s}, footprint", rows, ceiling))
 
 
 def effect_sets() -> dict:
@@ -113,6 +125,9 @@ def table(name: str, rows: dict, ceiling: dict | None) -> str:
              "", "| law | episodes | success [95 % CI] | precision [95 % CI] | miss p50 / p95 (m) | path-bound breaches |",
              "|---|---|---|---|---|---|"]  # fmt: skip
     for law, r in rows.items():
+        if "refused" in r:
+            lines.append(f"| `{law}` | - | refused: cannot re-target | | | |")
+            continue
         m = r["miss_m"]
         lines.append(f"| `{law}` | {r['episodes']} | {ci(r['success_rate'], r['success_rate_ci'])} | "
                      f"{ci(r['precision_success_rate'], r['precision_success_rate_ci'])} | "

@@ -118,7 +118,12 @@ def test_rollout_hands_a_law_only_what_a_vehicle_measures():
 
     rollout(Spy(), 3, dispersion="standard", max_episode_steps=4)
     assert seen and all(s == {"observation": (3, 26), "time_s": (3,), "navigation_state": (3, 12),
-                              "sensed_accel_b": (3, 3), "flying": (3,)} for s in seen)  # fmt: skip
+                              "sensed_accel_b": (3, 3), "flying": (3,), "target_e": ()} for s in seen)  # fmt: skip
+    # on a footprint task the target it is told is the only addition
+    seen.clear()
+    Spy.retargets = True
+    rollout(Spy(), 3, dispersion="standard", max_episode_steps=4, task=EntryTask(targets="footprint"))
+    assert seen and all(s["target_e"] == (3, 3) for s in seen)
 
 
 def test_rollout_hands_a_law_the_navigation_state_and_the_sensors_not_the_truth_or_the_draw():
@@ -141,8 +146,9 @@ def test_rollout_hands_a_law_the_navigation_state_and_the_sensors_not_the_truth_
     np.testing.assert_array_equal(first.sensed_accel_b, info["sensed_accel_b"])
     assert np.all(np.abs(first.navigation_state[:, 0] - venv.state[:, 0]) > 1e-3)
     assert np.all(np.abs(first.sensed_accel_b - np.stack(venv._forces.aero_b, axis=-1)) > 0)
+    # the target is part of the mission a law is told, not of the draw
     assert set(Measurement.__dataclass_fields__) == {"observation", "time_s", "navigation_state", "sensed_accel_b",
-                                                     "flying"}  # fmt: skip
+                                                     "flying", "target_e"}  # fmt: skip
     assert "dispersion_draw" in info
 
 

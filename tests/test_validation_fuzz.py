@@ -100,6 +100,7 @@ RECORD_CASES = {
     "empty": (lambda t: "", ["empty file"]),
     "header only": (lambda t: t.splitlines()[0] + "\n", ["no data rows"]),
     "nan literal": (lambda t: _set(t, 4, "y_m", "nan"), ["row 6, column y_m", "'nan'"]),
+    "float overflow": (lambda t: _set(t, 9, "vx_mps", "1e400"), ["row 11, column vx_mps", "overflows"]),
     "milliseconds": (lambda t: _scale_time(t, 1000.0), ["column t_s", "milliseconds"]),
     "one long gap": (lambda t: _shift_after(t, 30, 1e5), ["column t_s", "without an observation"]),
     "four rows": (lambda t: "\n".join(t.splitlines()[:5]) + "\n", ["only 4 row(s)"]),

@@ -79,6 +79,11 @@ def test_nan_where_required(tmp_path):
     p.write_text("\n".join(lines) + "\n")
     with pytest.raises(RecordError, match=r"row 5, column y_m: 'NaN' where a value is required"):
         load_record(p)
+    fields[2] = "1e400"  # parses to inf: an overflow, not a literal infinity
+    lines[4] = ",".join(fields)
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RecordError, match=r"row 5, column y_m: '1e400' overflows a 64-bit float"):
+        load_record(p)
     lines = _write(tmp_path, t, cols).read_text().splitlines()
     lines[2] = "," + lines[2].split(",", 1)[1]  # empty time in file line 3
     p.write_text("\n".join(lines) + "\n")

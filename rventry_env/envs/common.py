@@ -18,13 +18,14 @@ from rventry_env.physics.model import EntryModel
 class EntryEnvSetup:
     """Construction shared by :class:`RvEntryEnv` and :class:`RvEntryVectorEnv`."""
 
-    def _configure(self, model, task, reward, dt, substeps, dispersion, render_mode, ns) -> tuple[spaces.Box, spaces.Box]:
+    def _configure(self, model, task, reward, dt, substeps, dispersion, render_mode, ns,
+                   targets=None) -> tuple[spaces.Box, spaces.Box]:  # fmt: skip
         """Validate and store the arguments; return the single-copy (observation, action) spaces."""
         from rventry_env.envs.observation import observation_box
         from rventry_env.envs.propagation import Propagator
 
         self.model = make_model(model)
-        self.task = make_task(task, dt, substeps)
+        self.task = make_task(task, dt, substeps, targets)
         self.reward = make_reward(reward)
         self.dispersion = Dispersion.parse(dispersion)
         self.task.check_dispersion(self.dispersion)
@@ -34,7 +35,9 @@ class EntryEnvSetup:
         self.dt = self.task.dt
         self._radius = self.model.planet.radius
         self._g0 = self.model.planet.g0
-        self._target = tuple(float(c) for c in self.task.problem.target_unit_vector())
+        # the episode's target, unit vector in E (per copy in the vector env with a footprint)
+        self._nominal_target = tuple(float(c) for c in self.task.problem.target_unit_vector())
+        self._target = self._nominal_target
         self._nominal = self.task.problem.initial_state(self.model.planet.radius)
         self._obs_low, self._obs_high = observation_box(self.task, self._radius)
         self._prop = Propagator(self.task, ns, self.reward)
@@ -157,7 +160,7 @@ def reset_options(options) -> dict:
     return dict(options)
 
 
-def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) -> EntryTask:
+def make_task(task: EntryTask | None, dt: float | None, substeps: int | None, targets: str | None = None) -> EntryTask:
     task = EntryTask() if task is None else task
     if not isinstance(task, EntryTask):
         raise TypeError(f"task must be an EntryTask, got {type(task).__name__}")
@@ -166,6 +169,8 @@ def make_task(task: EntryTask | None, dt: float | None, substeps: int | None) ->
         changes["dt"] = float(dt)
     if substeps is not None:
         changes["substeps"] = substeps
+    if targets is not None:
+        changes["targets"] = targets
     return replace(task, **changes) if changes else task
 
 

@@ -101,6 +101,9 @@ class RvEntryFunctional(environment.Environment):
         self.dtype = dtype
         self.model = common.make_model(model)
         self.task = common.make_task(task, dt, substeps)
+        if self.task.targets != "fixed":
+            raise ValueError(f"the functional environment flies the fixed target; targets={self.task.targets!r} "
+                             "needs the NumPy environments")  # fmt: skip
         self.reward = common.make_reward(reward)
         self.dispersion = Dispersion.parse(dispersion)
         self.task.check_dispersion(self.dispersion)

@@ -49,6 +49,8 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         if render_mode is not None:
             raise ValueError(f"backend='jax' does not render (render_mode={render_mode!r}); use backend='numpy'")
         super().__init__(num_envs, **kwargs)
+        if self.task.targets != "fixed":
+            raise ValueError(f"backend='jax' flies the fixed target; targets={self.task.targets!r} needs backend='numpy'")
         self.dtype = dtype
         self._ns = jax_ns(dtype)
         self._jprop = Propagator(self.task, self._ns, self.reward)

@@ -130,7 +130,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     ## Arguments
 
     ``gym.make("RvEntry-v0", model=None, task=None, reward=None, dt=None, substeps=None,
-    dispersion=None, render_mode=None)``
+    dispersion=None, render_mode=None, targets=None)``
 
     * ``model``: an :class:`~rventry_env.physics.EntryModel` (gravity, atmosphere,
       vehicle/aerodynamics, wind parts); default: the documented defaults (docs/conventions.md).
@@ -142,6 +142,11 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     * ``dispersion``: see Starting State.
     * ``render_mode``: ``"rgb_array"`` draws altitude and speed against time and
       the ground track toward the target.
+    * ``targets``: ``"fixed"`` (the task's default: the paper's target) or ``"footprint"``:
+      each episode draws its target within +/-300 km downrange and +/-150 km crossrange of the
+      paper's (:class:`~rventry_env.task.Footprint`), after the dispersion's draws. The
+      observation's target features follow it, and ``info["target_e"]`` tells it (unit vector
+      in E components) at reset and every step.
 
     ``env.unwrapped.state`` is the float64 (12,) state in the documented order (docs/conventions.md);
     ``env.unwrapped.dt`` the control step.
@@ -168,10 +173,11 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         substeps: int | None = None,
         dispersion: Dispersion | dict | str | None = None,
         render_mode: str | None = None,
+        targets: str | None = None,
         max_episode_steps: int | None = MAX_EPISODE_STEPS,
     ):
         self.observation_space, self.action_space = self._configure(
-            model, task, reward, dt, substeps, dispersion, render_mode, MATH
+            model, task, reward, dt, substeps, dispersion, render_mode, MATH, targets
         )
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self._limit = self.max_episode_steps  # this episode's: the own limit or a shorter outer one
@@ -203,6 +209,8 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         x0 = common.check_state(options["state"], self._radius, self.task) if "state" in options else self._nominal
         d = draw_dispersion(self.np_random, dispersion)
         extras = draw_extras(self.np_random, dispersion, self.task.problem)
+        target = self.task.draw_target(self.np_random, self._radius)
+        self._target = self._nominal_target if target is None else tuple(float(c) for c in target)
         self._errors = FlightState(1, self.model)
         self._errors.assign(0, dispersion, extras)
         if not dispersion.is_zero:
@@ -328,6 +336,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
             "action_clipped": action_clipped,
             "alpha_saturated": bool(alpha_saturated),
             "observation_clipped": obs_clipped,
+            "target_e": np.array(self._target),
         }
 
     def _finish(self, info: dict, status: int, terminated: bool) -> float:

@@ -39,7 +39,6 @@ class FlightState:
     def __init__(self, n: int, model: EntryModel):
         self.n = n
         self.base = model
-        self._log_base = None  # ln of the model's own density on the grid, (K, 1) or (K, N): when first needed
         k = GRID_POINTS
         self.mass = np.ones(n)
         # profiles in Fortran order: see physics.uncertainty.table_gather
@@ -75,12 +74,8 @@ class FlightState:
         self.any_model = True
         self.mass[i] = 1.0 + extras["mass"]
         lf = extras["density_perturbation"].copy()
-        if "log_density_msis" in extras:
-            if self._log_base is None:
-                # the model's parameters may be per copy: one column per copy then
-                self._log_base = np.log(np.broadcast_to(self.base.atmosphere.density(GRID_M[:, None], NUMPY),
-                                                        (GRID_M.size, 1 if self.n == 1 else self.n)))  # fmt: skip
-            lf += extras["log_density_msis"] - self._log_base[:, i if self._log_base.shape[1] > 1 else 0]
+        if "log_density_climate" in extras:
+            lf += extras["log_density_climate"]
         self.log_factors[i] = lf
         self.wind_east[i] = extras["wind_east"]
         self.wind_north[i] = extras["wind_north"]

@@ -89,6 +89,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         substeps: int | None = None,
         dispersion: Dispersion | dict | str | None = None,
         render_mode: str | None = None,
+        targets: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
     ):
         if int(num_envs) != num_envs or num_envs < 1:
@@ -100,7 +101,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self.num_envs = int(num_envs)
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self.single_observation_space, self.single_action_space = self._configure(
-            model, task, reward, dt, substeps, dispersion, render_mode, NUMPY
+            model, task, reward, dt, substeps, dispersion, render_mode, NUMPY, targets
         )
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -159,6 +160,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._prev_done = np.zeros(n, dtype=bool)
         self._frozen = np.zeros(n, dtype=bool)  # DISABLED: copies whose episode ended
         self.dispersion_draw = np.zeros((n, 9))
+        self._targets = np.tile(self._nominal_target, (n, 1))  # each copy's target, unit vector in E
         self._errors = FlightState(n, self.model)
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
         extras = self._reset_copies(np.arange(n), dispersion)
@@ -287,7 +289,12 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         for j, i in enumerate(idx):  # each copy's draws in the single env's order
             d[j] = draw_dispersion(self._rngs[i], dispersion)
             extras.append(draw_extras(self._rngs[i], dispersion, self.task.problem))
+            target = self.task.draw_target(self._rngs[i], self._radius)
+            if target is not None:
+                self._targets[i] = target
             self._errors.assign(i, dispersion, extras[-1])
+        if self.task.targets != "fixed":
+            self._target = tuple(self._targets[:, k].copy() for k in range(3))
         x0 = self._initial[idx]
         if not dispersion.is_zero:
             x0 = apply_state_dispersion(x0, d)
@@ -321,6 +328,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         if self._sensed is not None:
             infos["sensed_accel_b"] = self._sensed.copy()
         infos["navigation_state"] = self.state if self._nav is None else self._nav.copy()
+        infos["target_e"] = self._targets.copy()
         for k in TERMINAL_KEYS:
             infos[k] = np.full(n, "", dtype=object) if k == "failure" else np.zeros(n, dtype=float)
             infos["_" + k] = np.zeros(n, dtype=bool)

@@ -11,6 +11,7 @@ import argparse
 import time
 from pathlib import Path
 
+from rventry_env.task.definition import TARGETS
 from rventry_env.util.args import agent_spec, positive_int, seed
 from rventry_env.util.files import check_writable, output_set, write_json
 
@@ -39,6 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--episodes", type=positive_int, default=1, help="number of episodes (default 1)")
     _dispersion_arguments(ev)
     ev.add_argument("--seed", type=seed, default=0, help="episode i uses seed SEED + i (default 0)")
+    _targets_argument(ev)
     ev.add_argument("--json", required=True, metavar="PATH", help="write the summary and per-episode records here")
     ev.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     _parallel_arguments(ev)
@@ -70,6 +72,13 @@ def _parallel_arguments(parser) -> None:
                              "the cores available)")  # fmt: skip
     parser.add_argument("--cluster", metavar="ADDRESS",
                         help="run the episodes on this Dask scheduler instead (tcp://host:8786; needs rventry[cluster])")
+
+
+def _targets_argument(parser) -> None:
+    parser.add_argument("--targets", choices=TARGETS, default="fixed",
+                        help="fixed: the paper's target; footprint: a target per episode within +/-300 km downrange "
+                             "and +/-150 km crossrange of it, told to the law (laws that cannot re-target are "
+                             "refused)")  # fmt: skip
 
 
 def _dispersion_arguments(parser, default: str = "none") -> None:
@@ -130,20 +139,27 @@ def check_memory(episodes: int, history: bool, option: str = "--episodes") -> No
 
 
 def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
-              cluster: str | None = None, progress=None):  # fmt: skip
-    """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary)."""
+              cluster: str | None = None, progress=None, targets: str = "fixed"):  # fmt: skip
+    """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary).
+
+    :param targets: the task's targets (``"fixed"`` or ``"footprint"``); a law that cannot
+        re-target is refused here, before any episode flies.
+    """
     from rventry_env.task import EntryTask
-    from rventry_env.evaluation.parallel import EvaluationJob, evaluate
+    from rventry_env.evaluation.parallel import EvaluationJob, cached_law, evaluate
     from rventry_env.evaluation.summary import summarize
+    from rventry_env.guidance.law import check_retargets
     from rventry_env.reference import load_reference
 
-    task = EntryTask()
+    task = EntryTask(targets=targets)
+    if targets != "fixed":
+        check_retargets(cached_law(agent, task), task)
     job = EvaluationJob(agent, dispersion, task, record_history=history)
     batch = evaluate(job, list(range(seed, seed + episodes)), workers=workers, cluster=cluster, progress=progress)
     return batch, summarize(batch, float(load_reference().cost), task)
 
 
-def _document(agent, episodes, dispersion, seed, batch, summary) -> dict:
+def _document(agent, episodes, dispersion, seed, batch, summary, targets: str = "fixed") -> dict:
     from rventry_env.task import Dispersion
     from rventry_env.reference import load_reference
 
@@ -154,6 +170,7 @@ def _document(agent, episodes, dispersion, seed, batch, summary) -> dict:
         "dispersion_set": dispersion,
         "dispersion": Dispersion.parse(dispersion).describe(),
         "seed": seed,
+        "target_set": targets,
         "provenance": batch.provenance,
         "reference": {"cost": float(ref.cost), "tf_s": float(ref.tf)},
         "summary": summary,
@@ -182,8 +199,8 @@ def _evaluate(args) -> int:
         job = progress.add_task(f"{args.agent}: {args.episodes} episode(s)", total=args.episodes)
         batch, summary = run_agent(args.agent, args.episodes, dispersion, args.seed, history=bool(args.plots),
                                    workers=args.workers, cluster=args.cluster,
-                                   progress=lambda n: progress.advance(job, n))  # fmt: skip
-    doc = _document(args.agent, args.episodes, dispersion, args.seed, batch, summary)
+                                   progress=lambda n: progress.advance(job, n), targets=args.targets)  # fmt: skip
+    doc = _document(args.agent, args.episodes, dispersion, args.seed, batch, summary, args.targets)
     doc["wall_time_s"] = time.time() - t0
     doc["workers"] = None if args.cluster else args.workers
     with output_set():  # the report and its plots: all replaced, or none

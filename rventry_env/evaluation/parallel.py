@@ -232,6 +232,7 @@ def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
         dispersion_draw=np.concatenate([b.dispersion_draw for b in batches]),
         seeds=np.concatenate([b.seeds for b in batches]),
         flight_draw={k: np.concatenate([b.flight_draw[k] for b in batches]) for k in batches[0].flight_draw},
+        targets={k: np.concatenate([b.targets[k] for b in batches]) for k in batches[0].targets},
         law_stats=[s for b in batches for s in b.law_stats],
         provenance=batches[0].provenance,
         lengths=np.concatenate([b.lengths for b in batches]),

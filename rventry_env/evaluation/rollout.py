@@ -21,7 +21,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from rventry_env.envs.vector import RvEntryVectorEnv
-from rventry_env.guidance.law import GuidanceLaw, Measurement, check_law
+from rventry_env.guidance.law import GuidanceLaw, Measurement, check_law, check_retargets
 from rventry_env.physics.model import EntryModel
 from rventry_env.task import SCALAR_FIELDS, Dispersion, EntryTask
 
@@ -45,6 +45,8 @@ class EpisodeBatch:
     seeds: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     # flight-grade draws with one number per episode (mass, climate drivers), name -> (N,)
     flight_draw: dict = field(default_factory=dict)
+    # each episode's target on a footprint task (target_latitude_deg, target_longitude_deg -> (N,)); empty: fixed
+    targets: dict = field(default_factory=dict)
     law_stats: list = field(default_factory=list)  # per episode, from the law's episode_stats()
     provenance: dict | None = None  # the law's (GuidanceLaw.provenance)
     # histories: time (T,), states (T, N, 12), actions (T, N, 2); T = longest episode
@@ -73,6 +75,7 @@ class EpisodeBatch:
                 "dispersion": {**dict(zip(SCALAR_FIELDS, map(float, self.dispersion_draw[i]))),
                                **{k: float(v[i]) for k, v in self.flight_draw.items()}},
             }
+            rec.update({k: float(v[i]) for k, v in self.targets.items()})
             if self.seeds.size:
                 rec["seed"] = int(self.seeds[i])
             if self.law_stats:
@@ -120,21 +123,25 @@ def rollout(
     # time for it stand still too
     venv = RvEntryVectorEnv(num_envs=n, task=task, model=model, dispersion=dispersion,
                             autoreset_mode=AutoresetMode.DISABLED, **kwargs)  # fmt: skip
+    check_retargets(check_law(policy), venv.task)
     obs, info = venv.reset(seed=seeds)
-    check_law(policy).reset(n)
+    policy.reset(n)
+    fixed_target = venv.task.targets == "fixed"
     done = np.zeros(n, bool)
     keys = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
             "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
     final = {k: np.zeros(n, dtype=object if k == "failure" else (bool if k in ("constraint_violation", "is_success") else float)) for k in keys}
     draws = venv.dispersion_draw.copy()
     flight_draw = episode_draws(info["dispersion_draw"])
+    targets = {} if fixed_target else target_degrees(info["target_e"])
     lengths = np.zeros(n, int)
     hist_t, hist_x, hist_a = [], [], []
     time_s = np.zeros(n)
     while not done.all():
         state = venv.state
         # what the law is given: the navigation state and the sensors, never the truth or the draw
-        measured = Measurement(obs, time_s.copy(), info["navigation_state"].copy(), info["sensed_accel_b"].copy(), ~done)
+        measured = Measurement(obs, time_s.copy(), info["navigation_state"].copy(), info["sensed_accel_b"].copy(), ~done,
+                               None if fixed_target else info["target_e"].copy())  # fmt: skip
         actions = np.asarray(policy(measured), dtype=np.float32)
         if record_history:
             hist_t.append(time_s.copy())
@@ -156,13 +163,20 @@ def rollout(
     stats = list(policy.episode_stats())
     batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths,
                          seeds=np.array(seeds), law_stats=stats, provenance=policy.provenance,
-                         flight_draw=flight_draw)  # fmt: skip
+                         flight_draw=flight_draw, targets=targets)  # fmt: skip
     if record_history:
         batch.history_t, batch.history_x, batch.history_a = _tidy_history(hist_t, hist_x, hist_a, lengths)
     return batch
 
 
 CLIMATE_NAMES = ("day_of_year", "local_time_h", "f107_sfu", "f107a_sfu", "ap")
+
+
+def target_degrees(target_e: np.ndarray) -> dict:
+    """Latitude and longitude (deg) of targets given as unit vectors in E (N, 3)."""
+    t = np.asarray(target_e, dtype=float)
+    return {"target_latitude_deg": np.degrees(np.arcsin(np.clip(t[:, 2], -1.0, 1.0))),
+            "target_longitude_deg": np.degrees(np.arctan2(t[:, 1], t[:, 0]))}  # fmt: skip
 
 
 def episode_draws(draw: dict) -> dict:

@@ -35,6 +35,9 @@ class Measurement:
     :param flying: (N,) bool: False for the frozen copies of episodes that have ended, which a
         batched evaluation still calls until every episode has ended (their actions are not
         flown).
+    :param target_e: the target each vehicle is told (N, 3), unit vectors in E components
+        (``info["target_e"]``); None: the task's fixed target. A task with
+        ``targets="footprint"`` draws one per episode; the observation's target features follow it.
     """
 
     observation: np.ndarray
@@ -42,6 +45,7 @@ class Measurement:
     navigation_state: np.ndarray
     sensed_accel_b: np.ndarray
     flying: np.ndarray
+    target_e: np.ndarray | None = None
 
     def __post_init__(self):
         obs = np.asarray(self.observation)
@@ -53,11 +57,14 @@ class Measurement:
             "sensed_accel_b": (np.shape(self.sensed_accel_b), np.shape(self.sensed_accel_b) == (n, 3)),
             "flying": (np.shape(self.flying), np.shape(self.flying) == (n,)),
         }
+        if self.target_e is not None:
+            shapes["target_e"] = (np.shape(self.target_e), np.shape(self.target_e) == (n, 3))
         bad = [f"{k} {s}" for k, (s, ok) in shapes.items() if not ok]
         if bad:
             raise ValueError(
                 "a Measurement of N vehicles needs observation (N, 26), time_s (N,), navigation_state "
-                f"(N, {N_STATE}), sensed_accel_b (N, 3) and flying (N,); got {', '.join(bad)}"
+                f"(N, {N_STATE}), sensed_accel_b (N, 3), flying (N,) and target_e (N, 3) or None; "
+                f"got {', '.join(bad)}"
             )
 
     @property
@@ -98,7 +105,11 @@ class GuidanceLaw(Protocol):
     * ``episodes_per_task``: how many episodes one parallel evaluation task should hold (None:
       as many as it is given; a law that takes seconds per episode says 1);
     * ``provenance``: where a learned law comes from (algorithm, starting point, steps, seed), written
-      into evaluation reports; None for a law that is not trained.
+      into evaluation reports; None for a law that is not trained;
+    * ``retargets`` (optional, default False): whether the law flies the target it is told
+      (:attr:`Measurement.target_e`, or the observation's target features). A law that plans
+      to the task's fixed target says False, and evaluation refuses it on a footprint task
+      instead of scoring it against targets it never aimed at.
     """
 
     episodes_per_task: int | None
@@ -116,6 +127,7 @@ class Law:
 
     episodes_per_task: ClassVar[int | None] = None
     provenance: dict | None = None
+    retargets: bool = False
 
     def reset(self, n_episodes: int) -> None:
         """No per-episode memory."""
@@ -140,4 +152,13 @@ def check_law(law) -> GuidanceLaw:
     return law
 
 
-__all__ = ["Measurement", "GuidanceLaw", "Law", "check_law"]
+def check_retargets(law, task) -> None:
+    """Refuse a law that flies a fixed target on a task that draws one per episode, naming both."""
+    if task is not None and task.targets != "fixed" and not getattr(law, "retargets", False):
+        raise ValueError(
+            f"{type(law).__name__} cannot re-target: it flies the task's fixed target, and this task draws "
+            f"a target per episode (targets={task.targets!r}); fly it with targets='fixed'"
+        )
+
+
+__all__ = ["Measurement", "GuidanceLaw", "Law", "check_law", "check_retargets"]

@@ -307,6 +307,7 @@ class ReplanningGuidance(Law):
     """
 
     episodes_per_task = 1  # seconds per episode: parallel evaluations give each episode its own task
+    retargets = True  # an episode told another target plans to it (its own transcription, built once per target)
 
     def __init__(self, task: EntryTask | None = None, model: EntryModel | None = None,
                  settings: ReplanningSettings | None = None, estimator_settings: EstimatorSettings | None = None):  # fmt: skip
@@ -332,6 +333,10 @@ class ReplanningGuidance(Law):
         self.n = int(n_episodes)
         self.estimator.reset(self.n)
         self.tracks: list[_Track | None] = [None] * self.n
+        # each episode's planner and its nominal plan: the task's, until told another target
+        self.solvers = [self.solver] * self.n
+        self.nominals = [self.nominal] * self.n
+        self.aimed = [None] * self.n  # the target each episode's planner aims at (None: the task's)
         self.last_replan = np.full(self.n, -np.inf)
         self.logs = [_EpisodeLog() for _ in range(self.n)]
         if self.relief is not None:
@@ -349,11 +354,11 @@ class ReplanningGuidance(Law):
         log = self.logs[i]
         old = self.tracks[i]
         if old is None:
-            guess, warm = self.nominal, self.nominal
+            guess, warm = self.nominals[i], self.nominals[i]
         else:
             guess, warm = _Shifted(old.solution, t - old.t_start), old.solution
         start = time.perf_counter()
-        sol = self.solver.solve(x, theta, guess, warm)
+        sol = self.solvers[i].solve(x, theta, guess, warm)
         elapsed = time.perf_counter() - start
         log.replans += 1
         log.solve_times.append(elapsed)
@@ -365,8 +370,24 @@ class ReplanningGuidance(Law):
             log.replan_timeouts += sol.status == "Maximum_WallTime_Exceeded"
             log.failures.append((round(t, 3), sol.status))
             if old is None:  # nothing to keep: fly the nominal plan, the estimate fed forward
-                self.tracks[i] = self._track(t, self.nominal, np.zeros(2))
+                self.tracks[i] = self._track(t, self.nominals[i], np.zeros(2))
         self.last_replan[i] = t
+
+    def _aim(self, target_e: np.ndarray) -> None:
+        """Point each episode's planner at the target it is told (a change re-plans at once)."""
+        for i in range(self.n):
+            t = np.asarray(target_e[i], dtype=float)
+            if self.aimed[i] is not None and np.array_equal(t, self.aimed[i]):
+                continue
+            if np.allclose(t, self.task.problem.target_unit_vector(), rtol=0.0, atol=1e-12):
+                solver = self.solver
+            else:
+                solver = _plan_solver(self.task.aimed_at(t), self.model, self.settings)
+            if solver is not self.solvers[i]:
+                self.solvers[i] = solver
+                self.nominals[i] = solver.nominal_plan(self.task.aimed_at(t))
+                self.tracks[i] = None  # a plan to the old target is no plan
+            self.aimed[i] = t.copy()
 
     # ------------------------------------------------------------------ the law
     def rates(self, time_s, state, theta) -> np.ndarray:
@@ -406,6 +427,8 @@ class ReplanningGuidance(Law):
         if m.n != self.n:
             self.reset(m.n)
         theta = self.estimator.observe(m)
+        if m.target_e is not None:
+            self._aim(m.target_e)
         for i in range(self.n):
             tr = self.tracks[i]
             to_go = tr.t_end - time_s[i] if tr is not None else np.inf

@@ -10,7 +10,7 @@ these; the reward an RL agent is paid stays with the environment
 (:class:`rventry_env.envs.reward.RewardWeights`).
 """
 
-from rventry_env.task.definition import EntryTask, PrecisionThresholds, SuccessThresholds
+from rventry_env.task.definition import TARGETS, EntryTask, Footprint, PrecisionThresholds, SuccessThresholds, footprint_target
 from rventry_env.task.dispersion import (
     FLIGHT_ERRORS,
     NAMED_SETS,
@@ -27,6 +27,9 @@ from rventry_env.task.problem import EntryProblem
 __all__ = [
     "EntryProblem",
     "EntryTask",
+    "Footprint",
+    "TARGETS",
+    "footprint_target",
     "SuccessThresholds",
     "PrecisionThresholds",
     "NAMED_SETS",

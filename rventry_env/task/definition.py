@@ -9,7 +9,7 @@ not the task's.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -53,6 +53,52 @@ class PrecisionThresholds:
             )  # fmt: skip
 
 
+TARGETS = ("fixed", "footprint")
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """The mission family of ``targets="footprint"``: each episode's target is drawn uniformly
+    within +/- ``downrange_m`` along the nominal ground track through the problem's target and
+    +/- ``crossrange_m`` across it (arc lengths on the planet's surface). The law is told the
+    target; it is part of the mission, not a dispersion."""
+
+    downrange_m: float = 300e3
+    crossrange_m: float = 150e3
+
+    def __post_init__(self):
+        for name in ("downrange_m", "crossrange_m"):
+            val = getattr(self, name)
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or not (math.isfinite(val) and val >= 0):
+                raise ValueError(f"footprint {name} must be a finite half-width >= 0 in m, got {val!r}")
+            object.__setattr__(self, name, float(val))
+
+
+def footprint_target(problem: EntryProblem, radius: float, downrange_m, crossrange_m) -> np.ndarray:
+    """Unit vectors in E (..., 3) of the targets ``downrange_m`` along and ``crossrange_m`` across
+    (to the left) the nominal ground track at the problem's target.
+
+    The track is the great circle from the entry point to the nominal target T, with normal
+    n = (P0 x T)/|P0 x T|; the downrange direction at T is d = n x T. The target moves along the
+    track by the angle downrange/R, T' = cos T + sin d, then across it by crossrange/R,
+    T'' = cos T' + sin n (n is normal to T' too, so T'' stays a unit vector).
+    """
+    from rventry_env.core import euler_parameters as ep
+
+    t = problem.target_unit_vector()
+    p0 = ep.dcm_from_quaternion(np.asarray(problem.initial_e_a, dtype=float))[0]
+    n = np.cross(p0, t)
+    norm = np.linalg.norm(n)
+    if norm < 1e-9:
+        raise ValueError("the footprint needs a ground track: the entry point and the target are the same or antipodal")
+    n = n / norm
+    d = np.cross(n, t)
+    a = np.asarray(downrange_m, dtype=float)[..., None] / radius
+    c = np.asarray(crossrange_m, dtype=float)[..., None] / radius
+    moved = np.cos(a) * t + np.sin(a) * d
+    return np.cos(c) * moved + np.sin(c) * n
+
+
 @dataclass(frozen=True)
 class EntryTask:
     """Problem, success thresholds, control step and episode-end rules together.
@@ -64,6 +110,9 @@ class EntryTask:
     :param ceiling_altitude: skip-out: an episode ends (failure) above this altitude (m).
     :param min_speed: stall: an episode ends (failure) below this speed (m/s); the
         equations are singular at v = 0.
+    :param targets: ``"fixed"``: every episode flies to the problem's target; ``"footprint"``:
+        each episode draws its target within ``footprint`` around it (:meth:`draw_target`),
+        and the law is told it.
     """
 
     problem: EntryProblem = field(default_factory=EntryProblem)
@@ -73,8 +122,14 @@ class EntryTask:
     substeps: int = 1
     ceiling_altitude: float = 80e3
     min_speed: float = 50.0
+    targets: str = "fixed"
+    footprint: Footprint = field(default_factory=Footprint)
 
     def __post_init__(self):
+        if self.targets not in TARGETS:
+            raise ValueError(f"targets must be one of {TARGETS}, got {self.targets!r}")
+        if not isinstance(self.footprint, Footprint):
+            raise ValueError(f"footprint must be a Footprint, got {self.footprint!r}")
         if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, float)) or not (
@@ -92,6 +147,25 @@ class EntryTask:
                 f"ceiling_altitude ({self.ceiling_altitude:g} m) must lie above the initial altitude "
                 f"({self.problem.initial_altitude:g} m)"
             )
+
+    def draw_target(self, rng: np.random.Generator, radius: float) -> np.ndarray | None:
+        """The episode's target as a unit vector in E (3,), drawn from ``rng`` (two uniforms) for
+        the footprint; None, drawing nothing, for the fixed target (earlier draws unchanged)."""
+        if self.targets == "fixed":
+            return None
+        u = rng.uniform(-1.0, 1.0, size=2)
+        return footprint_target(self.problem, radius, u[0] * self.footprint.downrange_m,
+                                u[1] * self.footprint.crossrange_m)  # fmt: skip
+
+    def aimed_at(self, target_e) -> "EntryTask":
+        """This task with its problem's target moved to the unit vector ``target_e`` (3,) in E:
+        the fixed-target problem a planner solves for one footprint episode."""
+        t = np.asarray(target_e, dtype=float)
+        if t.shape != (3,) or not np.all(np.isfinite(t)) or abs(np.linalg.norm(t) - 1.0) > 1e-9:
+            raise ValueError(f"a target must be a unit vector (3,) in E components, got {target_e!r}")
+        problem = replace(self.problem, target_latitude=math.asin(max(-1.0, min(1.0, float(t[2])))),
+                          target_longitude=math.atan2(float(t[1]), float(t[0])))  # fmt: skip
+        return replace(self, problem=problem, targets="fixed")
 
     def record(self) -> dict:
         """What a policy trained on this task depends on, JSON-ready: the control step, the
@@ -155,4 +229,4 @@ class EntryTask:
             )
 
 
-__all__ = ["EntryTask", "SuccessThresholds", "PrecisionThresholds"]
+__all__ = ["EntryTask", "Footprint", "SuccessThresholds", "PrecisionThresholds", "TARGETS", "footprint_target"]

@@ -4,12 +4,13 @@
 errors from its episode generator (``np_random``), always the same count of numbers for one
 description, so the single and the vector environment stay in step draw for draw.
 
-* **Atmosphere**: an NRLMSIS 2.1 climatology (``pymsis``; day of year, local time, F10.7,
-  F10.7a and Ap drawn and always passed explicitly, so ``pymsis`` never looks them up or
-  downloads them) tabulated on the altitude grid along the nominal ground track, times a
-  first-order Gauss-Markov perturbation in altitude with an rms and a correlation length per
-  altitude band (the small-scale perturbation model of Earth-GRAM, reduced to its vertical
-  structure).
+* **Atmosphere**: the departure of one NRLMSIS 2.1 atmosphere (``pymsis``; day of year, local
+  time, F10.7, F10.7a and Ap drawn and always passed explicitly, so ``pymsis`` never looks them
+  up or downloads them) from the climatological mean along the nominal ground track, tabulated
+  on the altitude grid, times a first-order Gauss-Markov perturbation in altitude with an rms
+  and a correlation length per altitude band (the small-scale perturbation model of Earth-GRAM,
+  reduced to its vertical structure). Both multiply the model's own density: the paper's
+  exponential atmosphere stands for the mean atmosphere a mission's guidance is built on.
 * **Wind**: per horizontal component, a constant mean plus a Gauss-Markov profile in altitude.
 * **Aerodynamics**: relative C_L and C_D errors smooth in Mach (Legendre P1 and P2 terms;
   :class:`~rventry_env.physics.uncertainty.MachVaryingAerodynamics`).
@@ -214,12 +215,48 @@ def msis_log_density(day_of_year, local_time_h, f107, f107a, ap, problem, grid: 
     return (1.0 - w) * np.log(rho[0]) + w * np.log(rho[1])
 
 
+# the climatological mean: day of year and local time on a uniform grid (the drivers' draw is
+# uniform in both), the solar and geomagnetic indices at the middle of their drawn ranges
+MEAN_DAYS, MEAN_HOURS = 24, 8
+
+
+def msis_mean_log_density(problem, grid: np.ndarray = GRID_M) -> np.ndarray:
+    """ln of the climatological mean NRLMSIS 2.1 density on ``grid`` along the nominal track.
+
+    The mean of ln rho over the drawn day of year and local time (a 24 x 8 grid: both are drawn
+    uniform), at F10.7 = F10.7a = the middle of their range and Ap = its median (below 100 km
+    the indices barely matter). This is the atmosphere a mission's guidance is built on; a draw
+    departs from it by ln rho_draw - ln rho_mean (docs/uncertainty.md). Cached per problem
+    geometry.
+    """
+    key = (float(problem.initial_altitude), float(getattr(problem, "initial_longitude", 0.0)),
+           float(problem.target_longitude), float(problem.target_latitude), grid.tobytes())  # fmt: skip
+    return _msis_mean(key, problem)
+
+
+_MEAN_CACHE: dict = {}
+
+
+def _msis_mean(key, problem) -> np.ndarray:
+    if key not in _MEAN_CACHE:
+        grid = np.frombuffer(key[-1], dtype=float)
+        f107 = 0.5 * (F107_RANGE[0] + F107_RANGE[1])
+        rows = [msis_log_density(1.0 + 365.0 * (i + 0.5) / MEAN_DAYS, 24.0 * (j + 0.5) / MEAN_HOURS, f107, f107,
+                                 AP_MEDIAN, problem, grid)
+                for i in range(MEAN_DAYS) for j in range(MEAN_HOURS)]  # fmt: skip
+        mean = np.mean(rows, axis=0)
+        mean.flags.writeable = False
+        _MEAN_CACHE[key] = mean
+    return _MEAN_CACHE[key]
+
+
 # how many standard normals / uniforms one vehicle's flight draw takes (fixed per description)
 def draw_flight(rng: np.random.Generator, flight: FlightErrors, problem) -> dict:
     """One vehicle's flight-grade errors, drawn from ``rng`` in a fixed order and count.
 
     Returns a dict of NumPy values: ``climate`` (day of year, local time h, F10.7, F10.7a, Ap)
-    and ``log_density_msis`` (K,) when the climatology is on; ``density_perturbation`` (K,)
+    and ``log_density_climate`` (K,), the draw's NRLMSIS ln density less the climatological
+    mean (:func:`msis_mean_log_density`), when the climatology is on; ``density_perturbation`` (K,)
     (ln density); ``wind_east``/``wind_north`` (K,) m/s; ``aero`` (lift P1, lift P2, drag P1,
     drag P2); ``accel_bias`` (3,), ``accel_scale`` (3,), ``accel_misalignment`` (3,);
     ``noise_key`` (uint64); ``nav_position`` (3,) and ``nav_velocity`` (3,) in E components.
@@ -235,7 +272,7 @@ def draw_flight(rng: np.random.Generator, flight: FlightErrors, problem) -> dict
         f107 = max(60.0, f107a * (1.0 + 0.1 * n_f))
         ap = min(AP_MAX, AP_MEDIAN * math.exp(AP_LOG_SIGMA * n_ap))
         out["climate"] = np.array([doy, lt, f107, f107a, ap])
-        out["log_density_msis"] = msis_log_density(doy, lt, f107, f107a, ap, problem)
+        out["log_density_climate"] = msis_log_density(doy, lt, f107, f107a, ap, problem) - msis_mean_log_density(problem)
     out["density_perturbation"] = gauss_markov(rng.standard_normal(k), flight.density_bands)
     mean = rng.standard_normal(2) * flight.wind_mean_mps
     out["wind_east"] = mean[0] + gauss_markov(rng.standard_normal(k), flight.wind_bands)
@@ -263,5 +300,6 @@ __all__ = [
     "gauss_markov",
     "ground_track_longitude_deg",
     "msis_log_density",
+    "msis_mean_log_density",
     "draw_flight",
 ]

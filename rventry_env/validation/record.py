@@ -126,6 +126,11 @@ def _parse_float(text: str, line: int, column: str) -> float:
     except ValueError:
         raise RecordError(f"row {line}, column {column}: cannot read {text!r:.40} as a number") from None
     if not math.isfinite(value):
+        if not any(word in text.lower() for word in ("nan", "inf")):
+            raise RecordError(
+                f"row {line}, column {column}: {text!r:.40} overflows a 64-bit float "
+                "(beyond +/-1.8e308): a corrupted field or wrong units?"
+            )
         raise RecordError(
             f"row {line}, column {column}: {text!r:.40} where a value is required "
             "(leave the field empty for a missing sample)"
