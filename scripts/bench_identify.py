@@ -49,12 +49,20 @@ def record_target(rate: float) -> float:
 
 
 def _trace_text(rep: dict) -> str:
+    """The attribution, or the leading correction marked as not significant."""
+    leading = (rep.get("trace") or {}).get("leading") if not rep.get("attribution") else None
     parts = []
-    for a in rep.get("attribution") or []:
+    for a in rep.get("attribution") or (leading or {}).get("attribution") or []:
         lo, hi = a["band"]
         band = f"{lo / 1e3:.1f}-{hi / 1e3:.1f} km" if a["axis"] == "altitude" else f"{lo:.0f}-{hi:.0f} s"
         parts.append(f"{a['channel']} {a['size']:+.3g} @ {band}")
-    return "; ".join(parts)
+    text = "; ".join(parts)
+    return f"leading, not significant (BIC gain {leading['bic_gain']:.1f}): {text}" if leading else text
+
+
+def _after_trace(rep: dict, key: str):
+    trace = rep.get("trace") or {}
+    return (trace.get("after_trace") or (trace.get("leading") or {}).get("after_leading") or {}).get(key)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -93,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
                          "effects": rep["effects"], "unexplained": rep["unexplained"],
                          "rms_before": rep["before"]["position_rms_m"],
                          "rms_after": rep["after"]["position_rms_m"], "trace": _trace_text(rep),
-                         "rms_after_trace": ((rep.get("trace") or {}).get("after_trace") or {}).get("position_rms_m"),
+                         "rms_after_trace": _after_trace(rep, "position_rms_m"),
                          "parameters": rep["parameters"]})  # fmt: skip
     apollo = None
     if not args.no_apollo:
@@ -103,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
                   "replays": rep["replays"], "samples": rep["record"]["samples"], "effects": rep["effects"],
                   "unexplained": rep["unexplained"], "rms_before": rep["before"]["altitude_rms_m"],
                   "rms_after": rep["after"]["altitude_rms_m"], "trace": _trace_text(rep),
-                  "rms_after_trace": ((rep.get("trace") or {}).get("after_trace") or {}).get("altitude_rms_m"),
+                  "rms_after_trace": _after_trace(rep, "altitude_rms_m"),
                   "parameters": rep["parameters"]}  # fmt: skip
 
     print(f"\n{'case':38s} {'wall s':>7s} {'cpu s':>6s} {'replays':>7s}  {'found':40s} {'rms before m':>12s} "

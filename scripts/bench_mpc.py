@@ -16,6 +16,7 @@ value (deg; 0 = off): alpha(t_f), the vertical-impact error, the miss and J/J*.
 
     python scripts/bench_mpc.py --evaluate --workers 2 --json out/bench_mpc.json
     python scripts/bench_mpc.py --scan --episodes 40 --workers 2 --json out/scan_mpc.json
+    python scripts/bench_mpc.py --scan --variants flight --dispersion flight --episodes 12 --workers 2 --json out/scan_mpc_flight.json
 
 Timings depend on the machine: the README quotes this 2-core machine's (``--workers 2``).
 Success rates do not: the solver's budget is an iteration count.
@@ -57,6 +58,17 @@ VARIANTS = {
     "penalty 100": {"soft_penalty": 100.0},
     "freeze 10 s": {"freeze_s": 10.0},
     "freeze 60 s": {"freeze_s": 60.0},
+}
+
+# the flight-grade scan: the settings the flight set's failures point to (load-factor breaches in
+# the final pull-down, q dips at a skip's apex where the air is thinner than estimated lower down)
+FLIGHT_VARIANTS = {
+    "defaults": {},
+    "load relief 2 %": {"load_relief_margin": 0.02},
+    "load relief 2 %, q margin 8 %": {"load_relief_margin": 0.02, "q_margin": 0.08},
+    "load relief 2 %, q margin 10 %": {"load_relief_margin": 0.02, "q_margin": 0.10},
+    "load relief 2 %, q 8 %, terminal alpha 0.5": {"load_relief_margin": 0.02, "q_margin": 0.08,
+                                                    "terminal_alpha": True},
 }
 
 
@@ -107,16 +119,17 @@ def scan(args) -> dict:
     task = EntryTask()
     seeds = list(range(args.seed, args.seed + args.episodes))
     jobs = {}
-    for name, change in VARIANTS.items():
+    variants = FLIGHT_VARIANTS if args.variants == "flight" else VARIANTS
+    for name, change in variants.items():
         opts = (("settings", replace(DEFAULT, **change)),)
         jobs[name] = (EvaluationJob("mpc", args.dispersion, task, opts), seeds)
         jobs[name + " (nominal)"] = (EvaluationJob("mpc", "none", task, opts), [0])
     t0 = time.time()
-    batches = run_all(jobs, args.workers, f"scan: {len(VARIANTS)} variants x {args.episodes} episodes")
+    batches = run_all(jobs, args.workers, f"scan: {len(variants)} variants x {args.episodes} episodes")
     wall = time.time() - t0
     ref_cost = _reference_cost()
     rows = {}
-    for name in VARIANTS:
+    for name in variants:
         s = summarize(batches[name], ref_cost, task)
         nominal = summarize(batches[name + " (nominal)"], ref_cost, task)
         cpu = float(np.mean([sum(st["solve_times_s"]) for st in batches[name].law_stats]))
@@ -216,7 +229,10 @@ def main(argv=None) -> int:
     mode.add_argument("--terminal-alpha", type=_aims, metavar="DEG,...",
                       help="the nominal flight with the terminal alpha bound aimed at each value (0: off)")
     ap.add_argument("--episodes", type=positive_int, help="episodes per variant (scan: 40) or per set (evaluate: 200)")
-    ap.add_argument("--dispersion", default="wide", choices=("standard", "wide"), help="the scan's set (wide)")
+    ap.add_argument("--dispersion", default="wide", choices=("standard", "wide", "flight", "peer", "peer-0.1"),
+                    help="the scan's set (wide)")
+    ap.add_argument("--variants", default="defaults", choices=("defaults", "flight"),
+                    help="defaults: each setting varied alone; flight: the flight-grade remedies")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
     ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
     ap.add_argument("--workers", type=positive_int, default=2)

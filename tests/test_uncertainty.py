@@ -331,3 +331,31 @@ def test_the_navigation_state_is_the_true_position_and_velocity_plus_the_errors(
     np.testing.assert_allclose(v_n, v_t + dv, rtol=0, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(nav[:, 1:5], axis=1), 1.0, atol=1e-14)
     np.testing.assert_allclose(conventional_bank(nav, nav[:, 11]), conventional_bank(truth, truth[:, 11]), atol=1e-4)
+
+
+def test_the_oracle_splits_the_intervals_where_its_plan_leaves_the_bounds_between_nodes():
+    """Collocation holds the path bounds at the nodes only: a plan that bulges above the q bound's
+    altitude inside one interval (and only there) has that interval, and no other, split."""
+    from types import SimpleNamespace
+
+    from rventry_env.evaluation.oracle import intervals_leaving_bounds, split_intervals
+    from rventry_env.reference.collocation import Mesh
+    from rventry_env.task import EntryTask
+
+    task = EntryTask()
+    model = EntryModel()
+    mesh = Mesh(np.array([0.0, 0.25, 0.5, 1.0]), np.array([4, 4, 3]))
+    x_nominal = task.problem.initial_state(model.planet.radius)
+
+    def state(t):
+        # 37 km everywhere (q far above q_min), except 70 km in the middle of the second interval
+        x = np.tile(x_nominal, (np.size(t), 1))
+        s = np.asarray(t) / 100.0
+        x[:, 0] += np.where(np.abs(s - 0.375) < 0.05, 33e3, 0.0)
+        return x
+
+    sol = SimpleNamespace(mesh=mesh, t0=0.0, tf=100.0, state=state)
+    assert intervals_leaving_bounds(sol, model, task.problem, 0.005).tolist() == [1]
+    finer = split_intervals(mesh, [1])
+    np.testing.assert_array_equal(finer.breaks, [0.0, 0.25, 0.375, 0.5, 1.0])
+    np.testing.assert_array_equal(finer.degrees, [4, 4, 4, 3])

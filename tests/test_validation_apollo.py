@@ -73,3 +73,20 @@ def test_density_column_is_a_candidate(ident):
     assert "measured_density" in rep["candidates"]
     # flying the record's own density as the atmosphere is ranked like any other candidate
     assert "measured_density" in [r["effect"] for r in rep["ranking"]]
+
+
+@pytest.mark.slow
+def test_what_remains_is_traced_but_not_attributed(ident, tmp_path):
+    rep = ident.report
+    # the leading correction is below the threshold: reported as leading, never as an attribution
+    assert rep["attribution"] == [] and rep["trace"]["points_to"] == []
+    lead = rep["trace"]["leading"]
+    assert lead["significant"] is False and lead["bic_gain"] < rep["bic_threshold"]
+    (a,) = lead["attribution"]
+    assert a["mach_in_band"][0] < a["mach_in_band"][1]
+    # it says what it would mean, and that it is not significant, in the statement and the plot
+    assert lead["would_point_to"] and "significantly" in rep["trace"]["statement"]
+    assert lead["after_leading"]["altitude_rms_m"] < rep["after"]["altitude_rms_m"]
+    from rventry_env.validation.report.plots import write_plots
+
+    assert "trace.png" in [p.name for p in write_plots(ident, tmp_path)]

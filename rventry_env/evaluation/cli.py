@@ -255,14 +255,17 @@ def _compare(args) -> int:
             runs[(case, name)] = (batch, summary, _document(agent, n, d, args.seed, batch, summary))
             progress.remove_task(job)
     nominal, dispersed = runs[("nominal", label)][1], runs[("dispersed", label)][1]
-    success_target = DISPERSED_SUCCESS_TARGETS.get(dispersion, DISPERSED_SUCCESS_TARGETS["standard"])
+    # the learned policy's dispersed-success target exists for the sets it was built for; the
+    # flight-grade sets are reported against the oracle's ceiling instead (`rventry oracle`)
+    success_target = DISPERSED_SUCCESS_TARGETS.get(dispersion)
     checks = {
-        **{f"nominal_{k}": {"target": v, "measured": nominal[k], "met": nominal[k] is not None and abs(nominal[k]) <= v}
-           for k, v in NOMINAL_TARGETS.items()},
-        "dispersed_success_rate": {"target": success_target, "measured": dispersed["success_rate"],
-                                   "met": dispersed["success_rate"] >= success_target},
-    }  # fmt: skip
-    if ("dispersed", "TV-LQR") in runs and label != "TV-LQR":
+        f"nominal_{k}": {"target": v, "measured": nominal[k], "met": nominal[k] is not None and abs(nominal[k]) <= v}
+        for k, v in NOMINAL_TARGETS.items()
+    }
+    if success_target is not None:
+        checks["dispersed_success_rate"] = {"target": success_target, "measured": dispersed["success_rate"],
+                                            "met": dispersed["success_rate"] >= success_target}  # fmt: skip
+    if success_target is not None and ("dispersed", "TV-LQR") in runs and label != "TV-LQR":
         gain = dispersed["success_rate"] - runs[("dispersed", "TV-LQR")][1]["success_rate"]
         checks["success_over_lqr"] = {"target": MARGIN_OVER_LQR, "measured": gain,
                                       "met": gain >= MARGIN_OVER_LQR - 1e-9}  # fmt: skip
@@ -300,7 +303,7 @@ def _tables(runs, names, episodes, dispersion, checks):
 
     # (label, summary key, format, nominal target, dispersed target): the benchmark's targets
     nominal = {k: f"<= {v:g}" for k, v in NOMINAL_TARGETS.items()}
-    success = f">= {checks['dispersed_success_rate']['target']:.2f}"
+    success = f">= {checks['dispersed_success_rate']['target']:.2f}" if "dispersed_success_rate" in checks else ""
     if "success_over_lqr" in checks:
         success += f", TV-LQR + {checks['success_over_lqr']['target']:.2f}"
     rows = (

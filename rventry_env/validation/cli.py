@@ -167,6 +167,8 @@ def _print_summary(rep: dict) -> None:
         rows = ", ".join(str(r["row"]) for r in rep["rejected_outliers"][:10])
         print(f"outliers rejected: {len(rep['rejected_outliers'])} (rows {rows})")
     print(rep["adequacy"]["statement"])
+    if rep.get("trace"):  # what the residual trace found (an attribution, or a leading correction below the threshold)
+        print("trace: " + rep["trace"]["statement"])
     print(f"({_fmt(rep['elapsed_s'], '.1f')} s, {rep['replays']} replays with sensitivities)")
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -260,13 +261,27 @@ class Replay:
             xs[-1], fs[-1] = x, f(g[-1], x)
         return xs, fs
 
+    @cached_property
+    def hermite_matrix(self):
+        """The cubic Hermite interpolation as a sparse ``(n_obs, 2 (N + 1))`` matrix on ``[xs; fs]``.
+
+        Fixed by the grid: every observed sample is a combination of four rows (the node states and
+        derivatives at both ends of its step), so interpolating node arrays of any trailing shape is
+        one sparse product instead of four gathered copies per sample.
+        """
+        from scipy.sparse import csr_matrix
+
+        g = self.grid
+        k, n_nodes = g.step, len(g.nodes)
+        w = hermite_weights(g.tau, g.h[k])
+        rows = np.repeat(np.arange(len(k)), 4)
+        cols = np.stack([k, n_nodes + k, k + 1, n_nodes + k + 1], axis=1).ravel()
+        return csr_matrix((np.stack(w, axis=1).ravel(), (rows, cols)), shape=(len(k), 2 * n_nodes))
+
     def interpolate(self, xs: np.ndarray, fs: np.ndarray) -> np.ndarray:
-        """States at the observed samples from node states and derivatives (cubic Hermite)."""
-        k = self.grid.step
-        w = hermite_weights(self.grid.tau, self.grid.h[k])
-        shape = (-1,) + (1,) * (xs.ndim - 1)
-        return (w[0].reshape(shape) * xs[k] + w[1].reshape(shape) * fs[k]
-                + w[2].reshape(shape) * xs[k + 1] + w[3].reshape(shape) * fs[k + 1])  # fmt: skip
+        """States at the observed samples from node states and derivatives ``(N + 1, ...)`` (cubic Hermite)."""
+        stacked = np.concatenate([xs, fs]).reshape(2 * len(xs), -1)
+        return np.asarray(self.hermite_matrix @ stacked).reshape((-1,) + xs.shape[1:])
 
     def states(self, model: EntryModel, x0: np.ndarray) -> np.ndarray:
         """rv-Euler states at the observed samples, ``(n_obs, 10, B)``, for initial states ``x0 (10, B)``."""

@@ -24,6 +24,29 @@ from rventry_env.physics import entry_rhs
 from rventry_env.validation.replay.record_replay import N_RV, Replay, hermite_weights
 
 
+def _dense(*exprs) -> list:
+    """Outputs with every entry stored: a function buffer writes only the stored (nonzero) ones."""
+    import casadi as ca
+
+    return [ca.densify(e) for e in exprs]
+
+
+def _call(buffer, args, results) -> None:
+    """Evaluate a CasADi function buffer on NumPy arrays, writing into ``results`` in place.
+
+    Arguments are copied to contiguous float64, with every column a mapped function expects
+    (a buffer does not repeat a single column); every result must be a C-contiguous float64 view
+    laid out as CasADi's column-major output.
+    """
+    buf, run = buffer
+    keep = [np.ascontiguousarray(a, dtype=float) for a in args]  # alive until the call returns
+    for i, a in enumerate(keep):
+        buf.set_arg(i, memoryview(a))
+    for i, r in enumerate(results):
+        buf.set_res(i, memoryview(r))
+    run()
+
+
 class SensitivityReplay:
     """The replay of one record for one model structure, with its exact Jacobian.
 
@@ -77,11 +100,11 @@ class SensitivityReplay:
         xn = ca.vertcat(xn[0], xn[1:5] / ca.norm_2(xn[1:5]), xn[5], xn[6:10] / ca.norm_2(xn[6:10]))
         seeds = ca.vertcat(s, ca.horzcat(ca.SX.zeros(n_p, n_init), ca.SX.eye(n_p)))
         z = ca.vertcat(x, p)
-        step = ca.Function("step", [x, s, h, u, p], [xn, ca.jtimes(xn, z, seeds), k1, ca.jtimes(k1, z, seeds)])
-        self._steps = step.mapaccum("replay", replay.grid.n_steps, [0, 1], [0, 1])
+        step = ca.Function("step", [x, s, h, u, p], _dense(xn, ca.jtimes(xn, z, seeds), k1, ca.jtimes(k1, z, seeds)))
+        self._steps_buffer = step.mapaccum("replay", replay.grid.n_steps, [0, 1], [0, 1]).buffer()
         ue = ca.SX.sym("ue", 2 + q)
         fe = f(x, ue[0], ue[1], [ue[2 + i] for i in range(q)])
-        self._end = ca.Function("end", [x, s, ue, p], [fe, ca.jtimes(fe, z, seeds)])
+        self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, ca.jtimes(fe, z, seeds))).buffer()
         # observations and their derivatives at the samples
         if replay.record.kind == "ecef":
             qa = x[1:5] / ca.norm_2(x[1:5])
@@ -93,8 +116,8 @@ class SensitivityReplay:
             y = ca.vertcat(*[x[0] * a for a in a1], *[x[5] * b for b in b1])
         else:
             y = ca.vertcat(x[0] - replay.setup.model.planet.radius, x[5])
-        obs = ca.Function("observe", [x], [y, ca.jacobian(y, x)])
-        self._observe = obs.map(len(replay.t_obs))
+        obs = ca.Function("observe", [x], _dense(y, ca.jacobian(y, x)))
+        self._observe_buffer = obs.map(len(replay.t_obs)).buffer()
         self.n_obs_channels = int(y.shape[0])
 
     def evaluate(self, offsets: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -114,31 +137,18 @@ class SensitivityReplay:
         if self.forcing is not None and self.forcing.n_inputs:
             stage = np.concatenate([stage, self.forcing.stage_inputs])
             end = np.concatenate([end, self.forcing.end_inputs])
-        xn, sn, k1, sk1 = self._steps(x0, s0, g.h[None, :], stage, p)
-        n = g.n_steps
-        xs = np.empty((n + 1, N_RV))
-        xs[0] = x0
-        xs[1:] = np.asarray(xn).T
-        ss = np.empty((n + 1, N_RV, ns_))
-        ss[0] = s0
-        ss[1:] = np.asarray(sn).reshape(N_RV, n, ns_).transpose(1, 0, 2)
-        fs = np.empty_like(xs)
-        fs[:-1] = np.asarray(k1).T
-        sf = np.empty_like(ss)
-        sf[:-1] = np.asarray(sk1).reshape(N_RV, n, ns_).transpose(1, 0, 2)
-        fe, sfe = self._end(xs[-1], ss[-1], end, p)
-        fs[-1] = np.asarray(fe).ravel()
-        sf[-1] = np.asarray(sfe)
-        k = g.step
-        w = hermite_weights(g.tau, g.h[k])
-        x_s = w[0][:, None] * xs[k] + w[1][:, None] * fs[k] + w[2][:, None] * xs[k + 1] + w[3][:, None] * fs[k + 1]
-        s_s = (w[0][:, None, None] * ss[k] + w[1][:, None, None] * sf[k]
-               + w[2][:, None, None] * ss[k + 1] + w[3][:, None, None] * sf[k + 1])  # fmt: skip
-        y, dy = self._observe(x_s.T)
-        m = self.n_obs_channels
-        y = np.asarray(y).T  # (n_obs, m)
-        dy = np.asarray(dy).reshape(m, len(k), N_RV).transpose(1, 0, 2)  # (n_obs, m, 10)
-        return y, np.einsum("nij,njk->nik", dy, s_s)
+        n, m = g.n_steps, self.n_obs_channels
+        # CasADi writes straight into these arrays (column-major (r, c) is C-order (c, r)): no DM copies
+        xs, fs = np.empty((n + 1, N_RV)), np.empty((n + 1, N_RV))
+        ss, sf = np.empty((n + 1, ns_, N_RV)), np.empty((n + 1, ns_, N_RV))
+        xs[0], ss[0] = x0, s0.T
+        _call(self._steps_buffer, (x0, s0.T, g.h, stage.T, np.broadcast_to(p.T, (n, p.shape[0]))), (xs[1:], ss[1:], fs[:-1], sf[:-1]))
+        _call(self._end_buffer, (xs[-1], ss[-1], end, p), (fs[-1], sf[-1]))
+        x_s = rp.interpolate(xs, fs)  # (n_obs, 10)
+        s_s = rp.interpolate(ss, sf)  # (n_obs, n_sens, 10)
+        y, dy = np.empty((len(x_s), m)), np.empty((len(x_s), N_RV, m))
+        _call(self._observe_buffer, (x_s,), (y, dy))
+        return y, np.einsum("nji,nkj->nik", dy, s_s, optimize=True)
 
 
 __all__ = ["SensitivityReplay"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -97,8 +98,11 @@ def plot_ranking(ident, path: Path) -> Path:
     ax.axvline(np.log10(1 + thr), color="k", ls="--", lw=1, label=f"threshold {thr:g}")
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("BIC improvement over the current model, sign(x) log10(1 + |x|)")
-    ax.set_title(f"candidates (effect: {ident.report['effect']}, effective samples "
-                 f"{step['effective_samples']:.0f}; red: on a bound or implausible)", fontsize=10)  # fmt: skip
+    # on lines short enough for the figure's width (a long effect name wraps, never runs off the edge)
+    title = textwrap.wrap(f"candidates, step 1 (identified: {' + '.join(ident.report['effects']) or 'none'}); effective samples "
+                          f"{step['effective_samples']:.0f}", 75) + [
+        "green: accepted, grey: credible, red: on a bound or implausible"]  # fmt: skip
+    fig.suptitle("\n".join(title), fontsize=9)  # centred on the figure, not on the axes beside the labels
     ax.legend(fontsize=8, loc="lower right")
     return save_figure(fig, path)
 
@@ -135,10 +139,17 @@ def plot_density(ident, path: Path) -> Path | None:
 
 def plot_trace(ident, path: Path) -> Path:
     """The residual trace: each attributed channel's correction over its axis, the band shaded,
-    and the residual before and after the trace."""
+    and the residual before and after the trace. Without an attribution, the leading correction
+    is drawn, titled as not significant."""
     plt = _pyplot()
     rep = ident.report
-    attribution = rep["attribution"]
+    attribution, note, after_label = rep["attribution"], "", "after the trace"
+    leading = (rep.get("trace") or {}).get("leading")
+    if not attribution and leading:  # drawn as what it is: the leading correction, not an attribution
+        attribution = leading["attribution"]
+        note = (f"leading correction, NOT significant (BIC gain {leading['bic_gain']:.1f} <= threshold "
+                f"{rep['bic_threshold']:g})\n")  # fmt: skip
+        after_label = "after the leading correction (not significant)"
     fig, axes = plt.subplots(len(attribution) + 1, 1, figsize=(8, 2.8 * (len(attribution) + 1)))
     for ax, a in zip(axes, attribution):
         scale = 1e-3 if a["axis"] == "altitude" else 1.0
@@ -154,14 +165,15 @@ def plot_trace(ident, path: Path) -> Path:
         ax.set_ylabel(a["size_unit"])
         ax.legend(fontsize=8)
         m = a.get("mach_in_band")
-        ax.set_title(f"{a['channel']} over {a['axis']}: peak {a['size']:+.3g}" + (f", Mach {m[0]:.1f}-{m[1]:.1f}"
-                     if m else ""), fontsize=10)  # fmt: skip
+        ax.set_title(f"{note}{a['channel']} over {a['axis']}: peak {a['size']:+.3g} +/- "
+                     f"{a['coefficient_stderr_max']:.2g} {a['size_unit']}"
+                     + (f", Mach {m[0]:.1f}-{m[1]:.1f} in the band" if m else ""), fontsize=10)  # fmt: skip
     ax = axes[-1]
     t = ident.replay.t_obs
     trace = ident.extra.get("trace") or {}
     kind = rep["record"]["kind"]
     for resid, label, color in ((ident.final.residual, "after identification", "C3"),
-                                (trace.get("residual_after_trace"), "after the trace", "C0")):  # fmt: skip
+                                (trace.get("residual_after_trace"), after_label, "C0")):  # fmt: skip
         if resid is None:
             continue
         e = np.linalg.norm(resid[:, :3], axis=1) if kind == "ecef" else resid[:, 0]
@@ -188,7 +200,7 @@ def write_plots(ident, folder: str | Path, stage=None) -> list[Path]:
     plots = [("residuals.png", plot_residuals), ("ranking.png", plot_ranking)]
     if ident.report.get("density_check"):
         plots.append(("density.png", plot_density))
-    if ident.report.get("attribution"):
+    if ident.report.get("attribution") or (ident.report.get("trace") or {}).get("leading"):
         plots.append(("trace.png", plot_trace))
     out = []
     for name, plot in plots:

@@ -4,10 +4,13 @@ When the final residual is not noise, the effect the record needs is outside the
 The trace asks a weaker question the record can still answer: *which force, over which part of
 the flight, and how large*. Each channel of :mod:`~rventry_env.validation.trace.forcing` (drag,
 vertical lift, lateral lift, horizontal wind) gets a piecewise-linear correction over altitude
-and, separately, over time. For every knot count the replay's exact Jacobian with respect to all
-channels' coefficients, the entry state and the identified effects' parameters is taken once at
-the identified fit (one replay with sensitivities); every channel and every pair of channels is
-then a Gauss-Newton fit on its columns. The knot count of each channel is chosen by BIC
+and, separately, over time. The replay's exact Jacobian with respect to all channels'
+coefficients, the entry state and the identified effects' parameters is taken once at the
+identified fit, at the finest knot count the record resolves (one replay with sensitivities);
+the knot counts are nested, so every coarser profile is one of the finer ones and its Jacobian is
+a linear map of that one, exactly. Every channel and every pair of channels at every knot count
+is then a Gauss-Newton step on its columns, solved from one QR factorisation of the Jacobian per
+count (the size of the parameters, not of the record). The knot count of each channel is chosen by BIC
 (counted on the effective sample size, like the candidates), and the best single channel or pair
 is kept only if it beats the identified model by the BIC threshold. It is then refined by full
 Gauss-Newton iterations (a fresh Jacobian each), so the size and band are those of a converged fit.
@@ -29,9 +32,11 @@ from rventry_env.core.backend import NUMPY
 from rventry_env.validation.replay.sensitivity import SensitivityReplay
 from rventry_env.validation.search.effects import WIND_MAX_MPS, build_model
 from rventry_env.validation.search.statistics import bic, bic_effective, effective_size, whiteness
-from rventry_env.validation.trace.forcing import CHANNELS, UNITS, ChannelForcing, channel_parameters
+from rventry_env.validation.trace.forcing import CHANNELS, UNITS, ChannelForcing, channel_parameters, hat_values
 
-KNOT_COUNTS = (2, 3, 4, 6, 8, 12)
+# nested: (k - 1) divides 12, so every profile is one of the 13-knot profiles, and one replay with
+# sensitivities at the finest count the record resolves gives the Jacobian of every coarser count
+KNOT_COUNTS = (2, 3, 4, 7, 13)
 MIN_ALTITUDE_SPACING = 1e3  # m between knots of an altitude profile
 MIN_TIME_SPACING = 10.0  # s between knots of a time profile
 VALUES_PER_PARAMETER = 8  # a fit needs at least this many measured values per parameter
@@ -78,30 +83,50 @@ class _Linearized:
     """One replay with sensitivities at the identified fit, all channels' corrections at zero."""
 
     def __init__(self, ctx, final, axis: str, n_knots: int, channels=CHANNELS, engines: dict | None = None,
-                 residual: np.ndarray | None = None):  # fmt: skip
+                 residual: np.ndarray | None = None, finer: "_Linearized | None" = None):  # fmt: skip
         replay, setup = ctx.replay, ctx.setup
         self.axis, self.knots = axis, _knots(replay, axis, n_knots)
         self.n0 = final.extra["n_initial"]
         self.effect_names = tuple(final.names[self.n0:])
         forcing = ChannelForcing(tuple(channels), axis, self.knots, _stage_times(replay), float(replay.grid.nodes[-1]))
         self.names = self.effect_names + tuple(forcing.names)
-        key = ("trace", final.structure.key(), self.effect_names, axis, self.knots, tuple(channels))
-        engines = {} if engines is None else engines
-        if key not in engines:
-            st = final.structure
-            engines[key] = SensitivityReplay(replay, lambda v: build_model(setup, st, v), self.names, forcing)
-        self.engine = engines[key]
         self.channels = tuple(channels)
         self.sigma = ctx.sigma
         self.mask = np.isfinite(replay.y)
         self.y_obs = replay.y
         self.group_of = np.broadcast_to(ctx.groups, replay.y.shape)[self.mask]
         self.theta0 = np.concatenate([final.values, np.zeros(len(forcing.names))])
+        self._qr = None
+        if finer is not None:  # every profile on these knots is one on the finer knots: no replay needed
+            self.engine = None
+            self.r, self.jac = finer.r, finer.jac @ finer.embedding(self)
+            return
+        key = ("trace", final.structure.key(), self.effect_names, axis, self.knots, tuple(channels))
+        engines = {} if engines is None else engines
+        if key not in engines:
+            st = final.structure
+            engines[key] = SensitivityReplay(replay, lambda v: build_model(setup, st, v), self.names, forcing)
+        self.engine = engines[key]
         if residual is None:  # the Jacobian at the identified fit
             self.r, self.jac = self.evaluate(self.theta0)
             ctx.nfev += 1
         else:  # the residual there is known (the corrections are zero): no replay needed
             self.r, self.jac = residual, None
+
+    def serves(self, n_knots: int) -> bool:
+        """Whether every profile through ``n_knots`` even knots is one through these (nested knots)."""
+        return self.jac is not None and self.channels == CHANNELS and (len(self.knots) - 1) % (n_knots - 1) == 0
+
+    def embedding(self, coarse: "_Linearized") -> np.ndarray:
+        """The matrix taking ``coarse``'s parameters to these: identity on the entry state and the
+        effects, and on every profile the finer hat coefficients of the coarser profile (its
+        values at the finer knots, exact because the coarser knots are among the finer)."""
+        t = hat_values(np.asarray(self.knots), coarse.knots).T  # (fine knots, coarse knots)
+        n_base = self.n0 + len(self.effect_names)
+        blocks = [np.eye(n_base)] + [t] * ((self.jac.shape[1] - n_base) // len(self.knots))
+        from scipy.linalg import block_diag
+
+        return block_diag(*blocks)
 
     def evaluate(self, theta: np.ndarray):
         with np.errstate(all="ignore"):
@@ -115,6 +140,37 @@ class _Linearized:
         base = list(range(self.n0 + len(self.effect_names)))
         names = {n for c in channels for n in channel_parameters(c, len(self.knots))}
         return base + [i for i, n in enumerate(self.names, start=self.n0) if n in names]
+
+    def screen(self, cols):
+        """:meth:`step` from the screening Jacobian, for any subset of its columns, without refactoring it.
+
+        The scaled Jacobian is factored once, J D = Q R; every subset S of its columns lies in the
+        span of Q, so min |r + J_S s| is min |Q^T r + R_S s| (a problem of the size of the
+        parameters, not of the record) plus the constant part of r outside that span. The step
+        and the new residual are those of the least-squares fit on the subset's own columns.
+        """
+        if self._qr is None:
+            scale = np.linalg.norm(self.jac, axis=0)
+            scale[scale == 0] = 1.0
+            from scipy.linalg import qr
+
+            # R of [J D, r] holds R and Q^T r: Q itself (the size of the record) is never formed
+            (rr,) = qr(np.column_stack([self.jac / scale, self.r]), mode="r", overwrite_a=True, check_finite=False)
+            n = len(scale)
+            self._qr = (scale, rr[:n, :n], rr[:n, n])
+        scale, rr, qtr = self._qr
+        s, *_ = np.linalg.lstsq(rr[:, cols], -qtr, rcond=np.finfo(float).eps * max(self.jac.shape))  # lstsq's own cutoff on J_S
+        step = s / scale[cols]
+        full = np.zeros(self.jac.shape[1])
+        full[cols] = step
+        return step, self.r + self.jac @ full
+
+    def release(self, keep_jacobian: bool = False) -> None:
+        """Drop the screening factors and, unless kept for coarser counts, the Jacobian (the
+        refinement replays its own channels)."""
+        self._qr = None
+        if not keep_jacobian:
+            self.jac = None
 
     def step(self, r, jac, cols):
         a = jac[:, cols]
@@ -334,28 +390,23 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     fits = []  # (label channels, axis, k, lin, step, r_new, n_params)
     engines = ctx.engines
     for axis in ("altitude", "time"):
-        counts = knot_counts(ctx.replay, axis, n_values)
-        best_prev, worse = math.inf, 0
-        for k in counts:
-            say(f"trace: {axis}, {k} knots")
-            lin = _Linearized(ctx, final, axis, k, CHANNELS, engines)
-            best_here = math.inf
+        replayed = []  # the screening replays of this axis, finest first
+        for k in sorted(knot_counts(ctx.replay, axis, n_values), reverse=True):
+            finer = next((f for f in replayed if f.serves(k)), None)
+            say(f"trace: {axis}, {k} knots" + (f" (from the {len(finer.knots)}-knot Jacobian)" if finer else ""))
+            lin = _Linearized(ctx, final, axis, k, CHANNELS, engines, finer=finer)
+            if finer is None:
+                replayed.append(lin)
             for combo in combos:
                 cols = lin.columns(combo)
-                step, r_new = lin.step(lin.r, lin.jac, cols)
+                step, r_new = lin.screen(cols)
                 rss, nval = _rss_by_group(r_new, sigma_entries, lin.group_of, n_groups)
-                b = bic(rss, nval, len(cols))
                 fits.append({"channels": combo, "axis": axis, "knots": k, "lin": lin, "cols": cols, "step": step,
-                             "r": r_new, "rss": rss, "n": nval, "k_params": len(cols), "bic_white": b})  # fmt: skip
-                best_here = min(best_here, b)
-            # knots by BIC: stop once two finer counts in a row do not gain the threshold
-            if best_here < best_prev - threshold:
-                best_prev, worse = best_here, 0
-            else:
-                best_prev = min(best_prev, best_here)
-                worse += 1
-                if worse >= 2:
-                    break
+                             "r": r_new, "rss": rss, "n": nval, "k_params": len(cols),
+                             "bic_white": bic(rss, nval, len(cols))})  # fmt: skip
+            lin.release(keep_jacobian=finer is None)
+        for lin in replayed:
+            lin.release()
     base_rss, base_n = final.rss_by_group, final.n_by_group
     best_raw = min(fits, key=lambda f: f["bic_white"])
     lag1 = whiteness(_residual_matrix(best_raw["lin"], best_raw["r"]))["lag1_autocorrelation"]
@@ -409,15 +460,10 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         cov = np.zeros((len(theta), len(theta)))
         cov[np.ix_(cols, cols)] = cov_c
         attribution = _describe(ctx, lin, theta, cov, best["channels"])
-    if best is None or not gain > threshold:
-        # the leading correction is reported as such, not as an attribution
-        what = (f"the best ({' + '.join(best['channels'])} over {best['axis']}: "
-                + "; ".join(f"{e['channel']} {e['size']:+.3g} {e['size_unit']} over {_fmt_band(e)}" for e in attribution)
-                + f") gains {gain:.1f} in BIC on {n_eff:.1f} effective samples, not more than {threshold:g}"
-                ) if best else "every leading correction is outside its physical bounds"  # fmt: skip
-        out.update({"attribution": [], "rivals": [], "points_to": [],
-                    "leading": {"attribution": attribution, "bic_gain": gain, "significant": False} if best else None,
-                    "statement": f"No force channel explains the residual: {what}."})  # fmt: skip
+    if best is None:
+        out.update({"attribution": [], "rivals": [], "points_to": [], "leading": None,
+                    "statement": "No force channel explains the residual: every leading correction is outside its "
+                                 "physical bounds."})  # fmt: skip
         return out
     resid = _residual_matrix(lin, r) * ctx.sigma[None, :]
     rivals = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"],
@@ -427,13 +473,25 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     from rventry_env.validation.report.diagnostics import error_metrics
 
     names = " + ".join(best["channels"])
-    bands = "; ".join(f"{e['channel']} {e['size']:+.3g} {e['size_unit']} over {_fmt_band(e)}" for e in attribution)
+    bands = "; ".join(f"{e['channel']} {e['size']:+.3g} +/- {e['coefficient_stderr_max']:.2g} {e['size_unit']} over "
+                      f"{_fmt_band(e)}{_mach_text(e)}" for e in attribution)  # fmt: skip
+    after = error_metrics(resid, ctx.replay.record.kind)
+    out["residual_after_trace"] = resid  # for the plot; not written to the report
+    if not gain > threshold:
+        # the leading correction is reported as such, not as an attribution
+        out.update({"attribution": [], "rivals": [], "points_to": [],
+                    "leading": {"attribution": attribution, "bic_gain": gain, "significant": False, "rivals": rivals,
+                                "after_leading": after, "would_point_to": pts},
+                    "statement": f"No force channel explains the residual significantly: the leading correction, "
+                                 f"{names} over {best['axis']} ({bands}), gains {gain:.1f} in BIC on {n_eff:.1f} "
+                                 f"effective samples, not more than {threshold:g}. Were it real, it would point to: "
+                                 + "; ".join(pts) + "."})  # fmt: skip
+        return out
     out.update({
         "attribution": attribution,
         "bic_gain": gain,
         "rivals": rivals,
-        "after_trace": error_metrics(resid, ctx.replay.record.kind),
-        "residual_after_trace": resid,  # for the plot; not written to the report
+        "after_trace": after,
         "points_to": pts,
         "statement": f"Traced to {names} over {best['axis']}: {bands}. It points to: " + "; ".join(pts) + ".",
     })  # fmt: skip

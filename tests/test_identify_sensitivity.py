@@ -1,0 +1,86 @@
+"""The replay's exact Jacobian and the trace's screening, checked against independent computations.
+
+The sensitivity replay (CasADi forward mode, results written straight into NumPy arrays, Hermite
+interpolation as one sparse product) must predict what the NumPy replay predicts and have the
+derivative its own finite differences have; the trace's screening at a coarse knot count, taken
+from the finest count's Jacobian, must equal a replay at the coarse knots, and its subset solves
+must equal least squares on the subset's columns.
+"""
+
+import numpy as np
+import pytest
+
+from rventry_env.validation.identify import fly_record
+from rventry_env.validation.record import load_record
+from rventry_env.validation.replay.sensitivity import SensitivityReplay
+from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
+from rventry_env.validation.trace.attribution import _knots, _stage_times
+from rventry_env.validation.trace.forcing import CHANNELS, ChannelForcing
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory):
+    path = simulate_record(tmp_path_factory.mktemp("rec") / "rec.csv", parse_effects(["drag_coefficient=1.05"]),
+                           noise=(20.0, 0.2), duration=120.0, rate=2.0, seed=3)  # fmt: skip
+    setup, _, replay = fly_record(load_record(path), None, None, None, 1.0)
+    return setup, replay
+
+
+def _engine(setup, replay, axis, n_knots):
+    forcing = ChannelForcing(CHANNELS, axis, _knots(replay, axis, n_knots), _stage_times(replay),
+                             float(replay.grid.nodes[-1]))  # fmt: skip
+    return SensitivityReplay(replay, lambda v: setup.model, tuple(forcing.names), forcing)
+
+
+@pytest.mark.parametrize("axis", ["altitude", "time"])
+def test_sensitivities_are_the_derivative_of_the_numpy_replay(flown, axis):
+    setup, replay = flown
+    eng = _engine(setup, replay, axis, 3)
+    offsets = np.array([30.0, -20.0, 10.0, 0.1, -0.2, 0.05])
+    rng = np.random.default_rng(0)
+    params = 0.01 * rng.standard_normal(len(eng.names))
+    y, jac = eng.evaluate(offsets, params)
+    # at zero corrections the prediction is the NumPy replay's (an independent integrator loop)
+    y0, _ = eng.evaluate(offsets, np.zeros(len(eng.names)))
+    numpy_y = replay.observe(replay.states(setup.model, replay.init.rv_euler(offsets[None, :])), setup.model)[..., 0]
+    assert np.max(np.abs(y0 - numpy_y)) < 1e-6 * np.max(np.abs(numpy_y))
+    # every column is the central difference of the prediction (entry state and corrections)
+    theta = np.concatenate([offsets, params])
+    steps = np.concatenate([[1.0] * 3 + [1e-2] * 3, [1e-1 if "wind" in n else 1e-5 for n in eng.names]])  # m/s
+    for i in [0, 4, 6, 6 + len(params) // 2, len(theta) - 1]:
+        d = np.zeros(len(theta))
+        d[i] = steps[i]
+        yp, _ = eng.evaluate((theta + d)[:6], (theta + d)[6:])
+        ym, _ = eng.evaluate((theta - d)[:6], (theta - d)[6:])
+        fd = (yp - ym) / (2 * steps[i])
+        assert np.max(np.abs(jac[:, :, i] - fd)) <= 1e-5 * np.max(np.abs(fd)), eng.names[i - 6] if i >= 6 else i
+
+
+def test_a_coarse_trace_jacobian_from_the_finest_is_a_replay_at_the_coarse_knots(flown):
+    setup, replay = flown
+    offsets = np.zeros(6)
+    fine = _engine(setup, replay, "altitude", 13)
+    coarse = _engine(setup, replay, "altitude", 4)
+    _, j_fine = fine.evaluate(offsets, np.zeros(len(fine.names)))
+    _, j_coarse = coarse.evaluate(offsets, np.zeros(len(coarse.names)))
+    from rventry_env.validation.trace.forcing import hat_values
+    from scipy.linalg import block_diag
+
+    t = hat_values(np.asarray(_knots(replay, "altitude", 13)), _knots(replay, "altitude", 4)).T
+    embed = block_diag(np.eye(6), *[t] * 5)  # drag, vertical, lateral, wind east and north
+    mapped = np.einsum("nmk,kj->nmj", j_fine, embed)
+    assert np.max(np.abs(mapped - j_coarse)) < 1e-6 * np.max(np.abs(j_coarse))
+
+
+def test_screening_subsets_from_one_factorisation_are_least_squares_on_their_columns():
+    from rventry_env.validation.trace.attribution import _Linearized
+
+    rng = np.random.default_rng(4)
+    lin = object.__new__(_Linearized)  # only the Jacobian and residual matter here
+    lin.jac = rng.standard_normal((600, 12)) * np.logspace(-3, 3, 12)  # badly scaled columns
+    lin.r, lin._qr = rng.standard_normal(600), None
+    for cols in ([0, 1, 2], [0, 5, 11], list(range(12)), [3, 7]):
+        step, r_new = lin.screen(cols)
+        ref, *_ = np.linalg.lstsq(lin.jac[:, cols], -lin.r, rcond=None)
+        assert np.allclose(step, ref, rtol=1e-8, atol=0.0)
+        assert np.allclose(r_new, lin.r + lin.jac[:, cols] @ ref, rtol=1e-10, atol=1e-12)
