@@ -31,7 +31,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from rventry_env.task import EntryTask
+from rventry_env.task import FLIGHT_ERRORS, EntryTask
 from rventry_env.evaluation.parallel import EvaluationJob, concatenate, map_local, run_task
 from rventry_env.evaluation.summary import summarize
 from rventry_env.guidance.replanning import ReplanningSettings
@@ -60,15 +60,20 @@ VARIANTS = {
     "freeze 60 s": {"freeze_s": 60.0},
 }
 
+# the density perturbation's published statistics (the flight set's bands: what a law may know)
+FLIGHT_BANDS = FLIGHT_ERRORS.density_bands
 # the flight-grade scan: the settings the flight set's failures point to (load-factor breaches in
 # the final pull-down, q dips at a skip's apex where the air is thinner than estimated lower down)
 FLIGHT_VARIANTS = {
     "defaults": {},
     "load relief 2 %": {"load_relief_margin": 0.02},
     "load relief 2 %, q margin 8 %": {"load_relief_margin": 0.02, "q_margin": 0.08},
-    "load relief 2 %, q margin 10 %": {"load_relief_margin": 0.02, "q_margin": 0.10},
     "load relief 2 %, q 8 %, terminal alpha 0.5": {"load_relief_margin": 0.02, "q_margin": 0.08,
                                                     "terminal_alpha": True},
+    "load relief 2 %, density margins 1 sigma": {"load_relief_margin": 0.02, "density_bands": FLIGHT_BANDS,
+                                                  "density_sigmas": 1.0},
+    "load relief 2 %, density margins 2 sigma": {"load_relief_margin": 0.02, "density_bands": FLIGHT_BANDS,
+                                                  "density_sigmas": 2.0},
 }
 
 

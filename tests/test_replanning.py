@@ -279,3 +279,31 @@ def test_mpc_with_load_relief_reports_its_capped_steps_and_lands():
     assert set(b.law_stats[0]) >= {"replans", "load_relief_steps"}
     with pytest.raises(ValueError, match="load_relief_margin must be None"):
         ReplanningSettings(load_relief_margin=1.5)
+
+
+def test_density_margins_tighten_each_point_by_the_density_uncertainty_at_its_altitude():
+    """With the atmosphere's Gauss-Markov bands known, a collocation point's load and q bounds are
+    tightened by k sigma of the density ratio there given the one measured at the current
+    altitude: nothing at the current altitude, s sqrt(2 (1 - exp(-dh/L))) away from it."""
+    from rventry_env.task import FLIGHT_ERRORS
+    from rventry_env.task.flight import band_profile
+
+    bands = FLIGHT_ERRORS.density_bands
+    solver = PlanSolver(EntryTask(), EntryModel(), replace(COARSE, density_bands=bands, density_sigmas=2.0))
+    plan = solver.nominal_plan(EntryTask())
+    x0 = EntryTask().problem.initial_state(EntryModel().planet.radius)
+    lbg, ubg = solver.path_bounds(x0, plan)
+    tr = solver.transcription
+    rows = tr.g_groups["path"]
+    nodes = tr.mesh.nodes()[: tr.mesh.n_collocation]
+    h = plan.state(nodes * plan.tf)[:, 0] - solver.radius
+    rms, corr = band_profile(bands, h)
+    sigma = rms * np.sqrt(2 * (1 - np.exp(-np.abs(h - 37e3) / corr)))
+    np.testing.assert_allclose(ubg[rows][0::2], tr.ubg[rows][0::2] * np.exp(-2 * sigma), rtol=1e-12)
+    np.testing.assert_allclose(lbg[rows][1::2], tr.lbg[rows][1::2] * np.exp(2 * sigma), rtol=1e-12)
+    assert sigma[0] == 0.0 and sigma.max() > 0.05  # measured where it starts, uncertain far below
+    # the other constraints keep their bounds, and without bands nothing changes
+    outside = np.ones(tr.lbg.size, bool)
+    outside[rows] = False
+    np.testing.assert_array_equal(lbg[outside], tr.lbg[outside])
+    assert PlanSolver(EntryTask(), EntryModel(), COARSE).path_bounds(x0, plan) == (None, None)

@@ -50,6 +50,15 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   between solves. Looking three steps ahead with the asked rate held, or with alpha held after
   one step, was too cautious: it capped the pull-up, and the optimum replayed through a density
   step ended 8-15 deg from vertical.
+* **Margins that follow the density's uncertainty** (``density_bands``, off by default). The
+  accelerometer tells the density ratio where the vehicle is; elsewhere the plan extrapolates
+  it. With the atmosphere's perturbation statistics known as Gauss-Markov bands in altitude
+  (rms s(h), correlation length L(h): what an Earth-GRAM-style model publishes, not the
+  episode's draw), the ratio at a node of altitude h differs from the one measured at h_now by
+  s(h) sqrt(2 (1 - exp(-|h - h_now| / L(h)))) (1 sigma). Each node's load and q bounds are
+  tightened by ``density_sigmas`` of it, through the NLP's constraint bounds (no new
+  transcription): the plan keeps room where the air is least known, and none where it was
+  just measured.
 * **Final re-planning** (off by default). With ``final_replan_s`` set, the interval shortens
   to it once the planned time to go is under ``final_window_s``. The law itself does not need
   it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
@@ -101,8 +110,17 @@ class ReplanningSettings:
     terminal_alpha: bool = False
     terminal_alpha_deg: float = 0.5
     load_relief_margin: float | None = None
+    density_bands: tuple | None = None
+    density_sigmas: float = 2.0
 
     def __post_init__(self):
+        if self.density_bands is not None:
+            from rventry_env.task.flight import _bands
+
+            object.__setattr__(self, "density_bands", _bands(self.density_bands, "density_bands"))
+        if not (isinstance(self.density_sigmas, (int, float)) and math.isfinite(self.density_sigmas)
+                and self.density_sigmas >= 0):  # fmt: skip
+            raise ValueError(f"density_sigmas must be a finite number >= 0, got {self.density_sigmas!r}")
         if self.max_wall_s is not None and not (
                 isinstance(self.max_wall_s, (int, float)) and math.isfinite(self.max_wall_s) and self.max_wall_s > 0):  # fmt: skip
             raise ValueError(f"max_wall_s must be None (no cap) or positive seconds, got {self.max_wall_s!r}")
@@ -239,7 +257,40 @@ class PlanSolver:
         lbx, ubx = tr.bounds_with_initial_state(x0)
         z0 = initial_point(tr, guess, lbx, ubx)
         lam = (warm.lam_x, warm.lam_g) if warm is not None and warm.lam_x is not None else (None, None)
-        return solve_from(tr, z0, theta, lbx, ubx, *lam)
+        lbg, ubg = self.path_bounds(x0, guess)
+        return solve_from(tr, z0, theta, lbx, ubx, *lam, lbg=lbg, ubg=ubg)
+
+    def density_sigma(self, altitude_now: float, altitudes: np.ndarray) -> np.ndarray:
+        """1-sigma relative uncertainty of the density ratio at ``altitudes`` given its value at
+        ``altitude_now`` (:class:`ReplanningSettings` ``density_bands``; zeros without them)."""
+        s = self.settings
+        if s.density_bands is None:
+            return np.zeros_like(altitudes)
+        from rventry_env.task.flight import band_profile
+
+        rms, corr = band_profile(s.density_bands, np.asarray(altitudes, dtype=float))
+        return rms * np.sqrt(2.0 * (1.0 - np.exp(-np.abs(altitudes - altitude_now) / corr)))
+
+    def path_bounds(self, x0: np.ndarray, guess):
+        """The NLP's constraint bounds for a solve from ``x0``: the transcription's, with each
+        collocation point's load and q bounds tightened by ``density_sigmas`` of the density
+        ratio's uncertainty at the altitude ``guess`` puts it (None, None: unchanged)."""
+        s, tr = self.settings, self.transcription
+        if s.density_bands is None or s.density_sigmas == 0:
+            return None, None
+        nodes = tr.mesh.nodes()[: tr.mesh.n_collocation]
+        x = np.asarray(guess.state(guess.t0 + nodes * (guess.tf - guess.t0)), dtype=float)
+        k = s.density_sigmas * self.density_sigma(float(x0[IDX.r]) - self.radius, x[:, IDX.r] - self.radius)
+        lbg, ubg = tr.lbg.copy(), tr.ubg.copy()
+        rows = tr.g_groups["path"]
+        n_path = len(self.problem.path_constraints)
+        # rows are point-major: (aero_accel, dynamic_pressure) at each collocation point, relative
+        upper = tr.ubg[rows].copy()
+        lower = tr.lbg[rows].copy()
+        upper[0::n_path] = upper[0::n_path] * np.exp(-k)  # n / n_max' <= exp(-k sigma)
+        lower[1::n_path] = lower[1::n_path] * np.exp(k)  # q / q_min' >= exp(+k sigma)
+        ubg[rows], lbg[rows] = upper, lower
+        return lbg, ubg
 
     def nominal_plan(self, task: EntryTask):
         """The plan for the nominal start and model on this mesh, from the shipped optimum (cached)."""

@@ -289,14 +289,14 @@ def transcribe(
     )  # fmt: skip
 
 
-def _violations(tr: Transcription, z: np.ndarray, gval: np.ndarray, lbx, ubx) -> tuple[float, dict]:
+def _violations(tr: Transcription, z: np.ndarray, gval: np.ndarray, lbx, ubx, lbg, ubg) -> tuple[float, dict]:
     """Largest violation of the (scaled) NLP constraints and bounds, overall and per group."""
     def excess(v, lo, hi):
         if v.size == 0:
             return 0.0
         return float(np.max(np.maximum(np.maximum(lo - v, v - hi), 0.0)))
 
-    out = {name: excess(gval[sl], tr.lbg[sl], tr.ubg[sl]) for name, sl in tr.g_groups.items()}
+    out = {name: excess(gval[sl], lbg[sl], ubg[sl]) for name, sl in tr.g_groups.items()}
     out["bounds"] = excess(z, lbx, ubx)
     return max(out.values()), out
 
@@ -314,18 +314,22 @@ def initial_point(tr: Transcription, guess: TrajectoryLike, lbx=None, ubx=None) 
 
 
 def solve_from(tr: Transcription, z0: np.ndarray, parameters=None, lbx=None, ubx=None, lam_x0=None,
-               lam_g0=None) -> CollocationSolution:  # fmt: skip
+               lam_g0=None, lbg=None, ubg=None) -> CollocationSolution:  # fmt: skip
     """Solve the transcribed NLP from the scaled point ``z0``.
 
     :param parameters: the problem's parameter values (default: its defaults).
     :param lbx: variable bounds replacing the transcription's (to fix a new initial state, say).
     :param lam_x0: bound multipliers to warm-start from (with ``lam_g0``, the constraint multipliers).
+    :param lbg: constraint bounds replacing the transcription's (``tr.g_groups`` names their
+        rows: per-node path bounds, say), with ``ubg``.
     """
     p, mesh = tr.problem, tr.mesh
     par = p.check_parameters(parameters)
     lbx = tr.lbx if lbx is None else lbx
     ubx = tr.ubx if ubx is None else ubx
-    args = dict(x0=z0, lbx=lbx, ubx=ubx, lbg=tr.lbg, ubg=tr.ubg, p=par)
+    lbg = tr.lbg if lbg is None else lbg
+    ubg = tr.ubg if ubg is None else ubg
+    args = dict(x0=z0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg, p=par)
     if lam_x0 is not None and lam_g0 is not None:
         args.update(lam_x0=lam_x0, lam_g0=lam_g0)
     start = time.perf_counter()
@@ -334,7 +338,7 @@ def solve_from(tr: Transcription, z0: np.ndarray, parameters=None, lbx=None, ubx
     stats = tr.solver.stats()
     z = np.asarray(res["x"]).ravel()
     x, u, tf = tr.unpack(z)
-    worst, groups = _violations(tr, z, np.asarray(res["g"]).ravel(), lbx, ubx)
+    worst, groups = _violations(tr, z, np.asarray(res["g"]).ravel(), lbx, ubx, lbg, ubg)
     s = mesh.nodes()
     return CollocationSolution(
         problem=p, mesh=mesh, t0=p.t0, tf=tf, t=p.t0 + (tf - p.t0) * s, x=x, u=u,
