@@ -99,17 +99,20 @@ def solve_draw(x0: np.ndarray, model, task: EntryTask, settings: OracleSettings)
     config = EntryProblemConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0))
     cp = CompiledProblem(entry_problem(config))
     opts = SolverOptions(graph="sx", nlp_tolerance=settings.nlp_tolerance, max_nlp_iterations=settings.max_iterations)
-    mesh, guess = settings.mesh(), _ReferenceGuess(load_reference(), cp.problem.n_u)
-    for attempt in range(settings.refinements + 1):
+
+    def solve(mesh, guess):
         tr = transcribe(cp, mesh, opts)
         lbx, ubx = tr.bounds_with_initial_state(x0)
-        sol = solve_from(tr, initial_point(tr, guess, lbx, ubx), None, lbx, ubx)
-        if not sol.success or attempt == settings.refinements:
-            return sol
-        bad = intervals_leaving_bounds(sol, model, problem, settings.between_tolerance)
-        if bad.size == 0:
-            return sol
-        mesh, guess = split_intervals(mesh, bad), sol
+        return solve_from(tr, initial_point(tr, guess, lbx, ubx), None, lbx, ubx)
+
+    mesh = settings.mesh()
+    sol = solve(mesh, _ReferenceGuess(load_reference(), cp.problem.n_u))
+    for _ in range(settings.refinements):
+        bad = intervals_leaving_bounds(sol, model, problem, settings.between_tolerance) if sol.success else ()
+        if len(bad) == 0:
+            break
+        mesh = split_intervals(mesh, bad)
+        sol = solve(mesh, sol)
     return sol
 
 

@@ -115,9 +115,9 @@ class ReplanningSettings:
 
     def __post_init__(self):
         if self.density_bands is not None:
-            from rventry_env.task.flight import _bands
+            from rventry_env.task.flight import parse_bands
 
-            object.__setattr__(self, "density_bands", _bands(self.density_bands, "density_bands"))
+            object.__setattr__(self, "density_bands", parse_bands(self.density_bands, "density_bands"))
         if not (isinstance(self.density_sigmas, (int, float)) and math.isfinite(self.density_sigmas)
                 and self.density_sigmas >= 0):  # fmt: skip
             raise ValueError(f"density_sigmas must be a finite number >= 0, got {self.density_sigmas!r}")
@@ -282,14 +282,11 @@ class PlanSolver:
         x = np.asarray(guess.state(guess.t0 + nodes * (guess.tf - guess.t0)), dtype=float)
         k = s.density_sigmas * self.density_sigma(float(x0[IDX.r]) - self.radius, x[:, IDX.r] - self.radius)
         lbg, ubg = tr.lbg.copy(), tr.ubg.copy()
-        rows = tr.g_groups["path"]
-        n_path = len(self.problem.path_constraints)
-        # rows are point-major: (aero_accel, dynamic_pressure) at each collocation point, relative
-        upper = tr.ubg[rows].copy()
-        lower = tr.lbg[rows].copy()
-        upper[0::n_path] = upper[0::n_path] * np.exp(-k)  # n / n_max' <= exp(-k sigma)
-        lower[1::n_path] = lower[1::n_path] * np.exp(k)  # q / q_min' >= exp(+k sigma)
-        ubg[rows], lbg[rows] = upper, lower
+        # the path rows are point-major: every path constraint (relative) at each collocation point
+        names = [c.name for c in self.problem.path_constraints]
+        load, q = names.index("aero_accel"), names.index("dynamic_pressure")
+        ubg[tr.g_groups["path"]][load :: len(names)] *= np.exp(-k)  # n / n_max' <= exp(-k sigma)
+        lbg[tr.g_groups["path"]][q :: len(names)] *= np.exp(k)  # q / q_min' >= exp(+k sigma)
         return lbg, ubg
 
     def nominal_plan(self, task: EntryTask):
@@ -426,17 +423,17 @@ class ReplanningGuidance(Law):
 
     def _aim(self, target_e: np.ndarray) -> None:
         """Point each episode's planner at the target it is told (a change re-plans at once)."""
+        nominal = self.task.problem.target_unit_vector()
         for i in range(self.n):
             t = np.asarray(target_e[i], dtype=float)
             if self.aimed[i] is not None and np.array_equal(t, self.aimed[i]):
                 continue
-            if np.allclose(t, self.task.problem.target_unit_vector(), rtol=0.0, atol=1e-12):
-                solver = self.solver
-            else:
-                solver = _plan_solver(self.task.aimed_at(t), self.model, self.settings)
+            # the task's own target keeps the task's planner (aimed_at rounds it through lat/lon)
+            task = self.task if np.allclose(t, nominal, rtol=0.0, atol=1e-12) else self.task.aimed_at(t)
+            solver = _plan_solver(task, self.model, self.settings)
             if solver is not self.solvers[i]:
                 self.solvers[i] = solver
-                self.nominals[i] = solver.nominal_plan(self.task.aimed_at(t))
+                self.nominals[i] = solver.nominal_plan(task)
                 self.tracks[i] = None  # a plan to the old target is no plan
             self.aimed[i] = t.copy()
 

@@ -41,7 +41,7 @@ AP_MEDIAN, AP_LOG_SIGMA, AP_MAX = 8.0, 0.8, 400.0
 MSIS_YEAR = np.datetime64("2001-01-01T00:00")  # a non-leap year; NRLMSIS 2.1 has no trend below 100 km
 
 
-def _bands(value, what: str) -> tuple:
+def parse_bands(value, what: str) -> tuple:
     """Bands ((top altitude m, rms, correlation length m), ...) with increasing tops."""
     try:
         bands = tuple(tuple(float(c) for c in b) for b in value)
@@ -91,8 +91,8 @@ class FlightErrors:
     def __post_init__(self):
         if not isinstance(self.climatology, bool):
             raise ValueError(f"flight climatology must be True or False, got {self.climatology!r}")
-        object.__setattr__(self, "density_bands", _bands(self.density_bands, "flight density_bands"))
-        object.__setattr__(self, "wind_bands", _bands(self.wind_bands, "flight wind_bands"))
+        object.__setattr__(self, "density_bands", parse_bands(self.density_bands, "flight density_bands"))
+        object.__setattr__(self, "wind_bands", parse_bands(self.wind_bands, "flight wind_bands"))
         for f in fields(self):
             if f.name in ("climatology", "density_bands", "wind_bands"):
                 continue
@@ -226,28 +226,21 @@ def msis_mean_log_density(problem, grid: np.ndarray = GRID_M) -> np.ndarray:
     The mean of ln rho over the drawn day of year and local time (a 24 x 8 grid: both are drawn
     uniform), at F10.7 = F10.7a = the middle of their range and Ap = its median (below 100 km
     the indices barely matter). This is the atmosphere a mission's guidance is built on; a draw
-    departs from it by ln rho_draw - ln rho_mean (docs/uncertainty.md). Cached per problem
-    geometry.
+    departs from it by ln rho_draw - ln rho_mean (docs/uncertainty.md). Cached per problem.
     """
-    key = (float(problem.initial_altitude), float(getattr(problem, "initial_longitude", 0.0)),
-           float(problem.target_longitude), float(problem.target_latitude), grid.tobytes())  # fmt: skip
-    return _msis_mean(key, problem)
+    return _msis_mean(problem, grid.tobytes())
 
 
-_MEAN_CACHE: dict = {}
-
-
-def _msis_mean(key, problem) -> np.ndarray:
-    if key not in _MEAN_CACHE:
-        grid = np.frombuffer(key[-1], dtype=float)
-        f107 = 0.5 * (F107_RANGE[0] + F107_RANGE[1])
-        rows = [msis_log_density(1.0 + 365.0 * (i + 0.5) / MEAN_DAYS, 24.0 * (j + 0.5) / MEAN_HOURS, f107, f107,
-                                 AP_MEDIAN, problem, grid)
-                for i in range(MEAN_DAYS) for j in range(MEAN_HOURS)]  # fmt: skip
-        mean = np.mean(rows, axis=0)
-        mean.flags.writeable = False
-        _MEAN_CACHE[key] = mean
-    return _MEAN_CACHE[key]
+@functools.lru_cache(maxsize=8)
+def _msis_mean(problem, grid_bytes: bytes) -> np.ndarray:
+    grid = np.frombuffer(grid_bytes, dtype=float)
+    f107 = 0.5 * (F107_RANGE[0] + F107_RANGE[1])
+    rows = [msis_log_density(1.0 + 365.0 * (i + 0.5) / MEAN_DAYS, 24.0 * (j + 0.5) / MEAN_HOURS, f107, f107,
+                             AP_MEDIAN, problem, grid)
+            for i in range(MEAN_DAYS) for j in range(MEAN_HOURS)]  # fmt: skip
+    mean = np.mean(rows, axis=0)
+    mean.flags.writeable = False
+    return mean
 
 
 # how many standard normals / uniforms one vehicle's flight draw takes (fixed per description)
@@ -296,6 +289,7 @@ __all__ = [
     "GRID_POINTS",
     "GRID_M",
     "FlightErrors",
+    "parse_bands",
     "band_profile",
     "gauss_markov",
     "ground_track_longitude_deg",
