@@ -17,6 +17,7 @@ value (deg; 0 = off): alpha(t_f), the vertical-impact error, the miss and J/J*.
     python scripts/bench_mpc.py --evaluate --workers 2 --json out/bench_mpc.json
     python scripts/bench_mpc.py --scan --episodes 40 --workers 2 --json out/scan_mpc.json
     python scripts/bench_mpc.py --scan --variants flight --dispersion flight --episodes 12 --workers 2 --json out/scan_mpc_flight.json
+    python scripts/bench_mpc.py --scan --variants aero --dispersion flight --episodes 20 --seed 1000 --workers 2 --json out/scan_mpc_aero.json
 
 Timings depend on the machine: the README quotes this 2-core machine's (``--workers 2``).
 Success rates do not: the solver's budget is an iteration count.
@@ -75,6 +76,18 @@ FLIGHT_VARIANTS = {
     "load relief 2 %, density margins 2 sigma": {"load_relief_margin": 0.02, "density_bands": FLIGHT_BANDS,
                                                   "density_sigmas": 2.0},
 }
+# the margins for the aerodynamics' uncertainty in Mach, with and around the flight-grade preset
+# (ReplanningSettings.flight_grade(), agent mpc-flight)
+_LR_D1 = {"load_relief_margin": 0.02, "density_bands": FLIGHT_BANDS, "density_sigmas": 1.0}
+AERO_VARIANTS = {
+    "load relief 2 %, density 1 sigma": _LR_D1,
+    "+ aero margins 1 sigma": _LR_D1 | {"aero_mach_rms": 0.03},
+    "+ aero margins 2 sigma": _LR_D1 | {"aero_mach_rms": 0.03, "aero_sigmas": 2.0},
+    "+ aero 1 sigma, q 8 %": _LR_D1 | {"aero_mach_rms": 0.03, "q_margin": 0.08},
+    "+ aero 1 sigma, q 10 % (mpc-flight)": _LR_D1 | {"aero_mach_rms": 0.03, "q_margin": 0.10},
+    "density 2 sigma, aero 1 sigma": _LR_D1 | {"density_sigmas": 2.0, "aero_mach_rms": 0.03},
+}
+VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS}
 
 
 def _reference_cost() -> float:
@@ -124,7 +137,7 @@ def scan(args) -> dict:
     task = EntryTask()
     seeds = list(range(args.seed, args.seed + args.episodes))
     jobs = {}
-    variants = FLIGHT_VARIANTS if args.variants == "flight" else VARIANTS
+    variants = VARIANT_SETS[args.variants]
     for name, change in variants.items():
         opts = (("settings", replace(DEFAULT, **change)),)
         jobs[name] = (EvaluationJob("mpc", args.dispersion, task, opts), seeds)
@@ -236,8 +249,9 @@ def main(argv=None) -> int:
     ap.add_argument("--episodes", type=positive_int, help="episodes per variant (scan: 40) or per set (evaluate: 200)")
     ap.add_argument("--dispersion", default="wide", choices=("standard", "wide", "flight", "peer", "peer-0.1"),
                     help="the scan's set (wide)")
-    ap.add_argument("--variants", default="defaults", choices=("defaults", "flight"),
-                    help="defaults: each setting varied alone; flight: the flight-grade remedies")
+    ap.add_argument("--variants", default="defaults", choices=tuple(VARIANT_SETS),
+                    help="defaults: each setting varied alone; flight: the flight-grade remedies; aero: the "
+                         "margins for the aerodynamics' uncertainty in Mach, with and around mpc-flight's")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
     ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
     ap.add_argument("--workers", type=positive_int, default=2)

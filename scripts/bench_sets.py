@@ -25,7 +25,7 @@ import json
 import time
 from pathlib import Path
 
-LAWS = ("reference", "lqr", "lqr-est", "mpc", "learned")
+LAWS = ("reference", "lqr", "lqr-est", "mpc", "mpc-flight", "learned")
 
 
 def main():
@@ -49,7 +49,7 @@ def main():
     for s in args.sets:
         rows = {}
         for law in args.laws:
-            n = args.mpc_episodes if law == "mpc" else args.episodes
+            n = args.mpc_episodes if law.startswith("mpc") else args.episodes
             t0 = time.time()
             try:
                 _, summary = run_agent(law, n, s, 0, history=False, workers=args.workers, targets=args.targets)
@@ -104,7 +104,7 @@ def effects(args) -> None:
     for name, d in effect_sets().items():
         cells = []
         for law in args.laws:
-            n = args.mpc_episodes if law == "mpc" else args.episodes
+            n = args.mpc_episodes if law.startswith("mpc") else args.episodes
             _, summary = run_agent(law, n, d.describe() | {"flight": d.flight}, 0, history=False, workers=args.workers)
             out["effects"].setdefault(name, {})[law] = {k: summary[k] for k in ("episodes", "success_rate",
                                                        "success_rate_ci", "precision_success_rate", "miss_m")}  # fmt: skip

@@ -307,3 +307,79 @@ def test_density_margins_tighten_each_point_by_the_density_uncertainty_at_its_al
     outside[rows] = False
     np.testing.assert_array_equal(lbg[outside], tr.lbg[outside])
     assert PlanSolver(EntryTask(), EntryModel(), COARSE).path_bounds(x0, plan) == (None, None)
+
+
+def test_aero_margins_follow_the_mach_uncertainty_of_the_physics_part():
+    """The law's spread of C_L between two Mach numbers matches the flight set's Mach-varying
+    aerodynamics (its own physics part) sampled with the same coefficient rms; the load bound is
+    tightened by it in quadrature with the density term, q only by the density term; the plans'
+    L/D is lowered by sqrt(2) of it toward the impact's Mach, the drag scale untouched."""
+    from rventry_env.core.backend import NUMPY
+    from rventry_env.physics.uncertainty import MachVaryingAerodynamics
+    from rventry_env.task import FLIGHT_ERRORS
+
+    rms = 0.03
+    settings = replace(COARSE, aero_mach_rms=rms, aero_sigmas=2.0, density_bands=FLIGHT_ERRORS.density_bands,
+                       density_sigmas=1.0)  # fmt: skip
+    solver = PlanSolver(EntryTask(), EntryModel(), settings)
+    machs = np.array([4.0, 6.0, 12.0, 20.0])
+    rng = np.random.default_rng(5)
+    a = rng.normal(0.0, rms, size=(2, 200_000))
+    part = MachVaryingAerodynamics(EntryModel().vehicle.aerodynamics, lift_p1=a[0], lift_p2=a[1])
+
+    def lift_error(m):
+        cl, _ = part.coefficients(np.radians(10.0), np.full(a.shape[1], m), NUMPY)
+        cl0, _ = part.base.coefficients(np.radians(10.0), m, NUMPY)
+        return cl / cl0 - 1.0
+
+    for m in machs:
+        empirical = np.std(lift_error(m) - lift_error(20.0))
+        assert solver.aero_sigma(20.0, m) == pytest.approx(empirical, rel=0.01, abs=1e-12)
+    assert solver.aero_sigma(20.0, 20.0) == 0.0
+
+    plan = solver.nominal_plan(EntryTask())
+    x0 = EntryTask().problem.initial_state(EntryModel().planet.radius)
+    lbg, ubg = solver.path_bounds(x0, plan)
+    only_density = PlanSolver(EntryTask(), EntryModel(), replace(settings, aero_mach_rms=None))
+    lbg_d, ubg_d = only_density.path_bounds(x0, plan)
+    tr = solver.transcription
+    rows = tr.g_groups["path"]
+    nodes = tr.mesh.nodes()[: tr.mesh.n_collocation]
+    k_a = 2.0 * solver.aero_sigma(solver.mach(x0)[0], solver.mach(plan.state(nodes * plan.tf)))
+    k_q = -np.log(ubg_d[rows][0::2] / tr.ubg[rows][0::2])
+    np.testing.assert_allclose(ubg[rows][0::2], tr.ubg[rows][0::2] * np.exp(-np.hypot(k_q, k_a)), rtol=1e-12)
+    np.testing.assert_array_equal(lbg[rows][1::2], lbg_d[rows][1::2])  # q: the density term alone
+    assert k_a.max() > 0.05
+
+    law = ReplanningGuidance(EntryTask(), settings=settings)
+    theta = np.array([[0.1, -0.05], [0.0, 0.0]])
+    states = np.array([x0, plan.state(0.95 * plan.tf)])
+    out = law.planning_scales(states, theta)
+    np.testing.assert_array_equal(out[:, 0], theta[:, 0])
+    drop = theta[:, 1] - out[:, 1]
+    expected = 2.0 * np.sqrt(2.0) * solver.aero_sigma(solver.mach(states), law.mach_end)
+    np.testing.assert_allclose(drop, expected, rtol=1e-12)
+    assert drop[0] > drop[1] > 0  # the farther the impact's Mach, the lower the planned L/D
+    assert ReplanningGuidance(EntryTask(), settings=COARSE).planning_scales(states, theta) is theta
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"aero_mach_rms": -0.1}, "aero_mach_rms must be None"),
+    ({"aero_sigmas": float("nan")}, "aero_sigmas must be"),
+    ({"aero_mach_range": (10.0, 5.0)}, "aero_mach_range must be"),
+])  # fmt: skip
+def test_aero_margin_settings_are_checked(change, match):
+    with pytest.raises(ValueError, match=match):
+        replace(ReplanningSettings(), **change)
+
+
+def test_the_flight_grade_preset_is_what_mpc_flight_flies():
+    from rventry_env.evaluation.agents import load_agent
+    from rventry_env.task import FLIGHT_ERRORS
+
+    s = ReplanningSettings.flight_grade()
+    assert (s.load_relief_margin, s.q_margin, s.density_sigmas, s.aero_sigmas) == (0.02, 0.10, 1.0, 1.0)
+    assert s.density_bands == FLIGHT_ERRORS.density_bands and s.aero_mach_rms == FLIGHT_ERRORS.lift_mach
+    assert ReplanningSettings.flight_grade(q_margin=0.08).q_margin == 0.08
+    law = load_agent("mpc-flight", EntryTask(), settings=replace(s, mesh_intervals=10, replan_s=60.0))
+    assert law.settings.aero_mach_rms == 0.03 and law.relief is not None

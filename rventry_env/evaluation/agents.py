@@ -45,12 +45,20 @@ def _mpc(task, **options):
     return ReplanningGuidance(task=task, **options)
 
 
+def _mpc_flight(task, **options):
+    from rventry_env.guidance.replanning import ReplanningGuidance, ReplanningSettings
+
+    return ReplanningGuidance(task=task, **({"settings": ReplanningSettings.flight_grade()} | options))
+
+
 # name -> (description, factory(task, **options))
 BUILTIN: dict[str, tuple[str, Callable]] = {
     "reference": ("open-loop replay of the optimal collocation reference", _reference),
     "lqr": ("time-varying LQR around the margined guidance reference", _lqr),
     "lqr-est": ("the same TV-LQR with online estimation of the aerodynamic scales", _lqr_est),
     "mpc": ("re-planning on the LGR transcription every 30 s, with online estimation", _mpc),
+    "mpc-flight": ("the same re-planning with flight-grade margins: load relief, and margins from the density's "
+                   "and the aerodynamics' uncertainty", _mpc_flight),
 }
 
 

@@ -59,6 +59,16 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   tightened by ``density_sigmas`` of it, through the NLP's constraint bounds (no new
   transcription): the plan keeps room where the air is least known, and none where it was
   just measured.
+* **Margins that follow the aerodynamics' uncertainty in Mach** (``aero_mach_rms``, off by
+  default). The estimator measures the drag and L/D scales at the Mach number flown; an
+  aerodynamic database's error changes with Mach, and the final dive is flown 2-3 Mach numbers
+  below the skip that measured it. With the error modelled as smooth in Mach (Legendre P1 and
+  P2 terms over ``aero_mach_range``, each coefficient of rms ``aero_mach_rms``: the statistics of
+  the database, not the episode's draw), the law (1) tightens each node's load bound by
+  ``aero_sigmas`` of the coefficients' spread between the Mach flown and the node's, in
+  quadrature with the density term, and (2) plans and tracks with the L/D scale lowered by
+  ``aero_sigmas`` of its spread between the Mach flown and the impact's, so the plan keeps the
+  lift the last minute may lack and turns the dive earlier.
 * **Final re-planning** (off by default). With ``final_replan_s`` set, the interval shortens
   to it once the planned time to go is under ``final_window_s``. The law itself does not need
   it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
@@ -112,6 +122,9 @@ class ReplanningSettings:
     load_relief_margin: float | None = None
     density_bands: tuple | None = None
     density_sigmas: float = 2.0
+    aero_mach_rms: float | None = None
+    aero_sigmas: float = 1.0
+    aero_mach_range: tuple = (3.0, 25.0)
 
     def __post_init__(self):
         if self.density_bands is not None:
@@ -121,6 +134,15 @@ class ReplanningSettings:
         if not (isinstance(self.density_sigmas, (int, float)) and math.isfinite(self.density_sigmas)
                 and self.density_sigmas >= 0):  # fmt: skip
             raise ValueError(f"density_sigmas must be a finite number >= 0, got {self.density_sigmas!r}")
+        if self.aero_mach_rms is not None and not (
+                isinstance(self.aero_mach_rms, (int, float)) and math.isfinite(self.aero_mach_rms) and self.aero_mach_rms >= 0):  # fmt: skip
+            raise ValueError(f"aero_mach_rms must be None (off) or a finite number >= 0, got {self.aero_mach_rms!r}")
+        if not (isinstance(self.aero_sigmas, (int, float)) and math.isfinite(self.aero_sigmas) and self.aero_sigmas >= 0):
+            raise ValueError(f"aero_sigmas must be a finite number >= 0, got {self.aero_sigmas!r}")
+        lo_m, hi_m = (tuple(self.aero_mach_range) + (None, None))[:2]
+        if not (len(tuple(self.aero_mach_range)) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in (lo_m, hi_m))
+                and 0 < lo_m < hi_m):  # fmt: skip
+            raise ValueError(f"aero_mach_range must be (low, high) Mach numbers with 0 < low < high, got {self.aero_mach_range!r}")
         if self.max_wall_s is not None and not (
                 isinstance(self.max_wall_s, (int, float)) and math.isfinite(self.max_wall_s) and self.max_wall_s > 0):  # fmt: skip
             raise ValueError(f"max_wall_s must be None (no cap) or positive seconds, got {self.max_wall_s!r}")
@@ -147,6 +169,20 @@ class ReplanningSettings:
             raise ValueError(f"final_replan_s must be None or in (0, replan_s = {self.replan_s}], got {self.final_replan_s!r}")
         if not (isinstance(self.final_window_s, (int, float)) and math.isfinite(self.final_window_s) and self.final_window_s >= 0):
             raise ValueError(f"final_window_s must be a finite number of seconds >= 0, got {self.final_window_s!r}")
+
+    @classmethod
+    def flight_grade(cls, **changes) -> "ReplanningSettings":
+        """The settings for flight-grade uncertainty (agent ``mpc-flight``): load relief between plans
+        (2 %), a q margin of 10 %, and margins from the atmosphere's and the aerodynamic database's
+        published uncertainty (the ``flight`` set's Gauss-Markov density bands and its 3 % rms per
+        Legendre coefficient of C_L and C_D in Mach), each at 1 sigma. Chosen on 20 episodes of the
+        ``flight`` set (docs/guidance.md); ``changes`` override any field."""
+        from rventry_env.task import FLIGHT_ERRORS
+
+        base = dict(load_relief_margin=0.02, q_margin=0.10, density_bands=FLIGHT_ERRORS.density_bands,
+                    density_sigmas=1.0, aero_mach_rms=max(FLIGHT_ERRORS.lift_mach, FLIGHT_ERRORS.drag_mach),
+                    aero_sigmas=1.0)  # fmt: skip
+        return cls(**(base | changes))
 
     def replan_interval(self, time_to_go: float) -> float:
         """Seconds to the next plan, given the current plan's time to go."""
@@ -225,6 +261,7 @@ class PlanSolver:
 
         s = self.settings = settings
         p = task.problem
+        self.model = model
         self.radius = model.planet.radius
         problem = replace(p, q_min=p.q_min * (1 + s.q_margin), a_max_g=p.a_max_g * (1 - s.load_margin))
         config = EntryProblemConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
@@ -271,22 +308,58 @@ class PlanSolver:
         rms, corr = band_profile(s.density_bands, np.asarray(altitudes, dtype=float))
         return rms * np.sqrt(2.0 * (1.0 - np.exp(-np.abs(altitudes - altitude_now) / corr)))
 
+    def aero_sigma(self, mach_now, machs) -> np.ndarray:
+        """1-sigma relative uncertainty of C_L (or C_D) at ``machs`` given its value at ``mach_now``
+        (:class:`ReplanningSettings` ``aero_mach_rms``; zeros without it).
+
+        The aerodynamic database's error is modelled as smooth in Mach: a relative error
+        a1 P1(s) + a2 P2(s) over ``aero_mach_range`` (s in [-1, 1], held outside), each coefficient
+        of rms ``aero_mach_rms``. The estimator measures the error where the vehicle flies; at
+        another Mach it differs by a1 dP1 + a2 dP2, whose spread is rms |(dP1, dP2)|.
+        """
+        s = self.settings
+        machs = np.asarray(machs, dtype=float)
+        if s.aero_mach_rms is None:
+            return np.zeros_like(machs)
+        lo, hi = s.aero_mach_range
+
+        def legendre(m):
+            x = np.clip((2.0 * np.asarray(m, dtype=float) - lo - hi) / (hi - lo), -1.0, 1.0)
+            return x, 1.5 * x * x - 0.5
+
+        p1, p2 = legendre(machs)
+        q1, q2 = legendre(mach_now)
+        return s.aero_mach_rms * np.hypot(p1 - q1, p2 - q2)
+
+    def mach(self, x: np.ndarray) -> np.ndarray:
+        """The nominal model's Mach number at states ``x`` (..., 12)."""
+        from rventry_env.physics.entry import entry_forces
+
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        return np.asarray(entry_forces(tuple(x.T), self.model).mach, dtype=float)
+
     def path_bounds(self, x0: np.ndarray, guess):
         """The NLP's constraint bounds for a solve from ``x0``: the transcription's, with each
         collocation point's load and q bounds tightened by ``density_sigmas`` of the density
-        ratio's uncertainty at the altitude ``guess`` puts it (None, None: unchanged)."""
+        ratio's uncertainty at the altitude ``guess`` puts it, and the load bound also by
+        ``aero_sigmas`` of the aerodynamic coefficients' uncertainty at the Mach number it puts it
+        (the two in quadrature; None, None: unchanged)."""
         s, tr = self.settings, self.transcription
-        if s.density_bands is None or s.density_sigmas == 0:
+        density = s.density_bands is not None and s.density_sigmas > 0
+        aero = s.aero_mach_rms is not None and s.aero_sigmas > 0
+        if not (density or aero):
             return None, None
         nodes = tr.mesh.nodes()[: tr.mesh.n_collocation]
         x = np.asarray(guess.state(guess.t0 + nodes * (guess.tf - guess.t0)), dtype=float)
-        k = s.density_sigmas * self.density_sigma(float(x0[IDX.r]) - self.radius, x[:, IDX.r] - self.radius)
+        k_q = s.density_sigmas * self.density_sigma(float(x0[IDX.r]) - self.radius, x[:, IDX.r] - self.radius)
+        k_a = s.aero_sigmas * self.aero_sigma(self.mach(x0)[0], self.mach(x)) if aero else 0.0
+        k_n = np.hypot(k_q, k_a)
         lbg, ubg = tr.lbg.copy(), tr.ubg.copy()
         # the path rows are point-major: every path constraint (relative) at each collocation point
         names = [c.name for c in self.problem.path_constraints]
         load, q = names.index("aero_accel"), names.index("dynamic_pressure")
-        ubg[tr.g_groups["path"]][load :: len(names)] *= np.exp(-k)  # n / n_max' <= exp(-k sigma)
-        lbg[tr.g_groups["path"]][q :: len(names)] *= np.exp(k)  # q / q_min' >= exp(+k sigma)
+        ubg[tr.g_groups["path"]][load :: len(names)] *= np.exp(-k_n)  # n / n_max' <= exp(-k sigma)
+        lbg[tr.g_groups["path"]][q :: len(names)] *= np.exp(k_q)  # q / q_min' >= exp(+k sigma)
         return lbg, ubg
 
     def nominal_plan(self, task: EntryTask):
@@ -369,6 +442,7 @@ class ReplanningGuidance(Law):
         self.u_max = np.array([p.u_alpha_max, p.u_sigma_max])
         self.estimator = AeroScaleEstimator(self.model, 1, estimator_settings)
         self.nominal = self.solver.nominal_plan(self.task)
+        self.mach_end = float(self.solver.mach(self.nominal.state(self.nominal.tf))[0])  # the nominal impact's
         self.relief = None
         if self.settings.load_relief_margin is not None:
             from rventry_env.guidance.load_relief import LoadRelief
@@ -470,11 +544,24 @@ class ReplanningGuidance(Law):
             out[i] = tr.x_ref[min(max(k, 0), tr.x_ref.shape[0] - 1), IDX.angles]
         return out
 
+    def planning_scales(self, state, theta) -> np.ndarray:
+        """The log-scales (N, 2) the plans and their tracking use: the estimate, with the
+        lift-to-drag scale lowered by ``aero_sigmas`` of its uncertainty between the Mach number
+        flown now and the impact's (:meth:`PlanSolver.aero_sigma`; lift and drag errors independent,
+        so sqrt(2) of one coefficient's). The plan keeps the lift the rest of the flight may lack
+        (a pessimistic L/D turns the final dive earlier), and tracking compares like with like."""
+        s = self.settings
+        if s.aero_mach_rms is None or s.aero_sigmas == 0:
+            return theta
+        out = np.array(theta, dtype=float)
+        out[:, 1] -= s.aero_sigmas * math.sqrt(2.0) * self.solver.aero_sigma(self.solver.mach(state), self.mach_end)
+        return out
+
     def __call__(self, m: Measurement) -> np.ndarray:
         time_s, state = m.time_s, m.navigation_state
         if m.n != self.n:
             self.reset(m.n)
-        theta = self.estimator.observe(m)
+        theta = self.planning_scales(state, self.estimator.observe(m))
         if m.target_e is not None:
             self._aim(m.target_e)
         for i in range(self.n):
