@@ -76,16 +76,18 @@ FLIGHT_VARIANTS = {
     "load relief 2 %, density margins 2 sigma": {"load_relief_margin": 0.02, "density_bands": FLIGHT_BANDS,
                                                   "density_sigmas": 2.0},
 }
-# the margins for the aerodynamics' uncertainty in Mach, with and around the flight-grade preset
-# (ReplanningSettings.flight_grade(), agent mpc-flight)
-_LR_D1 = {"load_relief_margin": 0.02, "density_bands": FLIGHT_BANDS, "density_sigmas": 1.0}
+# the margins for the aerodynamics' uncertainty in Mach, around the flight-grade preset
+# (ReplanningSettings.flight_grade(), agent mpc-flight): its fields that differ from the defaults
+_FLIGHT_GRADE = {k: v for k, v in asdict(ReplanningSettings.flight_grade()).items() if getattr(DEFAULT, k) != v}
+_LR_D1 = {k: _FLIGHT_GRADE[k] for k in ("load_relief_margin", "density_bands", "density_sigmas")}
+_AERO = {"aero_mach_rms": _FLIGHT_GRADE["aero_mach_rms"]}
 AERO_VARIANTS = {
     "load relief 2 %, density 1 sigma": _LR_D1,
-    "+ aero margins 1 sigma": _LR_D1 | {"aero_mach_rms": 0.03},
-    "+ aero margins 2 sigma": _LR_D1 | {"aero_mach_rms": 0.03, "aero_sigmas": 2.0},
-    "+ aero 1 sigma, q 8 %": _LR_D1 | {"aero_mach_rms": 0.03, "q_margin": 0.08},
-    "+ aero 1 sigma, q 10 % (mpc-flight)": _LR_D1 | {"aero_mach_rms": 0.03, "q_margin": 0.10},
-    "density 2 sigma, aero 1 sigma": _LR_D1 | {"density_sigmas": 2.0, "aero_mach_rms": 0.03},
+    "+ aero margins 1 sigma": _LR_D1 | _AERO,
+    "+ aero margins 2 sigma": _LR_D1 | _AERO | {"aero_sigmas": 2.0},
+    "+ aero 1 sigma, q 8 %": _LR_D1 | _AERO | {"q_margin": 0.08},
+    "+ aero 1 sigma, q 10 % (mpc-flight)": _FLIGHT_GRADE,
+    "density 2 sigma, aero 1 sigma": _LR_D1 | _AERO | {"density_sigmas": 2.0},
 }
 VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS}
 

@@ -14,9 +14,9 @@ set (or set and tier), each entry a success rate in [0, 1].
 * :func:`plot_performance_profiles`: those profiles as a PNG.
 
 rliable's bootstrap draws its run indices from NumPy's *global* generator (``np.random.choice``),
-whatever ``random_state`` it is given, so none is passed. Each call here seeds that generator for its own duration
-and restores the caller's state afterwards, so the intervals are reproducible and nothing else's
-randomness is disturbed.
+whatever ``random_state`` it is given, so none is passed. Each call here seeds that generator for
+its own duration and restores the caller's state afterwards, so the intervals are reproducible and
+nothing else's randomness is disturbed.
 """
 
 from __future__ import annotations

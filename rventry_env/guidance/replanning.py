@@ -87,6 +87,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from rventry_env.core.backend import NUMPY
 from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import AeroScaleEstimator, EstimatorSettings
@@ -94,6 +95,7 @@ from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.terminal import alpha_rate_bound
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
 from rventry_env.physics.model import EntryModel
+from rventry_env.physics.uncertainty import MachVaryingAerodynamics, mach_legendre
 
 
 @dataclass(frozen=True)
@@ -124,7 +126,7 @@ class ReplanningSettings:
     density_sigmas: float = 2.0
     aero_mach_rms: float | None = None
     aero_sigmas: float = 1.0
-    aero_mach_range: tuple = (3.0, 25.0)
+    aero_mach_range: tuple = (MachVaryingAerodynamics.mach_low, MachVaryingAerodynamics.mach_high)
 
     def __post_init__(self):
         if self.density_bands is not None:
@@ -139,9 +141,8 @@ class ReplanningSettings:
             raise ValueError(f"aero_mach_rms must be None (off) or a finite number >= 0, got {self.aero_mach_rms!r}")
         if not (isinstance(self.aero_sigmas, (int, float)) and math.isfinite(self.aero_sigmas) and self.aero_sigmas >= 0):
             raise ValueError(f"aero_sigmas must be a finite number >= 0, got {self.aero_sigmas!r}")
-        lo_m, hi_m = (tuple(self.aero_mach_range) + (None, None))[:2]
-        if not (len(tuple(self.aero_mach_range)) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in (lo_m, hi_m))
-                and 0 < lo_m < hi_m):  # fmt: skip
+        r = tuple(self.aero_mach_range)
+        if not (len(r) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in r) and 0 < r[0] < r[1]):
             raise ValueError(f"aero_mach_range must be (low, high) Mach numbers with 0 < low < high, got {self.aero_mach_range!r}")
         if self.max_wall_s is not None and not (
                 isinstance(self.max_wall_s, (int, float)) and math.isfinite(self.max_wall_s) and self.max_wall_s > 0):  # fmt: skip
@@ -321,14 +322,8 @@ class PlanSolver:
         machs = np.asarray(machs, dtype=float)
         if s.aero_mach_rms is None:
             return np.zeros_like(machs)
-        lo, hi = s.aero_mach_range
-
-        def legendre(m):
-            x = np.clip((2.0 * np.asarray(m, dtype=float) - lo - hi) / (hi - lo), -1.0, 1.0)
-            return x, 1.5 * x * x - 0.5
-
-        p1, p2 = legendre(machs)
-        q1, q2 = legendre(mach_now)
+        p1, p2 = mach_legendre(machs, *s.aero_mach_range, NUMPY)
+        q1, q2 = mach_legendre(np.asarray(mach_now, dtype=float), *s.aero_mach_range, NUMPY)
         return s.aero_mach_rms * np.hypot(p1 - q1, p2 - q2)
 
     def mach(self, x: np.ndarray) -> np.ndarray:

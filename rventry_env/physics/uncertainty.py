@@ -178,6 +178,13 @@ class ProfileWind:
         return 0.0 * h, (east * c3 + north * c2) / cos_lat, (north * c3 - east * c2) / cos_lat
 
 
+def mach_legendre(mach, mach_low, mach_high, ns):
+    """(P1(s), P2(s)) at s = (2 M - mach_low - mach_high) / (mach_high - mach_low), s held at
+    +/-1 outside the range: the Mach shape of :class:`MachVaryingAerodynamics`' errors."""
+    s = ns.fmin(ns.fmax((2.0 * mach - mach_low - mach_high) / (mach_high - mach_low), -1.0), 1.0)
+    return s, 1.5 * s * s - 0.5
+
+
 @dataclass(frozen=True)
 class MachVaryingAerodynamics:
     """C_L and C_D of ``base`` multiplied by 1 + a1 P1(s) + a2 P2(s), smooth in Mach.
@@ -205,9 +212,8 @@ class MachVaryingAerodynamics:
 
     def coefficients(self, alpha, mach, ns):
         cl, cd = self.base.coefficients(alpha, mach, ns)
-        s = ns.fmin(ns.fmax((2.0 * mach - self.mach_low - self.mach_high) / (self.mach_high - self.mach_low), -1.0), 1.0)
-        p2 = 1.5 * s * s - 0.5
+        s, p2 = mach_legendre(mach, self.mach_low, self.mach_high, ns)
         return cl * (1.0 + self.lift_p1 * s + self.lift_p2 * p2), cd * (1.0 + self.drag_p1 * s + self.drag_p2 * p2)
 
 
-__all__ = ["uniform_table", "ProfileAtmosphere", "ProfileWind", "MachVaryingAerodynamics"]
+__all__ = ["uniform_table", "ProfileAtmosphere", "ProfileWind", "MachVaryingAerodynamics", "mach_legendre"]
