@@ -35,6 +35,7 @@ import numpy as np
 from rventry_env.task import FLIGHT_ERRORS, EntryTask
 from rventry_env.evaluation.parallel import EvaluationJob, concatenate, map_local, run_task
 from rventry_env.evaluation.summary import summarize
+from rventry_env.guidance.estimation import FlightEstimatorSettings
 from rventry_env.guidance.replanning import ReplanningSettings
 from rventry_env.util.args import non_negative_int, positive_int
 from rventry_env.util.files import write_json
@@ -89,7 +90,27 @@ AERO_VARIANTS = {
     "+ aero 1 sigma, q 10 % (mpc-flight)": _FLIGHT_GRADE,
     "density 2 sigma, aero 1 sigma": _LR_D1 | _AERO | {"density_sigmas": 2.0},
 }
-VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS}
+# the final dive, around mpc-flight: its remaining flight failures end there (a load bound crossed by
+# a few per cent, or 5-10 deg from vertical and 50-100 m/s fast after tracking a plan made 30-60 s before)
+_FINAL_REPLANS = {"final_replan_s": 10.0, "final_window_s": 120.0, "freeze_s": 10.0}
+FINAL_VARIANTS = {
+    "mpc-flight": _FLIGHT_GRADE,
+    "+ final re-plans 10 s, freeze 10 s": _FLIGHT_GRADE | _FINAL_REPLANS,
+    "+ terminal alpha 0.5 deg": _FLIGHT_GRADE | {"terminal_alpha": True},
+    "+ load relief 4 %": _FLIGHT_GRADE | {"load_relief_margin": 0.04},
+    "+ final re-plans, terminal alpha": _FLIGHT_GRADE | _FINAL_REPLANS | {"terminal_alpha": True},
+}
+# the flight-grade estimator (density as a process in altitude, aerodynamics in Mach, the wind) around mpc-flight
+_FLIGHT_EST = {"estimator_settings": FlightEstimatorSettings.flight_grade()}
+ESTIMATOR_VARIANTS = {
+    "mpc-flight": _FLIGHT_GRADE,
+    "+ flight estimator": _FLIGHT_GRADE | _FLIGHT_EST,
+    "+ flight estimator, no wind states": _FLIGHT_GRADE | {"estimator_settings": FlightEstimatorSettings.flight_grade(
+        wind_sigma=None, wind_bands=None)},
+    "+ flight estimator, final re-plans": _FLIGHT_GRADE | _FLIGHT_EST | _FINAL_REPLANS,
+}
+VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS, "final": FINAL_VARIANTS,
+                "estimator": ESTIMATOR_VARIANTS}
 
 
 def _reference_cost() -> float:
@@ -141,7 +162,9 @@ def scan(args) -> dict:
     jobs = {}
     variants = VARIANT_SETS[args.variants]
     for name, change in variants.items():
-        opts = (("settings", replace(DEFAULT, **change)),)
+        change = dict(change)
+        estimator = change.pop("estimator_settings", None)
+        opts = (("settings", replace(DEFAULT, **change)),) + ((("estimator_settings", estimator),) if estimator else ())
         jobs[name] = (EvaluationJob("mpc", args.dispersion, task, opts), seeds)
         jobs[name + " (nominal)"] = (EvaluationJob("mpc", "none", task, opts), [0])
     t0 = time.time()
@@ -253,7 +276,9 @@ def main(argv=None) -> int:
                     help="the scan's set (wide)")
     ap.add_argument("--variants", default="defaults", choices=tuple(VARIANT_SETS),
                     help="defaults: each setting varied alone; flight: the flight-grade remedies; aero: the "
-                         "margins for the aerodynamics' uncertainty in Mach, with and around mpc-flight's")
+                         "margins for the aerodynamics' uncertainty in Mach, with and around mpc-flight's; "
+                         "final: the final dive's settings around mpc-flight; estimator: the flight-grade "
+                         "estimator around mpc-flight")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
     ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
     ap.add_argument("--workers", type=positive_int, default=2)

@@ -90,7 +90,7 @@ import numpy as np
 from rventry_env.core.backend import NUMPY
 from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
-from rventry_env.guidance.estimation import AeroScaleEstimator, EstimatorSettings
+from rventry_env.guidance.estimation import EstimatorSettings, FlightEstimatorSettings, make_estimator
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.terminal import alpha_rate_bound
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
@@ -419,14 +419,17 @@ class ReplanningGuidance(Law):
     :param task: the task (problem constants, dt).
     :param model: the nominal model.
     :param settings: :class:`ReplanningSettings`.
-    :param estimator_settings: the filter's settings.
+    :param estimator_settings: the filter's settings: :class:`~rventry_env.guidance.estimation.EstimatorSettings`
+        for the scalar filters on the two scales, :class:`~rventry_env.guidance.estimation.FlightEstimatorSettings`
+        for the flight-grade filter (scales as processes in altitude and Mach, and the wind).
     """
 
     episodes_per_task = 1  # seconds per episode: parallel evaluations give each episode its own task
     retargets = True  # an episode told another target plans to it (its own transcription, built once per target)
 
     def __init__(self, task: EntryTask | None = None, model: EntryModel | None = None,
-                 settings: ReplanningSettings | None = None, estimator_settings: EstimatorSettings | None = None):  # fmt: skip
+                 settings: ReplanningSettings | None = None,
+                 estimator_settings: EstimatorSettings | FlightEstimatorSettings | None = None):  # fmt: skip
         self.task = EntryTask() if task is None else task
         self.model = EntryModel() if model is None else model
         self.settings = ReplanningSettings() if settings is None else settings
@@ -435,7 +438,7 @@ class ReplanningGuidance(Law):
         self.weights = tracking_weights(self.task, self.settings.q_weight, self.settings.r_weight)
         p = self.task.problem
         self.u_max = np.array([p.u_alpha_max, p.u_sigma_max])
-        self.estimator = AeroScaleEstimator(self.model, 1, estimator_settings)
+        self.estimator = make_estimator(self.model, 1, estimator_settings)
         self.nominal = self.solver.nominal_plan(self.task)
         self.mach_end = float(self.solver.mach(self.nominal.state(self.nominal.tf))[0])  # the nominal impact's
         self.relief = None
