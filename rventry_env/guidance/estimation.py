@@ -206,8 +206,9 @@ class FlightEstimatorSettings:
         has no statistics below.
     :param prior_sigma: standard deviation of ln k_D and ln k_L before any measurement.
     :param density_bands: the atmosphere's Gauss-Markov ln-density bands ((top m, rms, correlation
-        length m), ...): moving |dh| in altitude adds 2 rms^2 |dh| / L to the variance of ln rho,
-        which scales the drag and the lift alike (one increment on both ln k_D and ln k_L).
+        length m), ...): moving dh in altitude adds 2 rms^2 (1 - exp(-|dh| / L)) to the variance of
+        ln rho (:func:`~rventry_env.task.flight.band_spread` squared), which scales the drag and the
+        lift alike (one increment on both ln k_D and ln k_L).
     :param aero_mach_rms: the aerodynamic database's rms per Legendre coefficient in Mach
         (:func:`~rventry_env.physics.uncertainty.mach_legendre`, over ``aero_mach_range``): moving
         from Mach M to M' adds rms^2 |dP(M, M')|^2 to the variance of ln C_D and of ln C_L,
@@ -260,15 +261,14 @@ class FlightEstimatorSettings:
         return 2 if self.wind_sigma is None else 4
 
 
-def _band_increment(bands, h_from, h_to) -> np.ndarray:
-    """Variance a Gauss-Markov process in altitude (rms, correlation length per band) gains from
-    h_from to h_to, 2 rms^2 |dh| / L at the midpoint's band (a random walk's increment; zero without bands)."""
+def _band_variance(bands, h_from, h_to) -> np.ndarray:
+    """Variance a Gauss-Markov process in altitude gains from h_from to h_to
+    (:func:`~rventry_env.task.flight.band_spread` squared; zero without bands)."""
     if bands is None:
         return np.zeros_like(np.asarray(h_to, dtype=float))
-    from rventry_env.task.flight import band_profile
+    from rventry_env.task.flight import band_spread
 
-    rms, corr = band_profile(bands, 0.5 * (np.asarray(h_from, float) + np.asarray(h_to, float)))
-    return 2.0 * rms**2 * np.minimum(np.abs(np.asarray(h_to, float) - h_from) / corr, 1.0)
+    return band_spread(bands, h_from, h_to) ** 2
 
 
 class FlightEstimator:
@@ -350,18 +350,16 @@ class FlightEstimator:
         h0 = np.where(first, h, self.h_last[idx])
         q = np.zeros((len(idx), m, m))
         q[:, 0, 0] = q[:, 1, 1] = s.drift**2 * dt
-        q[:, :2, :2] += _band_increment(s.density_bands, h0, h)[:, None, None]  # density: both alike
+        q[:, :2, :2] += _band_variance(s.density_bands, h0, h)[:, None, None]  # density: both alike
         if s.aero_mach_rms is not None:
-            from rventry_env.physics.uncertainty import mach_legendre
+            from rventry_env.physics.uncertainty import mach_spread
 
             m0 = np.where(first, mach, self.mach_last[idx])
-            p1, p2 = mach_legendre(mach, *s.aero_mach_range, NUMPY)
-            r1, r2 = mach_legendre(m0, *s.aero_mach_range, NUMPY)
-            da = s.aero_mach_rms**2 * ((p1 - r1) ** 2 + (p2 - r2) ** 2)
+            da = mach_spread(s.aero_mach_rms, m0, mach, *s.aero_mach_range) ** 2
             q[:, 0, 0] += da
             q[:, 1, 1] += da
         if m == 4:
-            dw = _band_increment(s.wind_bands, h0, h)
+            dw = _band_variance(s.wind_bands, h0, h)
             cap = s.wind_sigma**2
             if s.wind_bands is not None:
                 from rventry_env.task.flight import band_profile

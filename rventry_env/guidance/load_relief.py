@@ -21,6 +21,17 @@ per halving. The bank rate is untouched: the load factor does not depend on it. 
 starts early takes away the lift the final pull-down turns the velocity vertical with
 (docs/learned.md).
 
+**A margin that follows the uncertainty of the next second** (``sigmas`` > 0 with ``density_bands``
+and/or ``aero_mach_rms``). The calibration holds the density ratio and the aerodynamic error where
+the vehicle is; one step later it is lower in the air and slower, where both differ. In a final dive
+the vehicle drops more than a kilometre a second, and a density perturbation of 3 % rms with an
+8 km correlation length moves the ratio by 1.6 % (1 sigma) in that second: on a flight-grade draw
+the predicted load was 11.71 g and the flown one 12.16 g. With the atmosphere's published bands and
+the aerodynamic database's spread in Mach, the limit for each vehicle is lowered by ``sigmas`` of
+the spread between now and one step ahead (:func:`~rventry_env.task.flight.band_spread` and
+:func:`~rventry_env.physics.uncertainty.mach_spread` in quadrature): a chance constraint on the next
+step that costs nothing in a glide, where the altitude barely changes.
+
 It sees only what a vehicle measures: the navigation state and the sensed acceleration.
 """
 
@@ -42,19 +53,34 @@ class LoadRelief:
     :param margin: fraction of the bound kept free (0 <= margin < 1).
     :param iterations: halvings of the alpha rate's interval (a resolution of 2 / 2**iterations of
         its bound or finer), made four at a time.
+    :param sigmas: lower each vehicle's limit by this many sigma of the spread of the density ratio
+        (``density_bands``, the atmosphere's Gauss-Markov bands) and of the aerodynamic error
+        (``aero_mach_rms`` per Legendre coefficient over ``aero_mach_range``) between now and one
+        step ahead (0: the fixed margin alone).
 
     After each call, :attr:`active` (N,) says which vehicles were capped, and :attr:`steps`
     (N,) counts the capped steps of each vehicle since :meth:`reset`.
     """
 
     def __init__(self, model: EntryModel | None = None, task: EntryTask | None = None, margin: float = 0.01,
-                 iterations: int = 14):  # fmt: skip
+                 iterations: int = 14, sigmas: float = 0.0, density_bands: tuple | None = None,
+                 aero_mach_rms: float | None = None, aero_mach_range: tuple = (3.0, 25.0)):  # fmt: skip
         if not (0.0 <= margin < 1.0):
             raise ValueError(f"load relief margin must lie in [0, 1), got {margin!r}")
         if int(iterations) < 1:
             raise ValueError(
                 f"load relief needs at least one halving of the rate interval, got iterations = {iterations!r}"
             )
+        if not (np.isfinite(sigmas) and sigmas >= 0):
+            raise ValueError(f"load relief sigmas must be a finite number >= 0, got {sigmas!r}")
+        if sigmas > 0 and density_bands is None and aero_mach_rms is None:
+            raise ValueError("load relief sigmas need the uncertainty they count: density_bands and/or aero_mach_rms")
+        if density_bands is not None:
+            from rventry_env.task.flight import parse_bands
+
+            density_bands = parse_bands(density_bands, "load relief density_bands")
+        self.sigmas, self.density_bands = float(sigmas), density_bands
+        self.aero_mach_rms, self.aero_mach_range = aero_mach_rms, tuple(aero_mach_range)
         self.model = EntryModel() if model is None else model
         self.task = EntryTask() if task is None else task
         self.margin = float(margin)
@@ -69,12 +95,24 @@ class LoadRelief:
 
     def _loads(self, x: np.ndarray, u_alpha: np.ndarray, u_sigma: np.ndarray):
         """The model's load factor (g) now and one control step ahead with the given rates (rad/s),
-        and the state one step ahead."""
+        the state one step ahead, and each vehicle's limit (g) for that step."""
         g0 = self.model.planet.g0
         f = entry_forces(tuple(x.T), self.model)
         x_ahead = x + self.task.dt * np.stack(entry_rhs(tuple(x.T), (u_alpha, u_sigma), self.model, forces=f), axis=1)
         ahead = entry_forces(tuple(x_ahead.T), self.model)
-        return np.asarray(f.aero_accel) / g0, np.asarray(ahead.aero_accel) / g0, x_ahead
+        spread = np.zeros(len(x))
+        if self.sigmas > 0:
+            if self.density_bands is not None:
+                from rventry_env.task.flight import band_spread
+
+                spread = band_spread(self.density_bands, np.asarray(f.altitude), np.asarray(ahead.altitude))
+            if self.aero_mach_rms is not None:
+                from rventry_env.physics.uncertainty import mach_spread
+
+                m = mach_spread(self.aero_mach_rms, np.asarray(f.mach), np.asarray(ahead.mach), *self.aero_mach_range)
+                spread = np.hypot(spread, m)
+        limit = self.limit_g * np.exp(-self.sigmas * spread)
+        return np.asarray(f.aero_accel) / g0, np.asarray(ahead.aero_accel) / g0, x_ahead, limit
 
     def _load_at_alpha(self, x_ahead: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         """The load factor (g) of states ``x_ahead`` (N, 12) with alpha set to ``alpha`` (N, M): (N, M)."""
@@ -98,13 +136,13 @@ class LoadRelief:
         if len(self.steps) != len(x):
             self.reset(len(x))
         p = self.task.problem
-        n_now, n_ahead, x_ahead = self._loads(x, rates[:, 0] * p.u_alpha_max, rates[:, 1] * p.u_sigma_max)
+        n_now, n_ahead, x_ahead, limit = self._loads(x, rates[:, 0] * p.u_alpha_max, rates[:, 1] * p.u_sigma_max)
         calib = np.linalg.norm(sensed, axis=1) / self.model.planet.g0 / np.maximum(n_now, 1e-9)
-        over = calib * n_ahead > self.limit_g
+        over = calib * n_ahead > limit
         self.active = over
         if np.any(over):
             self.steps += over if count is None else over & np.asarray(count, dtype=bool)
-            xs, k, alpha0 = x_ahead[over], calib[over], x[over, IDX.alpha]
+            xs, k, alpha0, lim = x_ahead[over], calib[over], x[over, IDX.alpha], limit[over, None]
             lo = np.full(len(xs), -1.0)  # the full down-rate: taken when no rate meets the limit
             hi = rates[over, 0]  # over the limit
             left = self.iterations
@@ -114,7 +152,7 @@ class LoadRelief:
                 width = (hi - lo) / 2**bits
                 trial = lo[:, None] + width[:, None] * np.arange(1, 2**bits)  # the interval's inner grid points
                 alpha = alpha0[:, None] + self.task.dt * p.u_alpha_max * trial
-                ok = k[:, None] * self._load_at_alpha(xs, alpha) <= self.limit_g
+                ok = k[:, None] * self._load_at_alpha(xs, alpha) <= lim
                 j = np.where(ok.any(axis=1), ok.shape[1] - np.argmax(ok[:, ::-1], axis=1), 0)  # highest ok point, 0: lo
                 lo, hi = lo + j * width, lo + (j + 1) * width
             rates[over, 0] = lo

@@ -49,7 +49,10 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   ``a_max (1 - margin)``: closed-loop feedback on the load, which the plans alone do not have
   between solves. Looking three steps ahead with the asked rate held, or with alpha held after
   one step, was too cautious: it capped the pull-up, and the optimum replayed through a density
-  step ended 8-15 deg from vertical.
+  step ended 8-15 deg from vertical. With ``load_relief_sigmas`` the limit of each step is lowered
+  by that many sigma of the density's and the aerodynamics' spread over the step (the same bands
+  and Mach statistics as the plan's margins): a chance constraint on the next second, which costs
+  nothing in a glide and a few per cent in a dive that drops a kilometre a second.
 * **Margins that follow the density's uncertainty** (``density_bands``, off by default). The
   accelerometer tells the density ratio where the vehicle is; elsewhere the plan extrapolates
   it. With the atmosphere's perturbation statistics known as Gauss-Markov bands in altitude
@@ -87,7 +90,6 @@ from functools import lru_cache
 
 import numpy as np
 
-from rventry_env.core.backend import NUMPY
 from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import EstimatorSettings, FlightEstimatorSettings, make_estimator
@@ -95,7 +97,7 @@ from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.terminal import alpha_rate_bound
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
 from rventry_env.physics.model import EntryModel
-from rventry_env.physics.uncertainty import MachVaryingAerodynamics, mach_legendre
+from rventry_env.physics.uncertainty import MachVaryingAerodynamics, mach_spread
 
 
 @dataclass(frozen=True)
@@ -122,6 +124,7 @@ class ReplanningSettings:
     terminal_alpha: bool = False
     terminal_alpha_deg: float = 0.5
     load_relief_margin: float | None = None
+    load_relief_sigmas: float = 0.0
     density_bands: tuple | None = None
     density_sigmas: float = 2.0
     aero_mach_rms: float | None = None
@@ -158,6 +161,13 @@ class ReplanningSettings:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
         if self.load_relief_margin is not None and not (0.0 <= self.load_relief_margin < 1.0):
             raise ValueError(f"load_relief_margin must be None (off) or in [0, 1), got {self.load_relief_margin!r}")
+        if not (isinstance(self.load_relief_sigmas, (int, float)) and math.isfinite(self.load_relief_sigmas)
+                and self.load_relief_sigmas >= 0):  # fmt: skip
+            raise ValueError(f"load_relief_sigmas must be a finite number >= 0, got {self.load_relief_sigmas!r}")
+        if self.load_relief_sigmas > 0 and (self.load_relief_margin is None or
+                                            (self.density_bands is None and self.aero_mach_rms is None)):  # fmt: skip
+            raise ValueError("load_relief_sigmas needs load relief (load_relief_margin) and the uncertainty it counts "
+                             "(density_bands and/or aero_mach_rms)")
         for name, hi in (("end_fraction", 0.5), ("q_margin", 0.5), ("load_margin", 0.5)):
             v = getattr(self, name)
             if not (0.0 <= v < hi):
@@ -304,10 +314,9 @@ class PlanSolver:
         s = self.settings
         if s.density_bands is None:
             return np.zeros_like(altitudes)
-        from rventry_env.task.flight import band_profile
+        from rventry_env.task.flight import band_spread
 
-        rms, corr = band_profile(s.density_bands, np.asarray(altitudes, dtype=float))
-        return rms * np.sqrt(2.0 * (1.0 - np.exp(-np.abs(altitudes - altitude_now) / corr)))
+        return band_spread(s.density_bands, altitude_now, altitudes)
 
     def aero_sigma(self, mach_now, machs) -> np.ndarray:
         """1-sigma relative uncertainty of C_L (or C_D) at ``machs`` given its value at ``mach_now``
@@ -322,9 +331,7 @@ class PlanSolver:
         machs = np.asarray(machs, dtype=float)
         if s.aero_mach_rms is None:
             return np.zeros_like(machs)
-        p1, p2 = mach_legendre(machs, *s.aero_mach_range, NUMPY)
-        q1, q2 = mach_legendre(np.asarray(mach_now, dtype=float), *s.aero_mach_range, NUMPY)
-        return s.aero_mach_rms * np.hypot(p1 - q1, p2 - q2)
+        return mach_spread(s.aero_mach_rms, np.asarray(mach_now, dtype=float), machs, *s.aero_mach_range)
 
     def mach(self, x: np.ndarray) -> np.ndarray:
         """The nominal model's Mach number at states ``x`` (..., 12)."""
@@ -445,7 +452,10 @@ class ReplanningGuidance(Law):
         if self.settings.load_relief_margin is not None:
             from rventry_env.guidance.load_relief import LoadRelief
 
-            self.relief = LoadRelief(self.model, self.task, self.settings.load_relief_margin)
+            s = self.settings
+            self.relief = LoadRelief(self.model, self.task, s.load_relief_margin, sigmas=s.load_relief_sigmas,
+                                     density_bands=s.density_bands, aero_mach_rms=s.aero_mach_rms,
+                                     aero_mach_range=s.aero_mach_range)  # fmt: skip
         self.reset(1)
 
     def reset(self, n_episodes: int) -> None:

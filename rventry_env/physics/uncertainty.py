@@ -185,6 +185,15 @@ def mach_legendre(mach, mach_low, mach_high, ns):
     return s, 1.5 * s * s - 0.5
 
 
+def mach_spread(rms: float, mach_from, mach_to, mach_low: float, mach_high: float, ns=NUMPY):
+    """1-sigma spread of a relative error a1 P1 + a2 P2 in Mach (:func:`mach_legendre`; each coefficient
+    of rms ``rms``) between two Mach numbers: rms |(dP1, dP2)|. What the error measured at
+    ``mach_from`` tells of the error at ``mach_to``."""
+    p1, p2 = mach_legendre(mach_to, mach_low, mach_high, ns)
+    q1, q2 = mach_legendre(mach_from, mach_low, mach_high, ns)
+    return rms * ns.sqrt((p1 - q1) ** 2 + (p2 - q2) ** 2)
+
+
 @dataclass(frozen=True)
 class MachVaryingAerodynamics:
     """C_L and C_D of ``base`` multiplied by 1 + a1 P1(s) + a2 P2(s), smooth in Mach.

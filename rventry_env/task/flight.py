@@ -148,6 +148,17 @@ def band_profile(bands: tuple, grid: np.ndarray = GRID_M) -> tuple[np.ndarray, n
     return np.array([bands[i][1] for i in k]), np.array([bands[i][2] for i in k])
 
 
+def band_spread(bands: tuple, h_from, h_to) -> np.ndarray:
+    """1-sigma spread of a Gauss-Markov process in altitude (``bands``: rms and correlation length
+    per band, at ``h_to``'s band) between two altitudes: s sqrt(2 (1 - exp(-|h_to - h_from| / L))),
+    the standard deviation of the difference of its values there. What a value measured at
+    ``h_from`` tells of the value at ``h_to``: zero spread where it was measured, the process's
+    whole sqrt(2) s far away (conservative: the conditional spread is s sqrt(1 - exp(-2|dh|/L)))."""
+    h_to = np.asarray(h_to, dtype=float)
+    rms, corr = band_profile(bands, h_to)
+    return rms * np.sqrt(2.0 * (1.0 - np.exp(-np.abs(h_to - np.asarray(h_from, dtype=float)) / corr)))
+
+
 def gauss_markov(eps: np.ndarray, bands: tuple, grid: np.ndarray = GRID_M) -> np.ndarray:
     """A first-order Gauss-Markov profile on ``grid`` from standard normals ``eps`` (same length).
 
