@@ -108,8 +108,21 @@ ESTIMATOR_VARIANTS = {
         wind_sigma=None, wind_bands=None)},
     "+ flight estimator, load relief 4 %": _FLIGHT_GRADE | _FLIGHT_EST | {"load_relief_margin": 0.04},
 }
+# the load relief's chance margin (the density's and the aerodynamics' spread over the next step), around mpc-flight
+RELIEF_VARIANTS = {
+    "+ relief chance margin 1 sigma": _FLIGHT_GRADE | {"load_relief_sigmas": 1.0},
+    "+ relief chance margin 2 sigma": _FLIGHT_GRADE | {"load_relief_sigmas": 2.0},
+    "+ relief 2 sigma, flight estimator": _FLIGHT_GRADE | _FLIGHT_EST | {"load_relief_sigmas": 2.0},
+}
+# the q bound with the drag scale's share that is not density (C_D: 5 % rms in the flight set), with the relief's margin
+_SPLIT = {"drag_rms": 0.05, "split_sigmas": 1.0}
+SPLIT_VARIANTS = {
+    "+ relief 2 sigma, drag split": _FLIGHT_GRADE | {"load_relief_sigmas": 2.0} | _SPLIT,
+    "+ relief 2 sigma, drag split, q 5 %": _FLIGHT_GRADE | {"load_relief_sigmas": 2.0, "q_margin": 0.05} | _SPLIT,
+}
 VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS, "final": FINAL_VARIANTS,
-                "estimator": ESTIMATOR_VARIANTS}
+                "estimator": ESTIMATOR_VARIANTS,
+                "relief": RELIEF_VARIANTS, "split": SPLIT_VARIANTS}
 
 
 def _reference_cost() -> float:
@@ -288,7 +301,8 @@ def main(argv=None) -> int:
                     help="defaults: each setting varied alone; flight: the flight-grade remedies; aero: the "
                          "margins for the aerodynamics' uncertainty in Mach, with and around mpc-flight's; "
                          "final: the final dive's settings around mpc-flight; estimator: the flight-grade "
-                         "estimator around mpc-flight")
+                         "estimator around mpc-flight; relief: the load relief's chance margin; "
+                         "split: the q bound with the drag scale's share that is not density")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
     ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
     ap.add_argument("--workers", type=positive_int, default=2)

@@ -383,3 +383,33 @@ def test_the_flight_grade_preset_is_what_mpc_flight_flies():
     assert ReplanningSettings.flight_grade(q_margin=0.08).q_margin == 0.08
     law = load_agent("mpc-flight", EntryTask(), settings=replace(s, mesh_intervals=10, replan_s=60.0))
     assert law.settings.aero_mach_rms == 0.03 and law.relief is not None
+
+
+def test_the_q_bound_carries_the_drag_scale_share_that_is_not_density():
+    """With the density's rms at the current altitude and C_D's, the posterior share of ln k_D on C_D
+    tightens every q node by exp(share + k spread), on top of nothing else; a high measured drag
+    (more likely a high C_D) tightens it, a low one loosens it, and the load rows are untouched."""
+    from rventry_env.task import FLIGHT_ERRORS
+    from rventry_env.task.flight import band_profile
+
+    bands = FLIGHT_ERRORS.density_bands
+    settings = replace(COARSE, density_bands=bands, density_sigmas=0.0, drag_rms=0.05, split_sigmas=1.5)
+    solver = PlanSolver(EntryTask(), EntryModel(), settings)
+    plan = solver.nominal_plan(EntryTask())
+    x0 = EntryTask().problem.initial_state(EntryModel().planet.radius)
+    s_rho = band_profile(bands, np.array([37e3]))[0][0]
+    tr = solver.transcription
+    rows = tr.g_groups["path"]
+    for ln_kd in (0.12, -0.08):
+        mean, spread = solver.drag_split(x0, ln_kd)
+        assert mean == pytest.approx(ln_kd * 0.05**2 / (s_rho**2 + 0.05**2), rel=1e-12)
+        assert spread == pytest.approx(s_rho * 0.05 / np.hypot(s_rho, 0.05), rel=1e-12)
+        lbg, ubg = solver.path_bounds(x0, plan, np.array([ln_kd, 0.0]))
+        np.testing.assert_allclose(lbg[rows][1::2], tr.lbg[rows][1::2] * np.exp(mean + 1.5 * spread), rtol=1e-12)
+        np.testing.assert_array_equal(ubg, tr.ubg)
+    assert solver.drag_split(x0, 0.12)[0] > 0 > solver.drag_split(x0, -0.08)[0]
+    assert PlanSolver(EntryTask(), EntryModel(), replace(settings, drag_rms=None)).drag_split(x0, 0.12) == (0.0, 0.0)
+    with pytest.raises(ValueError, match="drag_rms must be None"):
+        ReplanningSettings(drag_rms=0.05)  # nothing to split against without the density's bands
+    with pytest.raises(ValueError, match="split_sigmas must be"):
+        ReplanningSettings(split_sigmas=-1.0)

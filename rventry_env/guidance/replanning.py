@@ -72,6 +72,14 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   quadrature with the density term, and (2) plans and tracks with the L/D scale lowered by
   ``aero_sigmas`` of its spread between the Mach flown and the impact's, so the plan keeps the
   lift the last minute may lack and turns the dive earlier.
+* **The drag scale's split between density and C_D** (``drag_rms``, off by default). The
+  accelerometer measures density x C_D; the plan's model puts it all on the density, so where C_D
+  is 13 % high the plan's q is 13 % above the flown one, and a skip's apex that the plan holds at
+  the q bound plus a fixed margin dips 10 % below it (a flight-grade draw, followed node by node).
+  With the published rms of both (the density bands at the current altitude, ``drag_rms`` and the
+  database's Mach error), the posterior share of ln k_D that is C_D tightens the q bound at every
+  node, with ``split_sigmas`` of its spread: the margin grows where the measured drag is high and
+  vanishes where it is low.
 * **Final re-planning** (off by default). With ``final_replan_s`` set, the interval shortens
   to it once the planned time to go is under ``final_window_s``. The law itself does not need
   it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
@@ -125,6 +133,8 @@ class ReplanningSettings:
     terminal_alpha_deg: float = 0.5
     load_relief_margin: float | None = None
     load_relief_sigmas: float = 0.0
+    drag_rms: float | None = None
+    split_sigmas: float = 1.0
     density_bands: tuple | None = None
     density_sigmas: float = 2.0
     aero_mach_rms: float | None = None
@@ -161,6 +171,12 @@ class ReplanningSettings:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
         if self.load_relief_margin is not None and not (0.0 <= self.load_relief_margin < 1.0):
             raise ValueError(f"load_relief_margin must be None (off) or in [0, 1), got {self.load_relief_margin!r}")
+        if self.drag_rms is not None and not (isinstance(self.drag_rms, (int, float)) and math.isfinite(self.drag_rms)
+                                              and self.drag_rms >= 0 and self.density_bands is not None):  # fmt: skip
+            raise ValueError(f"drag_rms must be None (off) or a finite rms >= 0, with density_bands to split the drag "
+                             f"scale against, got {self.drag_rms!r}")
+        if not (isinstance(self.split_sigmas, (int, float)) and math.isfinite(self.split_sigmas) and self.split_sigmas >= 0):
+            raise ValueError(f"split_sigmas must be a finite number >= 0, got {self.split_sigmas!r}")
         if not (isinstance(self.load_relief_sigmas, (int, float)) and math.isfinite(self.load_relief_sigmas)
                 and self.load_relief_sigmas >= 0):  # fmt: skip
             raise ValueError(f"load_relief_sigmas must be a finite number >= 0, got {self.load_relief_sigmas!r}")
@@ -305,7 +321,7 @@ class PlanSolver:
         lbx, ubx = tr.bounds_with_initial_state(x0)
         z0 = initial_point(tr, guess, lbx, ubx)
         lam = (warm.lam_x, warm.lam_g) if warm is not None and warm.lam_x is not None else (None, None)
-        lbg, ubg = self.path_bounds(x0, guess)
+        lbg, ubg = self.path_bounds(x0, guess, theta)
         return solve_from(tr, z0, theta, lbx, ubx, *lam, lbg=lbg, ubg=ubg)
 
     def density_sigma(self, altitude_now: float, altitudes: np.ndarray) -> np.ndarray:
@@ -340,28 +356,58 @@ class PlanSolver:
         x = np.atleast_2d(np.asarray(x, dtype=float))
         return np.asarray(entry_forces(tuple(x.T), self.model).mach, dtype=float)
 
-    def path_bounds(self, x0: np.ndarray, guess):
-        """The NLP's constraint bounds for a solve from ``x0``: the transcription's, with each
-        collocation point's load and q bounds tightened by ``density_sigmas`` of the density
-        ratio's uncertainty at the altitude ``guess`` puts it, and the load bound also by
-        ``aero_sigmas`` of the aerodynamic coefficients' uncertainty at the Mach number it puts it
-        (the two in quadrature; None, None: unchanged)."""
+    def drag_split(self, x0: np.ndarray, ln_kd: float) -> tuple[float, float]:
+        """How much of the measured drag scale is not density: (mean, sigma) of ln(k_D / density ratio)
+        at ``x0`` (:class:`ReplanningSettings` ``drag_rms``; (0, 0) without it).
+
+        The accelerometer measures k_D = density ratio x C_D ratio and cannot split it; the plan's
+        model puts it all on the density, so its q is the true one times the C_D ratio. With the
+        density's published rms at this altitude (``density_bands``) and the drag coefficient's
+        (``drag_rms``, with the database's Mach error at this Mach), the split's posterior puts the
+        fraction s_c^2 / (s_rho^2 + s_c^2) of ln k_D on C_D, give or take s_rho s_c / sqrt(s_rho^2 + s_c^2).
+        """
+        s = self.settings
+        if s.drag_rms is None:
+            return 0.0, 0.0
+        from rventry_env.task.flight import band_profile
+
+        s_rho = float(band_profile(s.density_bands, np.array([float(x0[IDX.r]) - self.radius]))[0][0])
+        s_c = s.drag_rms
+        if s.aero_mach_rms is not None:  # the database's error at this Mach, relative to its mean over the range
+            s_c = math.hypot(s_c, float(mach_spread(s.aero_mach_rms, 0.5 * sum(s.aero_mach_range),
+                                                    self.mach(x0)[0], *s.aero_mach_range)))  # fmt: skip
+        total = s_rho**2 + s_c**2
+        if total == 0:
+            return 0.0, 0.0
+        return float(ln_kd) * s_c**2 / total, s_rho * s_c / math.sqrt(total)
+
+    def path_bounds(self, x0: np.ndarray, guess, theta=None):
+        """The NLP's constraint bounds for a solve from ``x0`` with log-scales ``theta``: the
+        transcription's, with each collocation point's load and q bounds tightened by
+        ``density_sigmas`` of the density ratio's uncertainty at the altitude ``guess`` puts it, the
+        load bound also by ``aero_sigmas`` of the aerodynamic coefficients' uncertainty at the Mach
+        number it puts it (the two in quadrature), and the q bound by the drag scale's share that is
+        not density (:meth:`drag_split`: its mean, and ``split_sigmas`` of its spread in quadrature
+        with the density term). None, None: unchanged."""
         s, tr = self.settings, self.transcription
         density = s.density_bands is not None and s.density_sigmas > 0
         aero = s.aero_mach_rms is not None and s.aero_sigmas > 0
-        if not (density or aero):
+        split = s.drag_rms is not None
+        if not (density or aero or split):
             return None, None
         nodes = tr.mesh.nodes()[: tr.mesh.n_collocation]
         x = np.asarray(guess.state(guess.t0 + nodes * (guess.tf - guess.t0)), dtype=float)
         k_q = s.density_sigmas * self.density_sigma(float(x0[IDX.r]) - self.radius, x[:, IDX.r] - self.radius)
         k_a = s.aero_sigmas * self.aero_sigma(self.mach(x0)[0], self.mach(x)) if aero else 0.0
         k_n = np.hypot(k_q, k_a)
+        mean, spread = self.drag_split(x0, 0.0 if theta is None else float(theta[0]))
+        q_shift = mean + np.hypot(k_q, s.split_sigmas * spread)
         lbg, ubg = tr.lbg.copy(), tr.ubg.copy()
         # the path rows are point-major: every path constraint (relative) at each collocation point
         names = [c.name for c in self.problem.path_constraints]
         load, q = names.index("aero_accel"), names.index("dynamic_pressure")
         ubg[tr.g_groups["path"]][load :: len(names)] *= np.exp(-k_n)  # n / n_max' <= exp(-k sigma)
-        lbg[tr.g_groups["path"]][q :: len(names)] *= np.exp(k_q)  # q / q_min' >= exp(+k sigma)
+        lbg[tr.g_groups["path"]][q :: len(names)] *= np.exp(q_shift)  # q / q_min' >= exp(shift)
         return lbg, ubg
 
     def nominal_plan(self, task: EntryTask):
