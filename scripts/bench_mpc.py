@@ -78,8 +78,10 @@ FLIGHT_VARIANTS = {
                                                   "density_sigmas": 2.0},
 }
 # the margins for the aerodynamics' uncertainty in Mach, around the flight-grade preset
-# (ReplanningSettings.flight_grade(), agent mpc-flight): its fields that differ from the defaults
-_FLIGHT_GRADE = {k: v for k, v in asdict(ReplanningSettings.flight_grade()).items() if getattr(DEFAULT, k) != v}
+# (ReplanningSettings.flight_grade() with the 2 % load relief it had then, agent mpc-flight before the
+# final-dive and estimator scans below): its fields that differ from the defaults
+_FLIGHT_GRADE = {k: v for k, v in asdict(ReplanningSettings.flight_grade(load_relief_margin=0.02)).items()
+                 if getattr(DEFAULT, k) != v}  # fmt: skip
 _LR_D1 = {k: _FLIGHT_GRADE[k] for k in ("load_relief_margin", "density_bands", "density_sigmas")}
 _AERO = {"aero_mach_rms": _FLIGHT_GRADE["aero_mach_rms"]}
 AERO_VARIANTS = {
@@ -108,21 +110,18 @@ ESTIMATOR_VARIANTS = {
         wind_sigma=None, wind_bands=None)},
     "+ flight estimator, load relief 4 %": _FLIGHT_GRADE | _FLIGHT_EST | {"load_relief_margin": 0.04},
 }
-# the load relief's chance margin (the density's and the aerodynamics' spread over the next step), around mpc-flight
-RELIEF_VARIANTS = {
-    "+ relief chance margin 1 sigma": _FLIGHT_GRADE | {"load_relief_sigmas": 1.0},
-    "+ relief chance margin 2 sigma": _FLIGHT_GRADE | {"load_relief_sigmas": 2.0},
-    "+ relief 2 sigma, flight estimator": _FLIGHT_GRADE | _FLIGHT_EST | {"load_relief_sigmas": 2.0},
-}
-# the q bound with the drag scale's share that is not density (C_D: 5 % rms in the flight set), with the relief's margin
+# the flight estimator with the load relief's chance margin (2 sigma of the density's and the aerodynamics' spread
+# over the next step), and the q bound with the drag scale's share that is not density (C_D: 5 % rms in the flight set)
 _SPLIT = {"drag_rms": 0.05, "split_sigmas": 1.0}
 SPLIT_VARIANTS = {
-    "+ relief 2 sigma, drag split": _FLIGHT_GRADE | {"load_relief_sigmas": 2.0} | _SPLIT,
-    "+ relief 2 sigma, drag split, q 5 %": _FLIGHT_GRADE | {"load_relief_sigmas": 2.0, "q_margin": 0.05} | _SPLIT,
+    "+ flight estimator, relief 2 sigma": _FLIGHT_GRADE | _FLIGHT_EST | {"load_relief_sigmas": 2.0},
+    "+ flight estimator, relief 2 sigma, drag split": _FLIGHT_GRADE | _FLIGHT_EST | {"load_relief_sigmas": 2.0} | _SPLIT,
+    "+ flight estimator, relief 2 sigma, drag split, q 5 %": _FLIGHT_GRADE | _FLIGHT_EST | _SPLIT
+                                                            | {"load_relief_sigmas": 2.0, "q_margin": 0.05},
 }
 VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS, "final": FINAL_VARIANTS,
                 "estimator": ESTIMATOR_VARIANTS,
-                "relief": RELIEF_VARIANTS, "split": SPLIT_VARIANTS}
+                "split": SPLIT_VARIANTS}
 
 
 def _reference_cost() -> float:
@@ -301,8 +300,8 @@ def main(argv=None) -> int:
                     help="defaults: each setting varied alone; flight: the flight-grade remedies; aero: the "
                          "margins for the aerodynamics' uncertainty in Mach, with and around mpc-flight's; "
                          "final: the final dive's settings around mpc-flight; estimator: the flight-grade "
-                         "estimator around mpc-flight; relief: the load relief's chance margin; "
-                         "split: the q bound with the drag scale's share that is not density")
+                         "estimator around mpc-flight; split: the "
+                         "flight estimator with the load relief's chance margin and the q bound's drag split")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
     ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
     ap.add_argument("--workers", type=positive_int, default=2)

@@ -378,11 +378,16 @@ def test_the_flight_grade_preset_is_what_mpc_flight_flies():
     from rventry_env.task import FLIGHT_ERRORS
 
     s = ReplanningSettings.flight_grade()
-    assert (s.load_relief_margin, s.q_margin, s.density_sigmas, s.aero_sigmas) == (0.02, 0.10, 1.0, 1.0)
+    from rventry_env.guidance.estimation import FlightEstimator
+
+    assert (s.load_relief_margin, s.q_margin, s.density_sigmas, s.aero_sigmas) == (0.04, 0.10, 1.0, 1.0)
     assert s.density_bands == FLIGHT_ERRORS.density_bands and s.aero_mach_rms == FLIGHT_ERRORS.lift_mach
     assert ReplanningSettings.flight_grade(q_margin=0.08).q_margin == 0.08
     law = load_agent("mpc-flight", EntryTask(), settings=replace(s, mesh_intervals=10, replan_s=60.0))
     assert law.settings.aero_mach_rms == 0.03 and law.relief is not None
+    # the flight-grade estimator, on the flight set's published statistics, with the wind
+    assert isinstance(law.estimator, FlightEstimator) and law.estimator.settings.wind_sigma == FLIGHT_ERRORS.wind_mean_mps
+    assert law.estimator.settings.density_bands == FLIGHT_ERRORS.density_bands
 
 
 def test_the_q_bound_carries_the_drag_scale_share_that_is_not_density():
@@ -413,3 +418,13 @@ def test_the_q_bound_carries_the_drag_scale_share_that_is_not_density():
         ReplanningSettings(drag_rms=0.05)  # nothing to split against without the density's bands
     with pytest.raises(ValueError, match="split_sigmas must be"):
         ReplanningSettings(split_sigmas=-1.0)
+
+
+@pytest.mark.slow
+def test_mpc_flies_alpha_to_zero_at_impact_on_a_coarse_mesh():
+    """Example 2's alpha(t_f) = 0, flown: with the terminal alpha bound aimed at 0.5 deg the nominal
+    flight lands with alpha(t_f) <= 0.5 deg and within the success thresholds."""
+    b = rollout(ReplanningGuidance(settings=replace(COARSE, terminal_alpha=True, terminal_alpha_deg=0.5)), 1)
+    assert b.is_success[0]
+    assert b.alpha_final_deg[0] <= 0.5
+    assert b.vertical_error_deg[0] < 2.0 and b.miss_km[0] < 0.1

@@ -46,9 +46,11 @@ def _mpc(task, **options):
 
 
 def _mpc_flight(task, **options):
+    from rventry_env.guidance.estimation import FlightEstimatorSettings
     from rventry_env.guidance.replanning import ReplanningGuidance, ReplanningSettings
 
-    return ReplanningGuidance(task=task, **({"settings": ReplanningSettings.flight_grade()} | options))
+    preset = {"settings": ReplanningSettings.flight_grade(), "estimator_settings": FlightEstimatorSettings.flight_grade()}
+    return ReplanningGuidance(task=task, **(preset | options))
 
 
 # name -> (description, factory(task, **options))
@@ -57,7 +59,8 @@ BUILTIN: dict[str, tuple[str, Callable]] = {
     "lqr": ("time-varying LQR around the margined guidance reference", _lqr),
     "lqr-est": ("the same TV-LQR with online estimation of the aerodynamic scales", _lqr_est),
     "mpc": ("re-planning on the LGR transcription every 30 s, with online estimation", _mpc),
-    "mpc-flight": ("the same re-planning with flight-grade margins: load relief, and margins from the density's "
+    "mpc-flight": ("the same re-planning with flight-grade estimation (scales as processes in altitude and Mach, "
+                   "the wind) and margins: load relief, and margins from the density's "
                    "and the aerodynamics' uncertainty", _mpc_flight),
 }
 

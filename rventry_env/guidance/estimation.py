@@ -79,7 +79,30 @@ class EstimatorSettings:
             raise ValueError(f"scale_bounds must be (low, high) with 0 < low < 1 < high, got {self.scale_bounds}")
 
 
-class AeroScaleEstimator:
+class _ScaleEstimator:
+    """What every estimator gives a guidance law: ``observe`` a measurement, the log-scales after it.
+    A subclass has ``n``, ``reset``, ``update`` and the two scale properties."""
+
+    def observe(self, measurement) -> np.ndarray:
+        """Fold in a guidance law's :class:`~rventry_env.guidance.law.Measurement` (a batch of another
+        size starts the filters again); the log-scales (N, 2) after it."""
+        if self.n != measurement.n:
+            self.reset(measurement.n)
+        self.update(measurement.time_s, measurement.navigation_state, measurement.sensed_accel_b)
+        return self.log_scales()
+
+    def log_scales(self) -> np.ndarray:
+        """(ln k_D, ln k_LD) per vehicle (N, 2): the parameters of the re-planning problem."""
+        return np.log(np.stack([self.drag_accel_scale, self.lift_to_drag_scale], axis=-1))
+
+    def _select(self, time_s, state, sensed_accel_b, rows):
+        """The rows an update folds in (all by default), with their times, states and sensed forces."""
+        idx = np.arange(self.n) if rows is None else np.asarray(rows)
+        t = np.asarray(time_s, dtype=float).reshape(-1)[idx] if np.ndim(time_s) else np.full(idx.size, float(time_s))
+        return idx, t, np.asarray(state, dtype=float)[idx], np.asarray(sensed_accel_b, dtype=float)[idx]
+
+
+class AeroScaleEstimator(_ScaleEstimator):
     """Batched Kalman filters on the drag-acceleration and lift-to-drag scale factors.
 
     :param model: the nominal model the measurements are compared with.
@@ -118,12 +141,9 @@ class AeroScaleEstimator:
         :param sensed_accel_b: sensed aerodynamic specific force (N, 3), B components.
         :param rows: update only these vehicles (default: all).
         """
-        idx = np.arange(self.n) if rows is None else np.asarray(rows)
+        idx, t, x, a = self._select(time_s, state, sensed_accel_b, rows)
         if idx.size == 0:
             return
-        t = np.asarray(time_s, dtype=float).reshape(-1)[idx] if np.ndim(time_s) else np.full(idx.size, float(time_s))
-        x = np.asarray(state, dtype=float)[idx]
-        a = np.asarray(sensed_accel_b, dtype=float)[idx]
         f = entry_forces(tuple(x.T), self.model, NUMPY)
         sigma = x[:, IDX.sigma]
         d_meas = -a[:, 0]
@@ -150,14 +170,6 @@ class AeroScaleEstimator:
         self.t_last[idx] = t
         self.updates[idx] += 1
 
-    def observe(self, measurement) -> np.ndarray:
-        """Fold in a guidance law's :class:`~rventry_env.guidance.law.Measurement` (a batch of another
-        size starts the filters again); the log-scales (N, 2) after it."""
-        if self.n != measurement.n:
-            self.reset(measurement.n)
-        self.update(measurement.time_s, measurement.navigation_state, measurement.sensed_accel_b)
-        return self.log_scales()
-
     @property
     def drag_accel_scale(self) -> np.ndarray:
         """k_D (N,)."""
@@ -175,10 +187,6 @@ class AeroScaleEstimator:
         vd, vl = self.var[:, 0], self.var[:, 1]
         v_ld = vl / kd**2 + vd * kl**2 / kd**4
         return np.stack([np.sqrt(vd), np.sqrt(v_ld)], axis=-1)
-
-    def log_scales(self) -> np.ndarray:
-        """(ln k_D, ln k_LD) per vehicle (N, 2): the parameters of the re-planning problem."""
-        return np.log(np.stack([self.drag_accel_scale, self.lift_to_drag_scale], axis=-1))
 
     def estimated_model(self, i: int) -> EntryModel:
         """Vehicle i's model with its current estimates (:func:`~rventry_env.physics.model.with_aero_scales`)."""
@@ -271,7 +279,7 @@ def _band_variance(bands, h_from, h_to) -> np.ndarray:
     return band_spread(bands, h_from, h_to) ** 2
 
 
-class FlightEstimator:
+class FlightEstimator(_ScaleEstimator):
     """An extended Kalman filter on the aerodynamic scales and the horizontal wind, batched over N vehicles.
 
     State per vehicle: theta = (ln k_D, ln k_L[, w_east, w_north]): the logarithms of the drag- and
@@ -373,12 +381,9 @@ class FlightEstimator:
     def update(self, time_s, state, sensed_accel_b, rows=None) -> None:
         """Fold in one measurement per vehicle (times (N,), navigation states (N, 12), sensed
         specific force (N, 3) in B components); ``rows``: only these vehicles."""
-        idx = np.arange(self.n) if rows is None else np.asarray(rows)
+        idx, t, x, z = self._select(time_s, state, sensed_accel_b, rows)
         if idx.size == 0:
             return
-        t = np.asarray(time_s, dtype=float).reshape(-1)[idx] if np.ndim(time_s) else np.full(idx.size, float(time_s))
-        x = np.asarray(state, dtype=float)[idx]
-        z = np.asarray(sensed_accel_b, dtype=float)[idx]
         s = self.settings
         m = s.n_states
         p = self.cov[idx] + self._process(idx, t, x)
@@ -411,14 +416,6 @@ class FlightEstimator:
         self.t_last[idx] = t
         self.updates[idx] += 1
 
-    def observe(self, measurement) -> np.ndarray:
-        """Fold in a :class:`~rventry_env.guidance.law.Measurement` (a batch of another size starts
-        the filters again); the log-scales (N, 2) after it."""
-        if self.n != measurement.n:
-            self.reset(measurement.n)
-        self.update(measurement.time_s, measurement.navigation_state, measurement.sensed_accel_b)
-        return self.log_scales()
-
     @property
     def drag_accel_scale(self) -> np.ndarray:
         """k_D (N,)."""
@@ -428,6 +425,10 @@ class FlightEstimator:
     def lift_to_drag_scale(self) -> np.ndarray:
         """k_LD = k_L / k_D (N,)."""
         return np.exp(self.theta[:, 1] - self.theta[:, 0])
+
+    def log_scales(self) -> np.ndarray:
+        """(ln k_D, ln k_LD) per vehicle (N, 2), straight from the filter's state."""
+        return np.stack([self.theta[:, 0], self.theta[:, 1] - self.theta[:, 0]], axis=-1)
 
     @property
     def wind_en(self) -> np.ndarray:
@@ -448,10 +449,6 @@ class FlightEstimator:
         if self.settings.n_states != 4:
             return np.zeros((self.n, 2))
         return np.sqrt(np.stack([self.cov[:, 2, 2], self.cov[:, 3, 3]], axis=-1))
-
-    def log_scales(self) -> np.ndarray:
-        """(ln k_D, ln k_LD) per vehicle (N, 2): the parameters of the re-planning problem."""
-        return np.stack([self.theta[:, 0], self.theta[:, 1] - self.theta[:, 0]], axis=-1)
 
     def estimated_model(self, i: int) -> EntryModel:
         """Vehicle i's model with its current estimates (scales and, with wind states, the wind)."""

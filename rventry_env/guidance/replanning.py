@@ -199,14 +199,16 @@ class ReplanningSettings:
 
     @classmethod
     def flight_grade(cls, **changes) -> "ReplanningSettings":
-        """The settings for flight-grade uncertainty (agent ``mpc-flight``): load relief between plans
-        (2 %), a q margin of 10 %, and margins from the atmosphere's and the aerodynamic database's
-        published uncertainty (the ``flight`` set's Gauss-Markov density bands and its 3 % rms per
-        Legendre coefficient of C_L and C_D in Mach), each at 1 sigma. Chosen on 20 episodes of the
-        ``flight`` set (docs/guidance.md); ``changes`` override any field."""
+        """The settings for flight-grade uncertainty (agent ``mpc-flight``, which pairs them with
+        :meth:`~rventry_env.guidance.estimation.FlightEstimatorSettings.flight_grade`): load relief
+        between plans (4 %), a q margin of 10 %, and margins from the atmosphere's and the
+        aerodynamic database's published uncertainty (the ``flight`` set's Gauss-Markov density bands
+        and its 3 % rms per Legendre coefficient of C_L and C_D in Mach), each at 1 sigma. Chosen on
+        20-30 episodes of the ``flight`` set away from the evaluation's seeds (docs/guidance.md);
+        ``changes`` override any field."""
         from rventry_env.task import FLIGHT_ERRORS
 
-        base = dict(load_relief_margin=0.02, q_margin=0.10, density_bands=FLIGHT_ERRORS.density_bands,
+        base = dict(load_relief_margin=0.04, q_margin=0.10, density_bands=FLIGHT_ERRORS.density_bands,
                     density_sigmas=1.0, aero_mach_rms=max(FLIGHT_ERRORS.lift_mach, FLIGHT_ERRORS.drag_mach),
                     aero_sigmas=1.0)  # fmt: skip
         return cls(**(base | changes))
