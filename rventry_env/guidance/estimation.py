@@ -42,6 +42,10 @@ estimate is within 0.5 % of the truth after the first measurement (measured by
 after 2 s.
 
 Everything is batched: one filter per vehicle, arrays of length N.
+
+For flight-grade uncertainty, :class:`FlightEstimator` (below) replaces the fixed drift with the
+published statistics (density as a process in altitude, the aerodynamic error in Mach) and adds
+the horizontal wind; :func:`make_estimator` builds either from its settings.
 """
 
 from __future__ import annotations
@@ -53,6 +57,7 @@ import numpy as np
 from rventry_env.core.backend import NUMPY
 from rventry_env.physics.entry import IDX, entry_forces
 from rventry_env.physics.model import EntryModel
+from rventry_env.physics.uncertainty import MachVaryingAerodynamics
 
 
 @dataclass(frozen=True)
@@ -232,7 +237,7 @@ class FlightEstimatorSettings:
     scale_bounds: tuple = (0.1, 10.0)
     density_bands: tuple | None = None
     aero_mach_rms: float | None = None
-    aero_mach_range: tuple = (3.0, 25.0)
+    aero_mach_range: tuple = (MachVaryingAerodynamics.mach_low, MachVaryingAerodynamics.mach_high)
     wind_sigma: float | None = None
     wind_bands: tuple | None = None
 
@@ -258,10 +263,9 @@ class FlightEstimatorSettings:
         """The ``flight`` set's published statistics: its density and wind bands, its wind mean
         (10 m/s rms) and its aerodynamic database's 3 % rms per Legendre coefficient."""
         from rventry_env.task import FLIGHT_ERRORS as F
-        from rventry_env.physics.uncertainty import MachVaryingAerodynamics as M
 
         base = dict(density_bands=F.density_bands, aero_mach_rms=max(F.lift_mach, F.drag_mach),
-                    aero_mach_range=(M.mach_low, M.mach_high), wind_sigma=F.wind_mean_mps, wind_bands=F.wind_bands)
+                    wind_sigma=F.wind_mean_mps, wind_bands=F.wind_bands)
         return cls(**(base | changes))
 
     @property

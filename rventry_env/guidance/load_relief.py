@@ -42,6 +42,7 @@ import numpy as np
 from rventry_env.task import EntryTask
 from rventry_env.physics import EntryModel
 from rventry_env.physics.entry import IDX, entry_forces, entry_rhs
+from rventry_env.physics.uncertainty import MachVaryingAerodynamics
 
 SEARCH_BITS = 4  # halvings per vectorized evaluation: 15 trial rates per vehicle
 
@@ -64,7 +65,8 @@ class LoadRelief:
 
     def __init__(self, model: EntryModel | None = None, task: EntryTask | None = None, margin: float = 0.01,
                  iterations: int = 14, sigmas: float = 0.0, density_bands: tuple | None = None,
-                 aero_mach_rms: float | None = None, aero_mach_range: tuple = (3.0, 25.0)):  # fmt: skip
+                 aero_mach_rms: float | None = None,
+                 aero_mach_range: tuple = (MachVaryingAerodynamics.mach_low, MachVaryingAerodynamics.mach_high)):  # fmt: skip
         if not (0.0 <= margin < 1.0):
             raise ValueError(f"load relief margin must lie in [0, 1), got {margin!r}")
         if int(iterations) < 1:
