@@ -392,13 +392,15 @@ class FlightEstimator(_ScaleEstimator):
         m = s.n_states
         p = self.cov[idx] + self._process(idx, t, x)
         th = self.theta[idx]
-        pred = self.predicted(x, th)
+        # the prediction and its Jacobian by forward differences, in one force evaluation: the
+        # estimate and the m nudged copies of it, stacked
+        k = len(idx)
         steps = np.array([1e-6, 1e-6, 1e-3, 1e-3])[:m]
-        jac = np.empty((len(idx), 3, m))
-        for j in range(m):
-            tj = th.copy()
-            tj[:, j] += steps[j]
-            jac[:, :, j] = (self.predicted(x, tj) - pred) / steps[j]
+        nudged = np.repeat(th[None], m + 1, axis=0)
+        nudged[1 + np.arange(m), :, np.arange(m)] += steps[:, None]
+        forces = self.predicted(np.tile(x, (m + 1, 1)), nudged.reshape(-1, m)).reshape(m + 1, k, 3)
+        pred = forces[0]
+        jac = ((forces[1:] - pred) / steps[:, None, None]).transpose(1, 2, 0)  # (k, 3, m)
         innov = z - pred
         ok = np.all(np.isfinite(innov), axis=1) & np.all(np.isfinite(jac), axis=(1, 2))
         innov = np.where(ok[:, None], innov, 0.0)
