@@ -14,6 +14,10 @@ sets (seed 0), the nominal J/J*, re-solve time median / p99, and the wall time o
 ``--terminal-alpha A,B,...``: the nominal flight with the terminal alpha bound aimed at each
 value (deg; 0 = off): alpha(t_f), the vertical-impact error, the miss and J/J*.
 
+``--navigation REPORT``: what navigation leaves to guidance, from an evaluation report: the
+navigation's errors at the end, the share of episodes whose horizontal error alone is within the
+precision tier's miss, and success by the size of the vertical (altitude) error.
+
     python scripts/bench_mpc.py --evaluate --workers 2 --json out/bench_mpc.json
     python scripts/bench_mpc.py --scan --episodes 40 --workers 2 --json out/scan_mpc.json
     python scripts/bench_mpc.py --scan --variants flight --dispersion flight --episodes 12 --workers 2 --json out/scan_mpc_flight.json
@@ -119,9 +123,26 @@ SPLIT_VARIANTS = {
     "+ flight estimator, relief 2 sigma, drag split, q 5 %": _FLIGHT_GRADE | _FLIGHT_EST | _SPLIT
                                                             | {"load_relief_sigmas": 2.0, "q_margin": 0.05},
 }
+# mpc-flight as shipped, and plans that turn vertical above the target, the law diving straight from there: the
+# navigated altitude is a kilometre off at impact, and the optimum's turn to vertical takes its last second
+_MPC_FLIGHT = {k: v for k, v in asdict(ReplanningSettings.flight_grade()).items() if getattr(DEFAULT, k) != v} | _FLIGHT_EST
+DIVE_VARIANTS = {
+    "mpc-flight": _MPC_FLIGHT,
+    "+ vertical dive 700 m": _MPC_FLIGHT | {"vertical_dive_m": 700.0},
+    "+ vertical dive 1200 m": _MPC_FLIGHT | {"vertical_dive_m": 1200.0},
+}
+# tracking that feeds forward the estimate against the plan's pessimistic L/D, instead of the plan's own scales
+TRACK_VARIANTS = {"+ tracking with the estimate": _MPC_FLIGHT | {"track_estimate": True}}
+# mpc-flight told the peer set's published statistics instead of the flight set's: density a constant factor of
+# 25 % rms (one band, correlation far longer than the flight), C_D 20 % rms, and the q bound with the drag scale's
+# share that is C_D
+PEER_VARIANTS = {
+    "mpc-flight": _MPC_FLIGHT,
+    "+ the peer set's statistics, drag split": _MPC_FLIGHT | {"density_bands": ((100_000.0, 0.25, 1e8),), "drag_rms": 0.20},
+}
 VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS, "final": FINAL_VARIANTS,
-                "estimator": ESTIMATOR_VARIANTS,
-                "split": SPLIT_VARIANTS}
+                "estimator": ESTIMATOR_VARIANTS, "split": SPLIT_VARIANTS, "dive": DIVE_VARIANTS,
+                "track": TRACK_VARIANTS, "peer": PEER_VARIANTS}
 
 
 def _reference_cost() -> float:
@@ -156,7 +177,8 @@ def _failures(batch) -> list[dict]:
              "vertical_error_deg": round(float(batch.vertical_error_deg[i]), 2),
              "speed_error_mps": round(float(batch.speed_error_mps[i]), 1),
              "max_load_factor_g": round(float(batch.max_load_factor_g[i]), 3),
-             "min_dynamic_pressure_pa": round(float(batch.min_dynamic_pressure_pa[i]), 1)}
+             "min_dynamic_pressure_pa": round(float(batch.min_dynamic_pressure_pa[i]), 1),
+             "navigation_vertical_error_m": round(float(batch.navigation[i, 1]), 1)}
             for i in np.nonzero(~batch.is_success)[0]]  # fmt: skip
 
 
@@ -286,6 +308,65 @@ def terminal_alpha(aims: list[float]) -> dict:
     return {"terminal_alpha": rows}
 
 
+NAV_BINS_M = (0.0, 500.0, 900.0, 1300.0, np.inf)
+
+
+def navigation(path: str) -> dict:
+    """What navigation leaves to guidance, from an evaluation report (``rventry evaluate --json``):
+    the navigation's errors at the end, the share of episodes whose horizontal error alone is
+    within the precision tier's miss, success by the size of the vertical error, and how the
+    speed and vertical-impact errors follow it."""
+    import json
+
+    from rventry_env.task import PrecisionThresholds
+
+    doc = json.loads(open(path).read())
+    eps = [e for e in doc["episodes"] if "navigation_error_m" in e]
+    if not eps:
+        raise SystemExit(f"{path}: no episode records the navigation error (a report from an older evaluation?)")
+    h = np.array([e["navigation_error_m"]["horizontal"] for e in eps])
+    v = np.array([e["navigation_error_m"]["vertical"] for e in eps])
+    ok = np.array([e["success"] for e in eps])
+    speed = np.array([e["speed_error_mps"] for e in eps])
+    vert = np.array([e["vertical_error_deg"] for e in eps])
+    miss = np.array([e["miss_km"] for e in eps]) * 1000.0
+    believed = np.array([e["navigated_miss_km"] for e in eps]) * 1000.0
+    tier = PrecisionThresholds().miss_m
+    out = {
+        "report": path, "agent": doc.get("agent"), "dispersion": doc.get("dispersion_set"), "episodes": len(eps),
+        "horizontal_error_m": {f"p{q}": float(np.percentile(h, q)) for q in (5, 50, 95)},
+        "vertical_error_abs_m": {f"p{q}": float(np.percentile(np.abs(v), q)) for q in (5, 50, 95)},
+        "within_precision_miss": float(np.mean(h <= tier)),
+        "miss_m": {f"p{q}": float(np.percentile(miss, q)) for q in (50, 95)},
+        "navigated_miss_m": {f"p{q}": float(np.percentile(believed, q)) for q in (50, 95)},
+        "corr_speed_error_vertical_nav": float(np.corrcoef(speed, v)[0, 1]),
+        "corr_miss_horizontal_nav": float(np.corrcoef(miss, h)[0, 1]),
+        "by_vertical_error": [],
+    }
+    print(f"{out['agent']} on {out['dispersion']}, {len(eps)} episodes ({path})")
+    print(f"navigation at the end: horizontal error p5/p50/p95 {out['horizontal_error_m']['p5']:.0f}/"
+          f"{out['horizontal_error_m']['p50']:.0f}/{out['horizontal_error_m']['p95']:.0f} m; |vertical| "
+          f"{out['vertical_error_abs_m']['p5']:.0f}/{out['vertical_error_abs_m']['p50']:.0f}/"
+          f"{out['vertical_error_abs_m']['p95']:.0f} m; within the precision tier's {tier:.0f} m: "
+          f"{out['within_precision_miss']:.3f} of the episodes")
+    print(f"miss p50/p95 {out['miss_m']['p50']:.0f}/{out['miss_m']['p95']:.0f} m, the miss guidance believed "
+          f"{out['navigated_miss_m']['p50']:.0f}/{out['navigated_miss_m']['p95']:.0f} m; correlation of the miss with "
+          f"the horizontal error {out['corr_miss_horizontal_nav']:.2f}, of the speed error with the vertical error "
+          f"{out['corr_speed_error_vertical_nav']:.2f}")
+    print(f"{'|vertical nav error| (m)':26s} {'episodes':>8s} {'success':>8s} {'vertical err p50':>17s} {'|speed err| p50':>16s}")
+    for lo, hi in zip(NAV_BINS_M[:-1], NAV_BINS_M[1:]):
+        sel = (np.abs(v) >= lo) & (np.abs(v) < hi)
+        row = {"from_m": lo, "to_m": None if np.isinf(hi) else hi, "episodes": int(sel.sum()),
+               "success_rate": float(ok[sel].mean()) if sel.any() else None,
+               "vertical_error_deg_p50": float(np.median(vert[sel])) if sel.any() else None,
+               "abs_speed_error_mps_p50": float(np.median(np.abs(speed[sel]))) if sel.any() else None}  # fmt: skip
+        out["by_vertical_error"].append(row)
+        if sel.any():
+            print(f"{f'{lo:.0f} - {hi:.0f}':26s} {row['episodes']:8d} {row['success_rate']:8.3f} "
+                  f"{row['vertical_error_deg_p50']:17.2f} {row['abs_speed_error_mps_p50']:16.1f}")
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     mode = ap.add_mutually_exclusive_group(required=True)
@@ -293,6 +374,8 @@ def main(argv=None) -> int:
     mode.add_argument("--evaluate", action="store_true", help="the benchmark's targets with the defaults")
     mode.add_argument("--terminal-alpha", type=_aims, metavar="DEG,...",
                       help="the nominal flight with the terminal alpha bound aimed at each value (0: off)")
+    mode.add_argument("--navigation", metavar="REPORT",
+                      help="what navigation leaves to guidance, from an evaluation report (rventry evaluate --json)")
     ap.add_argument("--episodes", type=positive_int, help="episodes per variant (scan: 40) or per set (evaluate: 200)")
     ap.add_argument("--dispersion", default="wide", choices=("standard", "wide", "flight", "peer", "peer-0.1"),
                     help="the scan's set (wide)")
@@ -301,7 +384,10 @@ def main(argv=None) -> int:
                          "margins for the aerodynamics' uncertainty in Mach, with and around mpc-flight's; "
                          "final: the final dive's settings around mpc-flight; estimator: the flight-grade "
                          "estimator around mpc-flight; split: the "
-                         "flight estimator with the load relief's chance margin and the q bound's drag split")
+                         "flight estimator with the load relief's chance margin and the q bound's drag split; "
+                         "dive: plans that turn vertical above the target, around mpc-flight; track: mpc-flight's "
+                         "tracking fed the estimate rather than the plan's pessimistic L/D; peer: mpc-flight told "
+                         "the peer set's statistics")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
     ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
     ap.add_argument("--workers", type=positive_int, default=2)
@@ -311,7 +397,10 @@ def main(argv=None) -> int:
         args.episodes = 40 if args.scan else 200
     if args.seed is None:
         args.seed = 100_000 if args.scan else 0
-    out = scan(args) if args.scan else evaluate(args) if args.evaluate else terminal_alpha(args.terminal_alpha)
+    if args.navigation:
+        out = navigation(args.navigation)
+    else:
+        out = scan(args) if args.scan else evaluate(args) if args.evaluate else terminal_alpha(args.terminal_alpha)
     out["command"] = " ".join(["python scripts/bench_mpc.py", *(argv if argv is not None else sys.argv[1:])])
     if args.json:
         print(f"wrote {write_json(args.json, out)}")

@@ -211,6 +211,40 @@ def test_settings_are_checked():
         ReplanningSettings(q_margin=0.6)
     with pytest.raises(ValueError, match="mesh_degree must be a positive integer"):
         ReplanningSettings(mesh_degree=2.5)
+    with pytest.raises(ValueError, match=r"vertical_dive_m must be metres in \[0, 20000\]"):
+        ReplanningSettings(vertical_dive_m=-100.0)
+
+
+def test_a_straight_dive_meets_the_final_speed_at_the_target():
+    """Cross-check of the dive's entry speed (backward, by the environment's equations of motion)
+    against a one-dimensional fall written from the force parts alone: speed down, drag at alpha 0
+    against it, gravity with it, solved forward by scipy to the ground."""
+    from scipy.integrate import solve_ivp
+
+    from rventry_env.core.backend import NUMPY
+    from rventry_env.guidance.terminal import dive_entry_speed
+
+    task, model = EntryTask(), EntryModel()
+    p, re = task.problem, model.planet.radius
+    veh = model.vehicle
+    speeds = [dive_entry_speed(task, model, h) for h in (0.0, 800.0, 2000.0)]
+    assert speeds[0] == pytest.approx(p.final_speed, abs=1e-9) and speeds[0] < speeds[1] < speeds[2]
+
+    def fall(_, y):
+        h, v = y
+        rho, a = model.atmosphere.density(h, NUMPY), model.atmosphere.speed_of_sound(h, NUMPY)
+        _, cd = veh.aerodynamics.coefficients(p.final_alpha, v / a, NUMPY)
+        g = abs(model.gravity.acceleration_a(re + h, (0.0, 0.0, 1.0), NUMPY)[0])
+        return [-v, g - 0.5 * rho * v * v * veh.reference_area * cd / veh.mass]
+
+    ground = lambda _, y: y[0]  # noqa: E731
+    ground.terminal = True
+    for h, v0 in ((800.0, speeds[1]), (2000.0, speeds[2])):
+        sol = solve_ivp(fall, (0.0, 10.0), [h, v0], events=ground, rtol=1e-10, atol=1e-8)
+        assert sol.status == 1
+        assert sol.y_events[0][0][1] == pytest.approx(p.final_speed, abs=0.5)
+    with pytest.raises(ValueError, match="the dive's height must be a finite number of metres >= 0"):
+        dive_entry_speed(task, model, float("nan"))
 
 
 def test_mpc_lands_the_nominal_case_with_alpha_at_zero():
@@ -421,6 +455,26 @@ def test_the_q_bound_carries_the_drag_scale_share_that_is_not_density():
 
 
 @pytest.mark.slow
+def test_tracking_compares_the_plan_with_its_own_scales_unless_told_to_feed_the_estimate(monkeypatch):
+    """With the aerodynamic margin the plans use a lowered L/D; tracking gets the same lowered
+    scales by default, and the unlowered estimate with ``track_estimate``."""
+    settings = replace(COARSE, aero_mach_rms=0.03)
+    venv = RvEntryVectorEnv(num_envs=1)
+    obs, info = venv.reset(seed=0)
+    m = Measurement(obs, np.zeros(1), info["navigation_state"], info["sensed_accel_b"], np.ones(1, bool))
+    seen = {}
+    for track in (False, True):
+        law = ReplanningGuidance(settings=replace(settings, track_estimate=track))
+        monkeypatch.setattr(law, "rates", lambda t, x, theta, law=law: seen.setdefault(track, theta.copy()) * 0.0)
+        law(m)
+        estimate = law.estimator.log_scales()
+        planned = law.planning_scales(m.navigation_state, estimate)
+        assert planned[0, 1] < estimate[0, 1] - 0.01
+        np.testing.assert_array_equal(seen[track], estimate if track else planned)
+    with pytest.raises(ValueError, match="track_estimate must be True or False"):
+        ReplanningSettings(track_estimate=1)
+
+
 def test_mpc_flies_alpha_to_zero_at_impact_on_a_coarse_mesh():
     """Example 2's alpha(t_f) = 0, flown: with the terminal alpha bound aimed at 0.5 deg the nominal
     flight lands with alpha(t_f) <= 0.5 deg and within the success thresholds."""

@@ -333,6 +333,31 @@ def test_the_navigation_state_is_the_true_position_and_velocity_plus_the_errors(
     np.testing.assert_allclose(conventional_bank(nav, nav[:, 11]), conventional_bank(truth, truth[:, 11]), atol=1e-4)
 
 
+def test_the_miss_splits_into_the_navigations_error_and_the_miss_guidance_believed():
+    """Evaluation records where navigation put the vehicle at the end: with perfect sensing the
+    errors are zero and the believed miss is the miss, bit for bit; on ``flight`` the two misses
+    differ by no more than the horizontal error (the triangle inequality on the ground), the errors
+    are the environment's own navigation errors, and the summary reports their percentiles."""
+    from rventry_env.evaluation.agents import load_agent
+    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.evaluation.summary import summarize
+
+    law = load_agent("lqr")
+    clean = rollout(law, seeds=[0, 1, 2], dispersion="standard")
+    np.testing.assert_array_equal(clean.navigation[:, :2], 0.0)
+    np.testing.assert_array_equal(clean.navigation[:, 2], clean.miss_km.astype(float))
+    b = rollout(law, seeds=[3, 4, 5, 6], dispersion="flight")
+    h, v, believed = b.navigation.T
+    assert np.all(h > 10.0) and np.all(np.abs(v) > 1.0)
+    assert np.all(np.abs(b.miss_km.astype(float) - believed) * 1000.0 <= h * 1.001 + 1.0)
+    assert np.any(np.abs(b.miss_km.astype(float) - believed) * 1000.0 > 0.3 * h)
+    nav = summarize(b, 1.0, law.task)["navigation"]
+    assert nav["horizontal_error_m"]["p50"] == pytest.approx(np.percentile(h, 50))
+    assert summarize(clean, 1.0, law.task)["navigation"]["horizontal_error_m"]["p95"] == 0.0
+    rec = b.records()[0]
+    assert rec["navigation_error_m"] == {"horizontal": h[0], "vertical": v[0]} and rec["navigated_miss_km"] == believed[0]
+
+
 def test_the_oracle_splits_the_intervals_where_its_plan_leaves_the_bounds_between_nodes():
     """Collocation holds the path bounds at the nodes only: a plan that bulges above the q bound's
     altitude inside one interval (and only there) has that interval, and no other, split."""

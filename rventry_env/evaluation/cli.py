@@ -373,6 +373,10 @@ def _print_summary(agent: str, s: dict) -> None:
         f"J/J* {s['cost_ratio']:.3f}; endings {s['endings']} (percentiles in the JSON report)"
         + (f", load relief capped {r['capped_steps']} step(s) in {r['episodes_capped']} episode(s)"
            if (r := s.get("load_relief")) else "")
+        + (f"; navigation at the end: horizontal error p50/p95 {n['horizontal_error_m']['p50']:.0f}/"
+           f"{n['horizontal_error_m']['p95']:.0f} m, vertical {n['vertical_error_abs_m']['p50']:.0f}/"
+           f"{n['vertical_error_abs_m']['p95']:.0f} m, the miss it believed p50 {n['navigated_miss_m']['p50']:.0f} m"
+           if (n := s.get("navigation")) and n["horizontal_error_m"]["p95"] > 0 else "")
     )
 
 

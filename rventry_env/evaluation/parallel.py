@@ -236,6 +236,7 @@ def concatenate(batches: list[EpisodeBatch]) -> EpisodeBatch:
         law_stats=[s for b in batches for s in b.law_stats],
         provenance=batches[0].provenance,
         lengths=np.concatenate([b.lengths for b in batches]),
+        navigation=np.concatenate([b.navigation.reshape(-1, 3) for b in batches]),
     )
     if all(b.history_t is not None for b in batches):
         t_max = max(b.history_t.shape[0] for b in batches)

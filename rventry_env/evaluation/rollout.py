@@ -54,6 +54,11 @@ class EpisodeBatch:
     history_x: np.ndarray | None = None
     history_a: np.ndarray | None = None
     lengths: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    # where the vehicle's navigation put it at the end (N, 3): the horizontal and the vertical
+    # position error (navigated minus true, m; vertical positive when navigation is above the
+    # truth) and the miss it believed (km, from the navigated position): the part of a miss
+    # that navigation, not guidance, made. Without navigation errors they are 0, 0 and miss_km.
+    navigation: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def records(self, reference_cost: float | None = None) -> list[dict]:
         """One JSON-friendly dict per episode."""
@@ -78,6 +83,10 @@ class EpisodeBatch:
             rec.update({k: float(v[i]) for k, v in self.targets.items()})
             if self.seeds.size:
                 rec["seed"] = int(self.seeds[i])
+            if self.navigation.size:
+                h, v, m = map(float, self.navigation[i])
+                rec["navigation_error_m"] = {"horizontal": h, "vertical": v}
+                rec["navigated_miss_km"] = m
             if self.law_stats:
                 rec.update(self.law_stats[i])
             out.append(rec)
@@ -135,6 +144,7 @@ def rollout(
     flight_draw = episode_draws(info["dispersion_draw"])
     targets = {} if fixed_target else target_degrees(info["target_e"])
     lengths = np.zeros(n, int)
+    navigation = np.full((n, 3), np.nan)
     hist_t, hist_x, hist_a = [], [], []
     time_s = np.zeros(n)
     while not done.all():
@@ -153,6 +163,9 @@ def rollout(
         for k in keys:
             final[k][ended] = info[k][ended]
         lengths[ended] = venv._steps[ended]
+        if np.any(ended):
+            navigation[ended] = navigation_at_end(venv.state[ended], info["navigation_state"][ended],
+                                                  info["target_e"][ended], venv.task, venv.model.planet.radius)  # fmt: skip
         done |= ended
         if record_history:
             # the ended copy stays frozen: keep its final state once, NaN afterwards
@@ -163,10 +176,30 @@ def rollout(
     stats = list(policy.episode_stats())
     batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths,
                          seeds=np.array(seeds), law_stats=stats, provenance=policy.provenance,
-                         flight_draw=flight_draw, targets=targets)  # fmt: skip
+                         flight_draw=flight_draw, targets=targets, navigation=navigation)  # fmt: skip
     if record_history:
         batch.history_t, batch.history_x, batch.history_a = _tidy_history(hist_t, hist_x, hist_a, lengths)
     return batch
+
+
+def navigation_at_end(true_state, nav_state, target_e, task: EntryTask, radius: float) -> np.ndarray:
+    """(N, 3): the navigation's horizontal and vertical position errors (m; vertical positive when
+    navigation is above the truth) and the miss (km) the navigated position makes, for states (N, 12)."""
+    from rventry_env.core.backend import NUMPY
+    from rventry_env.core.conversions import cartesian_from_rv_euler
+    from rventry_env.core.euler_parameters import dcm
+    from rventry_env.envs.outcome import terminal_metrics
+
+    r_true, _ = cartesian_from_rv_euler(true_state)
+    r_nav, _ = cartesian_from_rv_euler(nav_state)
+    up = r_true / np.linalg.norm(r_true, axis=-1, keepdims=True)
+    d = r_nav - r_true
+    vertical = np.sum(d * up, axis=-1)
+    horizontal = np.linalg.norm(d - vertical[:, None] * up, axis=-1)
+    nav = np.asarray(nav_state, dtype=float)
+    believed = terminal_metrics(tuple(nav.T), dcm(*nav[:, 1:5].T), task, tuple(np.asarray(target_e, float).T),
+                                radius, NUMPY).miss_km  # fmt: skip
+    return np.stack([horizontal, vertical, np.asarray(believed, dtype=float)], axis=-1)
 
 
 CLIMATE_NAMES = ("day_of_year", "local_time_h", "f107_sfu", "f107a_sfu", "ap")

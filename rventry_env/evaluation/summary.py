@@ -50,9 +50,20 @@ def summarize(batch: EpisodeBatch, reference_cost: float, task: EntryTask) -> di
     out["endings"] = {("impact" if f == "" else str(f)): int(c) for f, c in zip(failures, counts)}
     out["success_thresholds"] = dataclasses.asdict(task.success)
     out["precision_thresholds"] = dataclasses.asdict(task.precision)
+    out["navigation"] = navigation_summary(batch)
     out["replanning"] = replanning_summary(batch.law_stats)
     out["load_relief"] = load_relief_summary(batch.law_stats)
     return out
+
+
+def navigation_summary(batch: EpisodeBatch) -> dict | None:
+    """Percentiles of the navigation's position errors at the end (m) and of the miss the navigated
+    position makes (the guidance's own miss, m): what of the miss navigation made. None without them."""
+    nav = np.asarray(batch.navigation, dtype=float)
+    if nav.size == 0 or not np.all(np.isfinite(nav)):
+        return None
+    cols = {"horizontal_error_m": nav[:, 0], "vertical_error_abs_m": np.abs(nav[:, 1]), "navigated_miss_m": nav[:, 2] * 1000.0}
+    return {k: {f"p{q}": _f(np.percentile(v, q)) for q in (50, 95)} for k, v in cols.items()}
 
 
 def precision_success(batch: EpisodeBatch, task: EntryTask) -> np.ndarray:

@@ -85,6 +85,17 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   it (TV-LQR on a plan from at most a minute before lands every benchmark episode), but
   as a teacher it gives a student that has drifted off the plan a correction from where it
   is, rather than TV-LQR's pull back toward a path it can no longer reach.
+* **A vertical dive** (``vertical_dive_m``, off by default). The plan ends vertical that high
+  above the target, at the speed a straight dive needs to meet the final speed at the ground
+  (:func:`~rventry_env.guidance.terminal.dive_entry_speed`); past the plan's end the law takes
+  alpha to its final value and holds the bank. Meant for a navigated altitude that is off by
+  up to that height at the end, which otherwise meets the ground mid-turn; on the ``flight``
+  set it cost landings and nominal cost (the turn moves into thinner air).
+* **Tracking with the estimate** (``track_estimate``, off by default). With the aerodynamic
+  margin the plans assume a lower L/D than estimated; by default tracking compares the estimate
+  with the plan in those same terms (no feedforward of the reserve). With this on, TV-LQR feeds
+  the unlowered estimate forward and flies the planned path with the lift the vehicle has. On
+  ``flight`` it cost landings.
 
 The law sees only the navigation state and the sensed acceleration.
 """
@@ -102,7 +113,7 @@ from rventry_env.physics.entry import IDX
 from rventry_env.task import EntryTask
 from rventry_env.guidance.estimation import EstimatorSettings, FlightEstimatorSettings, make_estimator
 from rventry_env.guidance.law import Law, Measurement
-from rventry_env.guidance.terminal import alpha_rate_bound
+from rventry_env.guidance.terminal import alpha_rate_bound, dive_entry_speed
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
 from rventry_env.physics.model import EntryModel
 from rventry_env.physics.uncertainty import MachVaryingAerodynamics, mach_spread
@@ -131,6 +142,8 @@ class ReplanningSettings:
     final_window_s: float = 120.0
     terminal_alpha: bool = False
     terminal_alpha_deg: float = 0.5
+    vertical_dive_m: float = 0.0
+    track_estimate: bool = False
     load_relief_margin: float | None = None
     load_relief_sigmas: float = 0.0
     drag_rms: float | None = None
@@ -184,6 +197,12 @@ class ReplanningSettings:
                                             (self.density_bands is None and self.aero_mach_rms is None)):  # fmt: skip
             raise ValueError("load_relief_sigmas needs load relief (load_relief_margin) and the uncertainty it counts "
                              "(density_bands and/or aero_mach_rms)")
+        if not isinstance(self.track_estimate, bool):
+            raise ValueError(f"track_estimate must be True or False, got {self.track_estimate!r}")
+        if not (isinstance(self.vertical_dive_m, (int, float)) and math.isfinite(self.vertical_dive_m)
+                and 0 <= self.vertical_dive_m <= 20_000):  # fmt: skip
+            raise ValueError(f"vertical_dive_m must be metres in [0, 20000] (0: vertical at the ground), "
+                             f"got {self.vertical_dive_m!r}")
         for name, hi in (("end_fraction", 0.5), ("q_margin", 0.5), ("load_margin", 0.5)):
             v = getattr(self, name)
             if not (0.0 <= v < hi):
@@ -293,6 +312,9 @@ class PlanSolver:
         self.model = model
         self.radius = model.planet.radius
         problem = replace(p, q_min=p.q_min * (1 + s.q_margin), a_max_g=p.a_max_g * (1 - s.load_margin))
+        if s.vertical_dive_m > 0:  # the plan ends vertical above the target; the law dives from there
+            problem = replace(problem, final_altitude=p.final_altitude + s.vertical_dive_m,
+                              final_speed=dive_entry_speed(task, model, s.vertical_dive_m))  # fmt: skip
         config = EntryProblemConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
                                     soft_path_penalty=s.soft_penalty, aero_scale_parameters=True)  # fmt: skip
         self.problem = entry_problem(config)
@@ -572,8 +594,13 @@ class ReplanningGuidance(Law):
         """Commanded (u_alpha, u_sigma) in rad/s for every episode, from its current plan."""
         u = np.zeros((self.n, 2))
         dt = self.task.dt
+        dive = self.settings.vertical_dive_m > 0
         for i, tr in enumerate(self.tracks):
-            if tr is None or time_s[i] >= tr.t_end:
+            if tr is None:
+                continue
+            if time_s[i] >= tr.t_end:
+                if dive:  # past the plan's end: straight down, alpha to the plan's final, the bank still
+                    u[i, 0] = (self.task.problem.final_alpha - state[i, IDX.alpha]) / dt
                 continue
             k = min(tr.step(time_s[i], dt), tr.u_ref.shape[0] - 1)
             u[i] = (tr.u_ref[k] - tr.gains[k] @ (state[i] - tr.x_ref[k])
@@ -617,7 +644,8 @@ class ReplanningGuidance(Law):
         time_s, state = m.time_s, m.navigation_state
         if m.n != self.n:
             self.reset(m.n)
-        theta = self.planning_scales(state, self.estimator.observe(m))
+        estimate = self.estimator.observe(m)
+        theta = self.planning_scales(state, estimate)
         if m.target_e is not None:
             self._aim(m.target_e)
         for i in range(self.n):
@@ -627,7 +655,7 @@ class ReplanningGuidance(Law):
                                  and to_go > self.settings.freeze_s)  # fmt: skip
             if due:
                 self._replan(i, float(time_s[i]), state[i], theta[i])
-        u = self.rates(time_s, state, theta)
+        u = self.rates(time_s, state, estimate if self.settings.track_estimate else theta)
         if self.settings.terminal_alpha:
             u[:, 0] = np.minimum(u[:, 0], alpha_rate_bound(state, self.task, self.model.planet.radius,
                                                            tolerance=math.radians(self.settings.terminal_alpha_deg)))
