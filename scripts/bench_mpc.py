@@ -317,10 +317,11 @@ def navigation(path: str) -> dict:
     within the precision tier's miss, success by the size of the vertical error, and how the
     speed and vertical-impact errors follow it."""
     import json
+    from pathlib import Path
 
     from rventry_env.task import PrecisionThresholds
 
-    doc = json.loads(open(path).read())
+    doc = json.loads(Path(path).read_text())
     eps = [e for e in doc["episodes"] if "navigation_error_m" in e]
     if not eps:
         raise SystemExit(f"{path}: no episode records the navigation error (a report from an older evaluation?)")

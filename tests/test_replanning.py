@@ -454,7 +454,6 @@ def test_the_q_bound_carries_the_drag_scale_share_that_is_not_density():
         ReplanningSettings(split_sigmas=-1.0)
 
 
-@pytest.mark.slow
 def test_tracking_compares_the_plan_with_its_own_scales_unless_told_to_feed_the_estimate(monkeypatch):
     """With the aerodynamic margin the plans use a lowered L/D; tracking gets the same lowered
     scales by default, and the unlowered estimate with ``track_estimate``."""
@@ -475,6 +474,7 @@ def test_tracking_compares_the_plan_with_its_own_scales_unless_told_to_feed_the_
         ReplanningSettings(track_estimate=1)
 
 
+@pytest.mark.slow
 def test_mpc_flies_alpha_to_zero_at_impact_on_a_coarse_mesh():
     """Example 2's alpha(t_f) = 0, flown: with the terminal alpha bound aimed at 0.5 deg the nominal
     flight lands with alpha(t_f) <= 0.5 deg and within the success thresholds."""

@@ -28,9 +28,9 @@ counts steps of ``dt``; with several RK4 substeps the environment stops alpha at
 so the bound is then conservative.
 
 **The vertical dive.** A vehicle that navigates by an inertial system knows its altitude to a
-few hundred metres at impact, and the optimum turns its velocity vertical in the last second
-(12 g at 1.2 km/s is 6 deg/s): a navigated altitude a kilometre high ends the flight before the
-turn, fast and off vertical; one a kilometre low ends the plan in the air. A plan that reaches
+few hundred metres at impact, and the optimum is still turning its velocity toward vertical in
+its last seconds, at 4-6 deg/s: a navigated altitude a kilometre high ends the flight before the
+turn is done, fast and off vertical; one a kilometre low ends the plan in the air. A plan that reaches
 the vertical ``height`` above the target (:func:`dive_entry_speed` gives the speed it must
 have there) and a law that then dives straight, alpha at the plan's final value, end vertical
 wherever within that height the ground really is.
