@@ -40,6 +40,7 @@ from rventry_agents.imitation import (
     Horizon,
     LearnedGuidance,
     collect,
+    expert_options,
     fit,
     make_network,
     network_bytes,
@@ -220,12 +221,7 @@ def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None
         h.check_step(task.dt)
     expert_cfg = dict(cfg.get("expert", {}))
     expert = str(expert_cfg.pop("agent", "mpc"))
-    if expert_cfg:
-        from rventry_env.guidance.replanning import ReplanningSettings
-
-        if expert != "mpc":
-            raise ValueError(f"[expert] settings {sorted(expert_cfg)} apply to the mpc expert only, not {expert!r}")
-        ReplanningSettings(**expert_cfg)
+    expert_options(expert, tuple(sorted(expert_cfg.items())))  # a bad setting fails here
     return RunSetup(
         cfg=cfg, out=out, workers=workers, seed=seed, task=task,
         hidden=tuple(int(h) for h in cfg["student"]["hidden"]), members=int(cfg["student"].get("members", 1)),

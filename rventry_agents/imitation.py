@@ -261,10 +261,29 @@ class CollectJob:
     hidden: tuple[int, ...]
     task: EntryTask
     expert: str = "mpc"
-    expert_settings: tuple = ()  # (name, value) pairs of ReplanningSettings for the mpc expert
+    expert_settings: tuple = ()  # (name, value) pairs of ReplanningSettings on the re-planning expert's preset
     horizon: Horizon | None = None  # the labels' and the tracker's (default one step)
     load_relief_margin: float | None = None  # the student's load relief (default none)
     members: int = 1  # the student's member networks
+
+
+REPLANNING_EXPERTS = ("mpc", "mpc-flight")
+
+
+def expert_options(expert: str, settings: tuple = ()) -> tuple:
+    """The law options for a re-planning ``expert`` told ``settings`` ((name, value) pairs of
+    :class:`~rventry_env.guidance.replanning.ReplanningSettings`): each on top of the expert's own
+    preset (``mpc``: the defaults; ``mpc-flight``: :meth:`ReplanningSettings.flight_grade`). A bad
+    name or value fails here, naming it."""
+    if not settings:
+        return ()
+    from rventry_env.guidance.replanning import ReplanningSettings
+
+    if expert not in REPLANNING_EXPERTS:
+        raise ValueError(f"[expert] settings {sorted(k for k, _ in settings)} apply to the re-planning experts "
+                         f"{list(REPLANNING_EXPERTS)} only, not {expert!r}")  # fmt: skip
+    made = ReplanningSettings.flight_grade if expert == "mpc-flight" else ReplanningSettings
+    return (("settings", made(**dict(settings))),)
 
 
 def collect_episode(job: CollectJob) -> dict:
@@ -275,12 +294,7 @@ def collect_episode(job: CollectJob) -> dict:
     from rventry_env.evaluation.rollout import rollout
 
     torch.set_num_threads(1)
-    options = ()
-    if job.expert_settings:
-        from rventry_env.guidance.replanning import ReplanningSettings
-
-        options = (("settings", ReplanningSettings(**dict(job.expert_settings))),)
-    expert = cached_law(job.expert, job.task, options)
+    expert = cached_law(job.expert, job.task, expert_options(job.expert, job.expert_settings))
     student = None if job.student is None else LearnedGuidance(network_from_bytes(job.student, job.hidden, job.members),
                                                                 task=job.task, horizon=job.horizon,
                                                                 load_relief_margin=job.load_relief_margin)  # fmt: skip

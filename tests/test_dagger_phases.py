@@ -70,6 +70,24 @@ def test_prepare_run_reads_the_settings_the_phases_use(tmp_path):
     assert run.law["load_relief_margin"] == 0.02 and [h.max_s for h in run.trackers] == [3.0]
 
 
+def test_expert_settings_apply_on_top_of_the_named_experts_preset(tmp_path):
+    from rventry_agents.imitation import expert_options
+    from rventry_env.guidance.replanning import ReplanningSettings
+
+    assert expert_options("mpc-flight") == () and expert_options("lqr") == ()
+    (_, flight), = expert_options("mpc-flight", (("final_replan_s", 5.0), ("freeze_s", 5.0)))
+    preset = ReplanningSettings.flight_grade()
+    assert (flight.final_replan_s, flight.freeze_s) == (5.0, 5.0)
+    assert (flight.load_relief_margin, flight.density_bands) == (preset.load_relief_margin, preset.density_bands)
+    (_, plain), = expert_options("mpc", (("q_margin", 0.08),))
+    assert plain == ReplanningSettings(q_margin=0.08) and plain.load_relief_margin is None
+    with pytest.raises(ValueError, match=r"\['q_margin'\] apply to the re-planning experts .* not 'lqr'"):
+        expert_options("lqr", (("q_margin", 0.1),))
+    # a config that gives settings to an expert without them fails before anything flies
+    with pytest.raises(ValueError, match="not 'lqr'"):
+        _run(tmp_path, SMALL.replace('agent = "lqr"', 'agent = "lqr"\nq_margin = 0.1'))
+
+
 def test_a_resume_with_another_config_is_refused_naming_the_fields(tmp_path):
     check_resumable(_run(tmp_path), resume=False)
     assert json.loads((tmp_path / "run" / "run.json").read_text())["student"]["hidden"] == [16, 16]

@@ -395,6 +395,7 @@ def test_rejax_ppo_trains_on_the_functional_env(tmp_path):
 
     meta = json.loads((tmp_path / "metadata.json").read_text())
     assert meta["timesteps"] >= 4096
+    assert meta["train_compilations"] == 1  # the second chunk ran the first one's program, not a recompiled one
     assert len(meta["evaluations"]) == 2 and all(np.isfinite(e["mean_return"]) for e in meta["evaluations"])
     params = np.load(tmp_path / "params.npz")
     assert any(k.startswith("actor") for k in params.files)
