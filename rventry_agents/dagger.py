@@ -52,6 +52,7 @@ from rventry_env.util.files import atomic_write, check_writable, dumps_json, sav
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
 SHIPPED_DAGGER = Path(__file__).resolve().parent / "data" / "dagger"  # the run behind the README's figures
+SHIPPED_DAGGER_FLIGHT = Path(__file__).resolve().parent / "data" / "dagger_flight"  # dagger_flight.toml's run
 
 
 def load_config(path=None) -> dict:
@@ -613,7 +614,8 @@ def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
     network = network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]), int(meta.get("members", 1)))
     law = LearnedGuidance(network, task=task, **student_law(meta, task))
     run = json.loads((run_dir / "metadata.json").read_text()) if (run_dir / "metadata.json").is_file() else {}
-    law.provenance = {"algorithm": "DAgger (supervised imitation of mpc)", "start": "scratch",
+    teacher = run.get("config", {}).get("expert", {}).get("agent", "mpc")
+    law.provenance = {"algorithm": f"DAgger (supervised imitation of {teacher})", "start": "scratch",
                       "samples": run.get("selected", {}).get("samples"), "seed": run.get("seed"),
                       "selected": meta.get("selected_round")}  # fmt: skip
     return law
@@ -628,8 +630,9 @@ def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:
 
 
 def load_shipped(name: str = "learned", task: EntryTask | None = None) -> LearnedGuidance:
-    """The DAgger student shipped with this package (entry point ``dagger``), today's best learned
-    policy (entry point ``learned``)."""
-    if not (SHIPPED_DAGGER / "student.pt").is_file():
-        raise FileNotFoundError(f"the shipped DAgger student is missing from {SHIPPED_DAGGER}")
-    return load_student(SHIPPED_DAGGER, task)
+    """The DAgger students shipped with this package: ``dagger`` (and ``learned``), the student of
+    ``mpc`` on the wide set; ``dagger-flight``, the student of ``mpc-flight`` on the flight set."""
+    where = SHIPPED_DAGGER_FLIGHT if name == "dagger-flight" else SHIPPED_DAGGER
+    if not (where / "student.pt").is_file():
+        raise FileNotFoundError(f"the shipped DAgger student {name!r} is missing from {where}")
+    return load_student(where, task)

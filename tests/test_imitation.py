@@ -182,6 +182,7 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     assert json.loads((out / "student.json").read_text())["load_relief_margin"] == 0.02
     assert saved.relief.margin == 0.02 and [sorted(s) for s in b.law_stats] == [["load_relief_steps"]] * 2
     assert not (out / "distil.json").exists()  # no [distil]: the selected network flies itself
+    assert saved.provenance["algorithm"] == "DAgger (supervised imitation of lqr)"  # the config's teacher
     # a longer config resumes: the finished rounds are kept as they are, one more is flown, and
     # the selected network is distilled into one smaller network, which flies instead
     cfg.write_text(SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\n[fit]") + DISTIL)
