@@ -12,7 +12,8 @@ A run writes into its output directory:
   selected network's commands (an ensemble's mean) on all the rounds' states, which replaces it
   (one network costs a third of three per decision), and its selection figures;
 * ``flight.json``: with ``[flight] tracking``, the selected network flown on the selection set
-  with each candidate tracker horizon, and the one chosen;
+  with each candidate tracker horizon, and the one chosen; with ``[flight] load_relief_margins``,
+  then with the chosen tracker and each candidate load-relief margin, and the one chosen;
 * ``student.pt`` and ``student.json``: the network selected on the task metric (a round's, or the
   final ensemble when it does better; with ``[distil]``, the network distilled from it), and how
   to build and fly it;
@@ -83,6 +84,7 @@ def load_config(path=None) -> dict:
         raise ValueError(f"{where}: the first round has no student yet, so its beta must be 1")
     try:
         flight_trackers(cfg)
+        flight_margins(cfg)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{where}: {exc}") from None
     return cfg
@@ -97,6 +99,18 @@ def flight_trackers(cfg: dict) -> list[Horizon]:
     if not isinstance(pairs, list) or not all(isinstance(p, list) and len(p) == 2 for p in pairs):
         raise ValueError(f"[flight] tracking takes a list of [max_s, min_s] pairs, got {pairs!r}")
     return [Horizon(float(hi), float(lo), descent) for hi, lo in pairs]
+
+
+def flight_margins(cfg: dict) -> list[float]:
+    """The candidate load-relief margins of ``[flight]``: ``load_relief_margins``, each a fraction
+    in [0, 1) of the load bound (none: the trained margin flies)."""
+    margins = cfg.get("flight", {}).get("load_relief_margins", [])
+    if not isinstance(margins, list) or not all(isinstance(m, (int, float)) and not isinstance(m, bool) for m in margins):
+        raise ValueError(f"[flight] load_relief_margins takes a list of fractions of the load bound, got {margins!r}")
+    try:
+        return [LoadRelief(task=EntryTask(), margin=float(m)).margin for m in margins]  # a bad margin fails here
+    except ValueError as exc:
+        raise ValueError(f"[flight] load_relief_margins: {exc}") from None
 
 
 def select_metric(student, cfg: dict, task: EntryTask) -> dict:
@@ -147,6 +161,7 @@ class RunSetup:
     members: int
     law: dict  # LearnedGuidance keywords: horizon, load_relief_margin
     trackers: list
+    margins: list  # [flight] load_relief_margins
     fit_seed: int
     expert: str
     expert_settings: tuple  # (name, value) pairs of ReplanningSettings
@@ -226,7 +241,7 @@ def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None
     return RunSetup(
         cfg=cfg, out=out, workers=workers, seed=seed, task=task,
         hidden=tuple(int(h) for h in cfg["student"]["hidden"]), members=int(cfg["student"].get("members", 1)),
-        law=law, trackers=trackers, fit_seed=int(cfg["fit"]["seed"] if seed is None else seed), expert=expert,
+        law=law, trackers=trackers, margins=flight_margins(cfg), fit_seed=int(cfg["fit"]["seed"] if seed is None else seed), expert=expert,
         expert_settings=tuple(sorted(expert_cfg.items())),
         first_seed=int(cfg["data"]["train_seed"]) + (0 if seed is None else 1_000 * seed), cluster=cluster,
     )  # fmt: skip
@@ -398,18 +413,29 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
 
 
 def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None) -> dict | None:
-    """``[flight]``: the selected network flown with the trained tracker and each candidate; the best
-    on the task metric is kept (the trained one among equals). Returns the chosen record (None: no scan)."""
-    if not run.trackers:
+    """``[flight]``: the selected network flown with the trained tracker and each candidate, then,
+    with the chosen tracker, with the trained load-relief margin and each candidate margin; the
+    best on the task metric is kept at each step (the trained one among equals). Returns the chosen
+    record (None: no scan)."""
+    if not run.trackers and not run.margins:
         (run.out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
         return None
-    horizon = run.law["horizon"]
-    scan = choose_tracker(best.network(), [horizon, *run.trackers], run.law["load_relief_margin"], run.cfg, run.task)
-    write_json(run.out / "flight.json", {"student": best.source, "candidates": scan})
+    horizons, trained = [run.law["horizon"], *run.trackers], run.law["load_relief_margin"]
+    scan = choose_tracker(best.network(), horizons, trained, run.cfg, run.task)
     i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
-    _write_selected(run.out, best, run.law, run.task, tracker=None if i == 0 else run.trackers[i - 1],
-                    distilled_from=None if distilled is None else distilled["teacher"])  # fmt: skip
-    chosen = scan[i]
+    record = {"student": best.source, "candidates": scan}
+    chosen, margin = scan[i], trained
+    if run.margins:
+        margins = [trained, *(m for m in run.margins if m != trained)]
+        relief = [chosen, *(choose_tracker(best.network(), [horizons[i]], m, run.cfg, run.task)[0] for m in margins[1:])]
+        k = max(range(len(relief)), key=lambda j: _select_key(relief[j]))
+        record["relief_candidates"] = relief
+        chosen, margin = relief[k], margins[k]
+    write_json(run.out / "flight.json", record)
+    _write_selected(run.out, best, {**run.law, "load_relief_margin": margin}, run.task,
+                    tracker=None if i == 0 else run.trackers[i - 1],
+                    distilled_from=None if distilled is None else distilled["teacher"],
+                    trained_margin=trained)  # fmt: skip
     print(f"tracker: horizon {_tracker_words(chosen)}; selection success {chosen['select_success_rate']:.2f}, "
           f"miss mean {chosen['select_miss_km_mean']:.3f} km, vertical error p50 "
           f"{chosen['select_vertical_error_deg_p50']:.2f} deg")  # fmt: skip
@@ -461,7 +487,9 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
 
 def _tracker_words(rec: dict) -> str:
     hi, lo = rec["tracking_s"], rec["tracking_min_s"]
-    return f"{hi:g} s" if hi == lo else f"{hi:g} s, down to {lo:g} s near the ground"
+    words = f"{hi:g} s" if hi == lo else f"{hi:g} s, down to {lo:g} s near the ground"
+    margin = rec.get("load_relief_margin")
+    return words if margin is None else f"{words}, load relief {100 * margin:g} % under the bound"
 
 
 def _select_key(rec: dict) -> tuple[float, float]:
@@ -473,11 +501,13 @@ def _select_key(rec: dict) -> tuple[float, float]:
 
 
 def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: dict, task: EntryTask) -> list[dict]:
-    """The network flown alone on the selection set with each tracker horizon: one record each."""
+    """The network flown alone on the selection set with each tracker horizon and the load-relief
+    margin ``relief``: one record each."""
     scan = []
     for h in horizons:
         metric = select_metric(LearnedGuidance(network, task=task, horizon=h, load_relief_margin=relief), cfg, task)
-        scan.append({**horizon_keys(h, "tracking"), **{f"select_{key}": v for key, v in metric.items()}})
+        scan.append({**horizon_keys(h, "tracking"), "load_relief_margin": relief,
+                     **{f"select_{key}": v for key, v in metric.items()}})  # fmt: skip
     return scan
 
 
@@ -512,16 +542,19 @@ def student_law(student_cfg: dict, task: EntryTask) -> dict:
 
 
 def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, tracker: Horizon | None = None,
-                    distilled_from=None) -> None:  # fmt: skip
-    """student.pt and student.json for the network ``best``, trained with ``law``; ``tracker``, the
-    tracker horizon chosen after training (None: the trained one); ``distilled_from``, the round
-    or "final" a distilled network was fitted to."""
+                    distilled_from=None, trained_margin=None) -> None:  # fmt: skip
+    """student.pt and student.json for the network ``best``, trained with ``law`` (its load-relief
+    margin the one it flies); ``tracker``, the tracker horizon chosen after training (None: the
+    trained one); ``distilled_from``, the round or "final" a distilled network was fitted to;
+    ``trained_margin``, the rounds' load-relief margin where a margin was chosen after training."""
     atomic_write(out / "student.pt", best.weights)
     write_json(out / "student.json", {"hidden": list(best.hidden), "members": best.members, "inputs": "observation features "
                "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
                "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
                **horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else horizon_keys(tracker, "tracking")),
                "load_relief_margin": law["load_relief_margin"], "selected_round": best.source,
+               **({} if trained_margin in (None, law["load_relief_margin"]) else
+                  {"trained_load_relief_margin": trained_margin}),
                **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
 
 

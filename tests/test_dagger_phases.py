@@ -16,6 +16,7 @@ from rventry_agents.dagger import (
     check_resumable,
     choose_flight_tracker,
     distil_selected,
+    load_student,
     new_network,
     prepare_run,
     refit_ensemble,
@@ -163,6 +164,29 @@ def test_the_tracker_scan_keeps_the_trained_horizon_unless_a_candidate_beats_it(
     meta = json.loads((run.out / "metadata.json").read_text())
     assert meta["selected_round"] == 0 and meta["selected"] == {**rounds.records[0], "tracking": chosen}
     assert (run.out / "learning_curve.png").stat().st_size > 5_000
+
+
+def test_the_relief_scan_flies_the_chosen_tracker_with_each_margin_and_keeps_the_best(tmp_path):
+    run = _run(tmp_path, SMALL.replace("tracking_descent_mps", "load_relief_margins = [0.06, 0.02]\ntracking_descent_mps"))
+    assert run.margins == [0.06, 0.02]
+    run.out.mkdir(exist_ok=True)  # prepare_run made it
+    rounds = _rounds(run)
+    chosen = choose_flight_tracker(run, rounds.best, None)
+    flight = json.loads((run.out / "flight.json").read_text())
+    trackers, relief = flight["candidates"], flight["relief_candidates"]
+    assert [c["load_relief_margin"] for c in trackers] == [0.02, 0.02]  # the trackers fly the trained margin
+    best_tracker = max(trackers, key=lambda c: (c["select_success_rate"], -c["select_miss_km_mean"]))
+    # the chosen tracker, then each other margin (the trained 0.02 is flown once)
+    assert relief[0] == best_tracker and [c["load_relief_margin"] for c in relief] == [0.02, 0.06]
+    assert all(c["tracking_s"] == best_tracker["tracking_s"] for c in relief)
+    assert chosen == max(relief, key=lambda c: (c["select_success_rate"], -c["select_miss_km_mean"]))
+    student = json.loads((run.out / "student.json").read_text())
+    assert student["load_relief_margin"] == chosen["load_relief_margin"]
+    assert student.get("trained_load_relief_margin") == (None if chosen["load_relief_margin"] == 0.02 else 0.02)
+    assert load_student(run.out).relief.margin == chosen["load_relief_margin"]
+    for bad in ("[0.5, 1.0]", "0.04", "[true]"):
+        with pytest.raises(ValueError, match=r"\[flight\] load_relief_margins"):
+            _run(tmp_path, SMALL.replace("tracking_descent_mps", f"load_relief_margins = {bad}\ntracking_descent_mps"))
 
 
 def _weights(out):
