@@ -608,21 +608,21 @@ def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> No
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 2, figsize=(9, 3.5))
+    fig, ax = plt.subplots(1, 2, figsize=(9, 4.6))
     k = [r["round"] for r in rounds]
     ax[0].plot(k, [r["select_success_rate"] for r in rounds], "o-", label="student alone (selection set)")
     ax[0].plot(k, [r["flown_success_rate"] for r in rounds], "s--", label="flown mixture")
     for i, ((label, rec), marker) in enumerate(zip((after or {}).items(), "D^v")):
         x = k[-1] + 1 + 0.3 * i  # side by side, not on top of each other
-        ax[0].plot([x], [rec["select_success_rate"]], marker, ls="none", label=label)
-        ax[1].semilogy([x], [rec["select_miss_km_p50"]], marker, ls="none", label=label)
+        ax[0].plot([x], [rec["select_success_rate"]], marker, ls="none", color=f"C{2 + i}", label=label)
+        ax[1].semilogy([x], [rec["select_miss_km_p50"]], marker, ls="none", color=f"C{2 + i}", label=label)
     ax[0].set(xlabel="DAgger round", ylabel="success rate", ylim=(-0.02, 1.02))
-    ax[0].legend(fontsize="small")
-    ax[1].semilogy(k, [r["select_miss_km_p50"] for r in rounds], "o-")
+    ax[1].semilogy(k, [r["select_miss_km_p50"] for r in rounds], "o-", color="C0")
     ax[1].set(xlabel="DAgger round", ylabel="selection miss, median (km)")
-    if after:
-        ax[1].legend(fontsize="small")
-    save_figure(fig, path)
+    # one legend for both panels, under them: the labels of the records after the rounds are long
+    fig.tight_layout(rect=(0.0, 0.22, 1.0, 1.0))
+    fig.legend(*ax[0].get_legend_handles_labels(), loc="lower center", ncol=2, fontsize="small", frameon=False)
+    save_figure(fig, path, tight=False)  # laid out above, leaving the legend its band
 
 
 def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:

@@ -12,6 +12,8 @@ from rventry_agents.train import FINETUNE_CONFIG, train_sb3
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 
+START = tomllib.loads(FINETUNE_CONFIG.read_text())["policy"]["start"]  # the shipped config's student
+
 
 def _small(total: int, warmup: int) -> dict:
     cfg = tomllib.loads(FINETUNE_CONFIG.read_text())
@@ -31,12 +33,12 @@ def frozen(tmp_path_factory):
 
 @pytest.mark.slow
 def test_step_zero_flies_exactly_like_the_student(frozen):
-    student = rollout(load_agent("dagger"), seeds=[11, 12], dispersion="wide")
+    student = rollout(load_agent(START), seeds=[11, 12], dispersion="wide")
     ppo = rollout(load_agent(str(frozen / "final_model.zip")), seeds=[11, 12], dispersion="wide")
     for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost", "max_load_factor_g"):
         np.testing.assert_array_equal(getattr(ppo, key), getattr(student, key))
     meta = json.loads((frozen / "metadata.json").read_text())
-    assert meta["provenance"] == {"algorithm": "PPO (stable-baselines3)", "start": "dagger", "critic_warmup_steps": 512,
+    assert meta["provenance"] == {"algorithm": "PPO (stable-baselines3)", "start": START, "critic_warmup_steps": 512,
                                   "timesteps": 512}  # fmt: skip
 
 
@@ -47,11 +49,11 @@ def test_a_short_fine_tuning_trains_saves_reloads_and_flies_deterministically(tm
     a = rollout(law, seeds=[3, 4], dispersion="standard")
     b = rollout(load_agent(str(out / "final_model.zip")), seeds=[3, 4], dispersion="standard")
     np.testing.assert_array_equal(a.miss_km, b.miss_km)
-    student = rollout(load_agent("dagger"), seeds=[3, 4], dispersion="standard")
+    student = rollout(load_agent(START), seeds=[3, 4], dispersion="standard")
     assert not np.array_equal(a.cost, student.cost)  # the actor moved after the warm-up
-    assert a.provenance["start"] == "dagger" and a.provenance["algorithm"].startswith("PPO")
+    assert a.provenance["start"] == START and a.provenance["algorithm"].startswith("PPO")
     assert [sorted(s) for s in a.law_stats] == [["load_relief_steps"]] * 2  # the student's load relief flies too
-    assert json.loads((out / "policy.json").read_text())["student"]["start"] == "dagger"
+    assert json.loads((out / "policy.json").read_text())["student"]["start"] == START
 
 
 def test_fine_tuning_refuses_a_start_that_is_not_a_student(tmp_path):
