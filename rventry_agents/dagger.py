@@ -237,12 +237,13 @@ def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None
         h.check_step(task.dt)
     expert_cfg = dict(cfg.get("expert", {}))
     expert = str(expert_cfg.pop("agent", "mpc"))
-    expert_options(expert, tuple(sorted(expert_cfg.items())))  # a bad setting fails here
+    expert_settings = tuple(sorted(expert_cfg.items()))
+    expert_options(expert, expert_settings)  # a bad setting fails here
     return RunSetup(
         cfg=cfg, out=out, workers=workers, seed=seed, task=task,
         hidden=tuple(int(h) for h in cfg["student"]["hidden"]), members=int(cfg["student"].get("members", 1)),
         law=law, trackers=trackers, margins=flight_margins(cfg), fit_seed=int(cfg["fit"]["seed"] if seed is None else seed), expert=expert,
-        expert_settings=tuple(sorted(expert_cfg.items())),
+        expert_settings=expert_settings,
         first_seed=int(cfg["data"]["train_seed"]) + (0 if seed is None else 1_000 * seed), cluster=cluster,
     )  # fmt: skip
 
@@ -420,14 +421,14 @@ def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None)
     if not run.trackers and not run.margins:
         (run.out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
         return None
-    horizons, trained = [run.law["horizon"], *run.trackers], run.law["load_relief_margin"]
-    scan = choose_tracker(best.network(), horizons, trained, run.cfg, run.task)
+    network, horizons, trained = best.network(), [run.law["horizon"], *run.trackers], run.law["load_relief_margin"]
+    scan = choose_tracker(network, horizons, trained, run.cfg, run.task)
     i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
     record = {"student": best.source, "candidates": scan}
     chosen, margin = scan[i], trained
     if run.margins:
         margins = [trained, *(m for m in run.margins if m != trained)]
-        relief = [chosen, *(choose_tracker(best.network(), [horizons[i]], m, run.cfg, run.task)[0] for m in margins[1:])]
+        relief = [chosen, *(choose_tracker(network, [horizons[i]], m, run.cfg, run.task)[0] for m in margins[1:])]
         k = max(range(len(relief)), key=lambda j: _select_key(relief[j]))
         record["relief_candidates"] = relief
         chosen, margin = relief[k], margins[k]
