@@ -220,19 +220,24 @@ def test_a_recurrent_policy_carries_its_memory_per_vehicle_and_reset_clears_it()
 @pytest.mark.slow
 def test_shipped_policies_are_present_and_deterministic_for_a_seed():
     learned = load_policy("learned")
-    assert type(learned).__name__ == "LearnedGuidance" and learned.relief is not None  # the student, load-relieved
-    a = rollout(load_policy("dagger"), 4, seed=21, dispersion=Dispersion.standard())
-    b = rollout(learned, 4, seed=21, dispersion=Dispersion.standard())  # the same policy by its other name
+    assert type(learned).__name__ == "LearnedGuidance" and learned.relief is not None  # a student, load-relieved
+    # `learned` is the flight-set student, the best learned policy on `flight`
+    assert learned.provenance["algorithm"] == "DAgger (supervised imitation of mpc-flight)"
+    a = rollout(load_policy("dagger-flight"), 4, seed=21, dispersion="flight")
+    b = rollout(learned, 4, seed=21, dispersion="flight")  # the same policy by its other name
     for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
         np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
-    assert (a.failure == "").all() and a.is_success.all()  # it lands every one of these
+    dagger = load_policy("dagger")
+    assert dagger.provenance["algorithm"] == "DAgger (supervised imitation of mpc)"
+    c = rollout(dagger, 4, seed=21, dispersion=Dispersion.standard())
+    assert (c.failure == "").all() and c.is_success.all()  # it lands every one of these
     # `ppo` is the PPO-trained policy: the PPO residual on TV-LQR, also under its own name
     assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
     assert type(load_policy("ppo")).__name__ == "SB3Policy"
-    c = rollout(load_policy("ppo-residual"), 4, seed=21, dispersion=Dispersion.standard())
+    e = rollout(load_policy("ppo-residual"), 4, seed=21, dispersion=Dispersion.standard())
     d = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
-    assert (c.failure == "").all()
-    np.testing.assert_array_equal(c.miss_km, d.miss_km)
+    assert (e.failure == "").all()
+    np.testing.assert_array_equal(e.miss_km, d.miss_km)
 
 
 @pytest.mark.slow

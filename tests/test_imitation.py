@@ -296,7 +296,7 @@ def test_the_horizon_shortens_near_the_ground_in_whole_steps():
 def test_load_relief_counts_each_episode_flying_not_frozen():
     from rventry_agents.dagger import load_shipped
 
-    shipped = load_shipped()
+    shipped = load_shipped("dagger")
     law = LearnedGuidance(shipped.network, horizon=shipped.horizon, load_relief_margin=0.01)
     alone = rollout(law, seeds=[0], dispersion="standard")
     pair = rollout(law, seeds=[0, 7], dispersion="standard")

@@ -42,12 +42,13 @@ policy = SB3Policy(SHIPPED_PPO)
 assert policy.obs_mean is not None or policy.normalize_path is not None
 for name in ("learning_curve.png", "metadata.json", "evaluations.json"):
     assert (SHIPPED_PPO / name).is_file(), name
-from rventry_agents.dagger import SHIPPED_DAGGER, load_config as load_dagger_config, load_shipped
+from rventry_agents.dagger import SHIPPED_DAGGER, SHIPPED_STUDENTS, load_config as load_dagger_config, load_shipped
 assert SHIPPED_DAGGER.resolve().is_relative_to(target)
 load_dagger_config()
-load_shipped()
-for name in ("learning_curve.png", "metadata.json", "rounds.json"):
-    assert (SHIPPED_DAGGER / name).is_file(), name
+for name, folder in SHIPPED_STUDENTS.items():  # every shipped student loads from the wheel, with its record
+    assert folder.resolve().is_relative_to(target) and load_shipped(name).network is not None, name
+    for file in ("learning_curve.png", "metadata.json", "rounds.json"):
+        assert (folder / file).is_file(), (name, file)
 from rventry_agents.sb3_policy import SHIPPED_BASELINES, load_baseline
 from rventry_agents.train import ALGORITHMS, BASELINES
 for algorithm in ALGORITHMS:

@@ -22,7 +22,9 @@ NOMINAL_TARGETS = {"miss_km": 1.0, "vertical_error_deg": 1.0, "abs_speed_error_m
 DISPERSED_SUCCESS_TARGETS = {"standard": 0.95, "wide": 0.90}
 MARGIN_OVER_LQR = 0.10
 DISPERSIONS = ("none", "standard", "wide", "flight", "peer", "peer-0.1")
-MPC_EPISODES = 20
+# mpc's dispersed episodes in `rventry compare`: about 17 s each on two cores (a re-plan every 30 s,
+# 0.3 s each), which keeps the README's main command, installation included, under 5 minutes
+MPC_EPISODES = 10
 # the memory an evaluated episode holds until the report is written: its outcome and its JSON
 # record, and with --plots its every step's state and action. Measured with /usr/bin/time on
 # `rventry evaluate --agent reference --dispersion standard`: 20,000 episodes peaked at 247 MB,
@@ -52,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     cmp_.add_argument("--episodes", type=positive_int, default=200, help="dispersed episodes per agent (default 200)")
     cmp_.add_argument("--mpc-episodes", type=positive_int, default=MPC_EPISODES,
                       help=f"dispersed episodes for mpc, which re-plans in flight (default {MPC_EPISODES}: "
-                           "about 8 s each on two cores)")  # fmt: skip
+                           "about 17 s each on two cores)")  # fmt: skip
     cmp_.add_argument("--seed", type=seed, default=0, help="dispersed episode i uses seed SEED + i (default 0)")
     cmp_.add_argument("--agent", default="learned", type=agent_spec,
                       help="the learned agent to compare (default: the shipped learned policy)")  # fmt: skip
@@ -215,8 +217,9 @@ def _evaluate(args) -> int:
 
 
 # the columns of `rventry compare`: (agent, label); the first is the learned agent given by --agent
-# (the learning agents' columns appear when their package is installed: the library never imports it)
-COMPARED = (("ppo-residual", "PPO residual"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
+# (the learning agents' columns appear when their package is installed: the library never imports it).
+# `learned` is the flight-set student; `dagger`, the student of `mpc` built for the standard and wide sets
+COMPARED = (("dagger", "DAgger of mpc"), ("ppo-residual", "PPO residual"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
             ("lqr-est", "TV-LQR + estimation"), ("mpc", "re-planning (mpc)"), ("reference", "reference (open loop)"))  # fmt: skip
 
 
