@@ -376,3 +376,11 @@ def test_dagger_on_a_dask_cluster_gives_the_local_run(tmp_path):
     ra, rb = (json.loads((d / "rounds.json").read_text()) for d in (here, there))
     assert [{k: v for k, v in r.items() if k not in drop} for r in ra] == [{k: v for k, v in r.items() if k not in drop} for r in rb]
     assert (here / "student.pt").read_bytes() == (there / "student.pt").read_bytes()
+
+
+def test_an_unknown_shipped_student_is_refused_naming_the_shipped_ones():
+    from rventry_agents.dagger import SHIPPED_STUDENTS, load_shipped
+
+    assert SHIPPED_STUDENTS["learned"] == SHIPPED_STUDENTS["dagger-flight"] != SHIPPED_STUDENTS["dagger"]
+    with pytest.raises(ValueError, match=r"no shipped DAgger student is called 'dagger-wide'.*dagger, dagger-flight, learned"):
+        load_shipped("dagger-wide")
