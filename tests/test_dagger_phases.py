@@ -225,3 +225,23 @@ def test_two_runs_agree_and_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
         np.testing.assert_array_equal(w["a"][0][k], w["c"][0][k])
     for name in ("student.json", "flight.json"):
         assert len({(p / name).read_text() for p in runs.values()}) == 1
+
+
+def test_the_learning_curve_labels_its_log_miss_axis_with_plain_numbers(tmp_path, monkeypatch):
+    """Within one decade the miss axis has only minor ticks: they carry plain numbers, not 2x10^0."""
+    import matplotlib.pyplot as plt
+
+    from rventry_agents.dagger import plot_rounds
+
+    figures = []
+    monkeypatch.setattr("rventry_agents.dagger.save_figure", lambda fig, path, tight=True: figures.append(fig))
+    rounds = [{"round": i, "select_success_rate": 0.1 * i, "flown_success_rate": 0.2, "select_miss_km_p50": m}
+              for i, m in enumerate((2.6, 1.9, 1.3))]  # fmt: skip
+    plot_rounds(rounds, tmp_path / "curve.png", {"distilled": {"select_success_rate": 0.5, "select_miss_km_p50": 1.2}})
+    (fig,) = figures
+    fig.canvas.draw()
+    miss_axis = fig.axes[1].yaxis
+    labels = [t.get_text() for t in miss_axis.get_majorticklabels() + miss_axis.get_minorticklabels() if t.get_text()]
+    assert labels and all(float(x) > 0 for x in labels), labels  # parsed as plain numbers
+    assert {"1.4", "2"} <= set(labels), labels
+    plt.close(fig)
