@@ -611,7 +611,8 @@ def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> No
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import FuncFormatter
+
+    from rventry_env.util.files import plain_log_labels
 
     fig, ax = plt.subplots(1, 2, figsize=(9, 4.6))
     k = [r["round"] for r in rounds]
@@ -624,10 +625,7 @@ def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> No
     ax[0].set(xlabel="DAgger round", ylabel="success rate", ylim=(-0.02, 1.02))
     ax[1].semilogy(k, [r["select_miss_km_p50"] for r in rounds], "o-", color="C0")
     ax[1].set(xlabel="DAgger round", ylabel="selection miss, median (km)")
-    # plain numbers on the log axis; within one decade the minor ticks carry them too
-    lo, hi = ax[1].get_ylim()
-    ax[1].yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-    ax[1].yaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if hi < 10 * lo else ""))
+    plain_log_labels(ax[1])
     # one legend for both panels, under them: the labels of the records after the rounds are long
     fig.tight_layout(rect=(0.0, 0.22, 1.0, 1.0))
     fig.legend(*ax[0].get_legend_handles_labels(), loc="lower center", ncol=2, fontsize="small", frameon=False)

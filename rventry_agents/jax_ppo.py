@@ -9,6 +9,7 @@ It writes into its output directory:
 
 * ``params.npz``: the final actor's and critic's weights and the observation statistics;
 * ``evaluations.json``: after each chunk, the steps, wall time, success rate, miss and return;
+* ``learning_curve.png``: those evaluations against the steps (:func:`plot_learning_curve`);
 * ``metadata.json``: the command, config, steps reached, wall time, the first chunk's
   compilation time, the env-steps per second of the chunks after it, and how many training
   programs were compiled (one: every chunk after the first reuses its program).
@@ -185,7 +186,33 @@ def train_jax_ppo(config=None, timesteps: int | None = None, seed: int | None = 
         "train_compilations": len(traces),
     }  # fmt: skip
     write_json(out / "metadata.json", meta)
+    plot_learning_curve(history, out / "learning_curve.png", f"rejax PPO on {meta['device']}")
     return meta
 
 
-__all__ = ["train_jax_ppo", "settled_state", "load_config", "make_env", "make_evaluator", "DEFAULT_CONFIG"]
+def plot_learning_curve(evaluations: list[dict], path: str | Path, title: str = "rejax PPO") -> Path:
+    """The run's evaluations (``evaluations.json``) against environment steps: success rate, median
+    miss (log axis) and mean return of the deterministic policy."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rventry_env.util.files import plain_log_labels, save_figure
+
+    steps = np.array([e["timesteps"] for e in evaluations]) / 1e6
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.6))
+    ax[0].plot(steps, [e["success_rate"] for e in evaluations], "o-", ms=3)
+    ax[1].semilogy(steps, [e["miss_km_p50"] for e in evaluations], "o-", ms=3)
+    ax[2].plot(steps, [e["mean_return"] for e in evaluations], "o-", ms=3)
+    ax[0].set(xlabel="environment steps (M)", ylabel="success rate", ylim=(-0.02, 1.02))
+    ax[1].set(xlabel="environment steps (M)", ylabel="median miss (km)")
+    ax[2].set(xlabel="environment steps (M)", ylabel="mean return")
+    plain_log_labels(ax[1])
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.suptitle(f"{title}: its evaluations during training (deterministic policy, {len(evaluations)} chunks)")
+    return save_figure(fig, path)
+
+
+__all__ = ["train_jax_ppo", "plot_learning_curve", "settled_state", "load_config", "make_env", "make_evaluator", "DEFAULT_CONFIG"]

@@ -15,6 +15,12 @@ Prints, on the default JAX device (say which in the output: CPU, or a GPU where 
   its compile time, and stable-baselines3 PPO (``baselines/ppo.toml``) on the same machine.
 
 Run: ``python scripts/bench_jax.py [--json PATH] [--quick]``
+
+On a GPU the functional env wants millions of vehicles, and PPO a bigger batch: the README's GPU
+figures come from ``--functional-sizes 65536 1048576 4194304 --functional-steps 100``
+(``--functional-parts`` splits a step's time between the physics and the autoreset) and from
+``rventry train jax-ppo --config rventry_agents/baselines/jax_ppo_gpu.toml``
+(or ``--ppo-config`` of that file here, with ``--skip sb3``).
 """
 
 from __future__ import annotations
@@ -86,32 +92,52 @@ def numpy_substeps_speed(n: int, rounds: int = 3, steps: int = 10) -> dict:
     return {"num_envs": n, "vehicle_steps_per_s": {str(k): v for k, v in best.items()}}
 
 
-def functional_speed(n: int, dtype: str, steps: int, substeps: int) -> dict:
-    """Vehicle-steps/s of the functional env: lax.scan over vmap-ed gymnax steps (autoreset), all compiled."""
+def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: str = "standard",
+                     parts: bool = False) -> dict:  # fmt: skip
+    """Vehicle-steps/s of the functional env: lax.scan over vmap-ed gymnax steps (autoreset), all compiled.
+
+    With ``parts``, also the same scan over ``step_env`` alone (no autoreset) and over ``reset_env``
+    alone (the reset that gymnax's autoreset draws for every vehicle at every step): where the time goes.
+    """
     import jax
     import jax.numpy as jnp
 
     from rventry_env.envs.functional import RvEntryFunctional
 
-    env = RvEntryFunctional(dispersion="standard", dtype=dtype, substeps=substeps)
+    env = RvEntryFunctional(dispersion=dispersion, dtype=dtype, substeps=substeps)
     p = env.default_params
     obs, st = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(0), n), p)
     a = jnp.tile(jnp.array([0.0, 0.02]), (n, 1))
 
-    def body(s, k):
+    def step(s, k):
         _, s, r, _, _ = jax.vmap(env.step, in_axes=(0, 0, 0, None))(jax.random.split(k, n), s, a, p)
         return s, r
 
-    roll = jax.jit(lambda s, k: jax.lax.scan(body, s, jax.random.split(k, steps)))
-    t0 = time.perf_counter()
-    st, r = roll(st, jax.random.PRNGKey(1))
-    jax.block_until_ready(r)
-    first = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    st, r = roll(st, jax.random.PRNGKey(2))
-    jax.block_until_ready(r)
-    return {"dtype": dtype, "num_envs": n, "vehicle_steps_per_s": n * steps / (time.perf_counter() - t0),
-            "first_call_s": first}  # fmt: skip
+    def step_env(s, k):
+        _, s, r, _, _ = jax.vmap(env.step_env, in_axes=(0, 0, 0, None))(jax.random.split(k, n), s, a, p)
+        return s, r
+
+    def reset_env(s, k):
+        o, _ = jax.vmap(env.reset_env, in_axes=(0, None))(jax.random.split(k, n), p)
+        return s, o[:, 0]
+
+    def rate(body):
+        roll = jax.jit(lambda s, k: jax.lax.scan(body, s, jax.random.split(k, steps)))
+        t0 = time.perf_counter()
+        _, r = roll(st, jax.random.PRNGKey(1))
+        jax.block_until_ready(r)
+        first = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        _, r = roll(st, jax.random.PRNGKey(2))
+        jax.block_until_ready(r)
+        return n * steps / (time.perf_counter() - t0), first
+
+    out = {"dtype": dtype, "dispersion": dispersion, "num_envs": n, "steps": steps}
+    out["vehicle_steps_per_s"], out["first_call_s"] = rate(step)
+    if parts:
+        out["step_env_only_per_s"], _ = rate(step_env)
+        out["reset_env_only_per_s"], _ = rate(reset_env)
+    return out
 
 
 def agreement(n: int, substeps: int, seed: int = 0) -> dict:
@@ -152,8 +178,9 @@ def agreement(n: int, substeps: int, seed: int = 0) -> dict:
     }  # fmt: skip
 
 
-def jax_ppo_speed(timesteps: int) -> dict:
-    """rejax PPO on the functional env with the baseline config: compile time and env-steps/s after it.
+def jax_ppo_speed(timesteps: int, config: str | None = None) -> dict:
+    """rejax PPO on the functional env with a config (default the baseline's): compile time and
+    env-steps/s after it.
 
     In a fresh process: rejax's float32 training state needs JAX without float64 enabled, which
     the float64 runs above turned on for this one.
@@ -163,14 +190,16 @@ def jax_ppo_speed(timesteps: int) -> dict:
     out = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_jax_ppo"
     code = (
         "from rventry_agents.jax_ppo import load_config, train_jax_ppo\n"
-        "cfg = load_config()\n"
+        f"cfg = load_config({config!r})\n"
         "chunk = int(cfg['env']['num_envs']) * int(cfg['ppo']['num_steps']) * 16\n"
         "cfg['train']['chunk_timesteps'] = chunk\n"
         f"train_jax_ppo(cfg, timesteps=max({timesteps}, 3 * chunk), out={str(out)!r}, progress=lambda s: None)\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
     meta = json.loads((out / "metadata.json").read_text())
-    return {"env_steps_per_s": meta["env_steps_per_s"], "compile_s": meta["compile_s"], "timesteps": meta["timesteps"]}
+    return {"env_steps_per_s": meta["env_steps_per_s"], "compile_s": meta["compile_s"], "timesteps": meta["timesteps"],
+            "num_envs": meta["config"]["env"]["num_envs"], "config": config or "rventry_agents/baselines/jax_ppo.toml",
+            "device": meta["device"]}  # fmt: skip
 
 
 def sb3_ppo_speed(timesteps: int) -> dict:
@@ -196,8 +225,25 @@ def main():
     ap.add_argument("--quick", action="store_true", help="fewer steps (noisier figures)")
     ap.add_argument("--num-envs", type=int, default=8192)
     ap.add_argument("--substeps", type=int, help="RK4 substeps of the speed and agreement runs (default: the task's)")
-    ap.add_argument("--skip", nargs="*", default=[], choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo"])
+    ap.add_argument("--functional-sizes", type=int, nargs="+", help="vehicle counts of the functional env's runs "
+                    "(default: --num-envs; a GPU wants millions)")  # fmt: skip
+    ap.add_argument("--functional-steps", type=int, help="steps of each functional run (default 50, 12 with --quick)")
+    ap.add_argument("--functional-parts", action="store_true",
+                    help="also time step_env alone and reset_env alone (where an autoreset step's time goes)")
+    ap.add_argument("--functional-dispersions", nargs="+", default=["standard"], help="sets the functional env flies")
+    ap.add_argument("--ppo-config", help="the JAX PPO run's config (default rventry_agents/baselines/jax_ppo.toml; "
+                    "rventry_agents/baselines/jax_ppo_gpu.toml on a GPU)")  # fmt: skip
+    ap.add_argument("--ppo-timesteps", type=int, help="JAX PPO steps timed (default 2M, at least 3 chunks)")
+    ap.add_argument("--skip", nargs="*", default=[],
+                    choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo", "sb3"])  # fmt: skip
     args = ap.parse_args()
+
+    def save():  # after each part, so that a run stopped midway keeps what it measured
+        if args.json:
+            from rventry_env.util.files import write_json
+
+            write_json(args.json, res)
+
     from rventry_env.core.backend import prefer_fused_cpu_runtime
 
     prefer_fused_cpu_runtime()  # what the package's JAX envs ask for, before JAX loads
@@ -209,20 +255,23 @@ def main():
     task = EntryTask() if args.substeps is None else EntryTask(substeps=args.substeps)
     res: dict = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "jax": jax.__version__,
                              "xla_flags": os.environ.get("XLA_FLAGS", ""),
-                             "device": str(jax.devices()[0]), "load_average": os.getloadavg()},
+                             "device": str(jax.devices()[0]), "device_kind": jax.devices()[0].device_kind,
+                             "load_average": os.getloadavg()},
                  "task": {"dt": task.dt, "substeps": task.substeps}}  # fmt: skip
-    print(f"JAX {jax.__version__} on {jax.devices()[0]}; {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}; "
-          f"dt {task.dt} s, {task.substeps} RK4 substeps (task default {EntryTask().substeps})")  # fmt: skip
+    print(f"JAX {jax.__version__} on {jax.devices()[0]} ({jax.devices()[0].device_kind}); {os.cpu_count()} CPUs, "
+          f"load {os.getloadavg()[0]:.1f}; dt {task.dt} s, {task.substeps} RK4 substeps (task default {EntryTask().substeps})")  # fmt: skip
     if "accuracy" not in args.skip:
         from bench_env import accuracy
 
         res["accuracy"] = accuracy((1, 2, 4), ("s-turn",))
+        save()
         for r in res["accuracy"]:
             print(f"S-turn (peak {r['peak_load_g']:.1f} g), {r['substeps']} RK4 substeps: impact position error "
                   f"{r['impact_position_error_m']:.3g} m vs DOP853 (target <= 5 m)")  # fmt: skip
     if "speed" not in args.skip:
         v = vector_speeds(args.num_envs, 3, max(3, int(40 * q)), task.substeps)
         res["vector"] = v
+        save()
         s = v["vehicle_steps_per_s"]
         print(f"vector envs, N = {args.num_envs}: NumPy {s['numpy']:,.0f}, JAX float64 {s['jax_float64']:,.0f} "
               f"({s['jax_float64'] / s['numpy']:.2f}x; target >= 2x), JAX float32 {s['jax_float32']:,.0f} "
@@ -231,40 +280,52 @@ def main():
     if "numpy-substeps" not in args.skip:
         ns_ = numpy_substeps_speed(args.num_envs)
         res["numpy_substeps"] = ns_
+        save()
         v1, v2 = ns_["vehicle_steps_per_s"]["1"], ns_["vehicle_steps_per_s"]["2"]
         print(f"NumPy vector env, N = {args.num_envs}: {v1:,.0f} vehicle-steps/s at 1 substep, {v2:,.0f} at 2 "
               f"({v1 / v2:.2f}x the cost)")  # fmt: skip
     if "functional" not in args.skip:
-        res["functional"] = [functional_speed(args.num_envs, d, max(5, int(50 * q)), task.substeps)
-                             for d in ("float64", "float32")]
         numpy = res.get("vector", {}).get("vehicle_steps_per_s", {}).get("numpy")
-        for f in res["functional"]:
-            ratio = f" ({f['vehicle_steps_per_s'] / numpy:.2f}x the NumPy vector env above)" if numpy else ""
-            print(f"functional env (jit of lax.scan over vmap-ed gymnax steps, autoreset: what JAX RL libraries run), "
-                  f"{f['dtype']}, N = {f['num_envs']}: {f['vehicle_steps_per_s']:,.0f} vehicle-steps/s{ratio}"
-                  + ("  (target >= 5e6)" if f["dtype"] == "float32" else "") + f"; compile {f['first_call_s']:.1f} s")
+        res["functional"] = []
+        for disp in args.functional_dispersions:
+            for n in args.functional_sizes or [args.num_envs]:
+                for d in ("float64", "float32"):
+                    f = functional_speed(n, d, args.functional_steps or max(5, int(50 * q)), task.substeps, disp,
+                                         args.functional_parts)
+                    res["functional"].append(f)
+                    save()
+                    ratio = f" ({f['vehicle_steps_per_s'] / numpy:.2f}x the NumPy vector env above)" if numpy else ""
+                    print(f"functional env (jit of lax.scan over vmap-ed gymnax steps, autoreset: what JAX RL libraries "
+                          f"run), {disp}, {d}, N = {n:,}: {f['vehicle_steps_per_s']:,.0f} vehicle-steps/s{ratio}"
+                          + ("  (target >= 5e6 on two cores)" if d == "float32" else "")
+                          + f"; compile {f['first_call_s']:.1f} s", flush=True)  # fmt: skip
+                    if args.functional_parts:
+                        print(f"  its parts: step_env alone (no autoreset) {f['step_env_only_per_s']:,.0f}/s, "
+                              f"reset_env alone {f['reset_env_only_per_s']:,.0f}/s", flush=True)  # fmt: skip
     if "agreement" not in args.skip:
         a = agreement(max(4, int(64 * q)), task.substeps)
         res["agreement"] = a
+        save()
         print(f"whole episodes ({a['episodes']}, standard set, {a['steps']} steps): largest observation difference "
               f"JAX float64 vs NumPy {a['max_obs_diff_float64']:.2g} (target <= 1e-5), float32 {a['max_obs_diff_float32']:.2g}; "
               f"final position, float64 vs NumPy {a['impact_position_error_float64_vs_numpy_m']:.2g} m; "
               f"float32 vs float64: median {a['float32_end_position_error_m']['median']:.3g} m, max "
               f"{a['float32_end_position_error_m']['max']:.3g} m, same ending in {a['float32_same_ending']}/{a['episodes']}")  # fmt: skip
     if "ppo" not in args.skip:
-        j = jax_ppo_speed(int(2_000_000 * q))
-        s3 = sb3_ppo_speed(int(200_000 * q))
-        res["ppo"] = {"jax": j, "sb3": s3}
-        print(f"PPO training: rejax on the functional env {j['env_steps_per_s']:,.0f} env-steps/s "
-              f"(compile {j['compile_s']:.0f} s), SB3 {s3['env_steps_per_s']:,.0f} env-steps/s: "
-              f"{j['env_steps_per_s'] / s3['env_steps_per_s']:.1f}x (target >= 3x)")  # fmt: skip
+        j = jax_ppo_speed(args.ppo_timesteps or int(2_000_000 * q), args.ppo_config)
+        res["ppo"] = {"jax": j}
+        save()
+        print(f"PPO training: rejax on the functional env ({j['num_envs']:,} envs, {j['device']}) "
+              f"{j['env_steps_per_s']:,.0f} env-steps/s (compile {j['compile_s']:.0f} s)", flush=True)  # fmt: skip
+        if "sb3" not in args.skip:
+            s3 = sb3_ppo_speed(int(200_000 * q))
+            res["ppo"]["sb3"] = s3
+            print(f"PPO training: SB3 {s3['env_steps_per_s']:,.0f} env-steps/s: rejax "
+                  f"{j['env_steps_per_s'] / s3['env_steps_per_s']:.1f}x (target >= 3x)")  # fmt: skip
     res["machine"]["load_average_end"] = os.getloadavg()
     print(f"load average (1, 5, 15 min) at the end: {', '.join(f'{v:.1f}' for v in os.getloadavg())} on "
           f"{os.cpu_count()} CPUs (figures taken on a busy machine are noisy: compare only those of one run)")
-    if args.json:
-        from rventry_env.util.files import write_json
-
-        write_json(args.json, res)
+    save()
 
 
 if __name__ == "__main__":

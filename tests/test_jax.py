@@ -399,3 +399,4 @@ def test_rejax_ppo_trains_on_the_functional_env(tmp_path):
     assert len(meta["evaluations"]) == 2 and all(np.isfinite(e["mean_return"]) for e in meta["evaluations"])
     params = np.load(tmp_path / "params.npz")
     assert any(k.startswith("actor") for k in params.files)
+    assert (tmp_path / "learning_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -165,6 +165,16 @@ def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True) -> Pa
     return path
 
 
+def plain_log_labels(ax) -> None:
+    """Label a log y axis with plain numbers (2, 20, 200; not 2x10^0). Within one decade the minor
+    ticks carry numbers too, or the axis would have one label or none. Call after the data are drawn."""
+    from matplotlib.ticker import FuncFormatter
+
+    lo, hi = ax.get_ylim()
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if hi < 10 * lo else ""))
+
+
 def check_writable(*paths: str | Path | None, folders: tuple = ()) -> None:
     """Raise :class:`OutputError` now if a file or folder destination cannot be written later.
 
