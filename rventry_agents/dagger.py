@@ -54,9 +54,9 @@ from rventry_env.util.files import atomic_write, check_writable, dumps_json, sav
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
 SHIPPED_DAGGER = Path(__file__).resolve().parent / "data" / "dagger"  # dagger.toml's run: the student of mpc
 SHIPPED_DAGGER_FLIGHT = Path(__file__).resolve().parent / "data" / "dagger_flight"  # dagger_flight.toml's run
-# the shipped students by agent name; `learned` is the learned policy that lands most of the `flight`
-# set (held out, 200 episodes: dagger-flight 0.75 [0.69, 0.80], dagger 0.23 [0.17, 0.29])
-SHIPPED_STUDENTS = {"dagger": SHIPPED_DAGGER, "dagger-flight": SHIPPED_DAGGER_FLIGHT, "learned": SHIPPED_DAGGER_FLIGHT}
+# the shipped students by agent name (held out on `flight`, 200 episodes: dagger-flight 0.75 [0.69, 0.80],
+# dagger 0.23 [0.17, 0.29]); `learned` (rventry_agents/learned.py) names the best learned policy there
+SHIPPED_STUDENTS = {"dagger": SHIPPED_DAGGER, "dagger-flight": SHIPPED_DAGGER_FLIGHT}
 
 
 def load_config(path=None) -> dict:
@@ -669,9 +669,9 @@ def load_saved(path: str, task: EntryTask | None = None) -> LearnedGuidance:
     return load_student(p, task)
 
 
-def load_shipped(name: str = "learned", task: EntryTask | None = None) -> LearnedGuidance:
+def load_shipped(name: str = "dagger-flight", task: EntryTask | None = None) -> LearnedGuidance:
     """The DAgger students shipped with this package: ``dagger``, the student of ``mpc`` on the wide
-    set; ``dagger-flight`` (and ``learned``), the student of ``mpc-flight`` on the flight set."""
+    set; ``dagger-flight``, the student of ``mpc-flight`` on the flight set (the start of ``ppo``)."""
     if name not in SHIPPED_STUDENTS:
         raise ValueError(f"no shipped DAgger student is called {name!r}; the shipped ones: {', '.join(SHIPPED_STUDENTS)}")
     where = SHIPPED_STUDENTS[name]

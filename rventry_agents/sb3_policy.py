@@ -27,7 +27,11 @@ import numpy as np
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 
-SHIPPED_PPO = Path(__file__).resolve().parent / "data" / "ppo"
+SHIPPED_PPO = Path(__file__).resolve().parent / "data" / "ppo"  # the PPO residual on TV-LQR
+# the PPO-trained policy: PPO fine-tuning of the flight-set DAgger student (ppo_finetune.toml)
+SHIPPED_PPO_FINETUNE = Path(__file__).resolve().parent / "data" / "ppo_finetune"
+# agent name -> the shipped PPO-trained policy's directory
+SHIPPED_PPO_AGENTS = {"ppo": SHIPPED_PPO_FINETUNE, "ppo-residual": SHIPPED_PPO}
 SHIPPED_BASELINES = Path(__file__).resolve().parent / "data" / "baselines"
 # agent name -> the shipped plain baseline's directory under SHIPPED_BASELINES
 BASELINE_AGENTS = {"ppo-plain": "ppo", "recurrent-ppo-plain": "recurrent_ppo", "sac-plain": "sac"}
@@ -206,11 +210,15 @@ class SB3Policy(Law):
         return self._act(m)
 
 
-def load_shipped(name: str = "ppo-residual", task: EntryTask | None = None) -> SB3Policy:
-    """The PPO residual on TV-LQR shipped with this package (entry points ``ppo`` and ``ppo-residual``)."""
-    if not (SHIPPED_PPO / "model.zip").is_file():
-        raise FileNotFoundError(f"the shipped PPO residual is missing from {SHIPPED_PPO}")
-    return SB3Policy(SHIPPED_PPO, task=task)
+def load_shipped(name: str = "ppo", task: EntryTask | None = None) -> SB3Policy:
+    """A PPO-trained policy shipped with this package: ``ppo``, PPO fine-tuning of the flight-set
+    DAgger student, or ``ppo-residual``, the PPO residual on TV-LQR."""
+    if name not in SHIPPED_PPO_AGENTS:
+        raise ValueError(f"no shipped PPO policy named {name!r}; shipped: {', '.join(SHIPPED_PPO_AGENTS)}")
+    run = SHIPPED_PPO_AGENTS[name]
+    if not (run / "model.zip").is_file():
+        raise FileNotFoundError(f"the shipped policy {name} is missing from {run}")
+    return SB3Policy(run, task=task)
 
 
 def load_baseline(name: str, task: EntryTask | None = None) -> SB3Policy:
@@ -232,6 +240,8 @@ __all__ = [
     "BASELINE_AGENTS",
     "SHIPPED_BASELINES",
     "SHIPPED_PPO",
+    "SHIPPED_PPO_AGENTS",
+    "SHIPPED_PPO_FINETUNE",
     "Predictor",
     "SB3Policy",
     "load_baseline",

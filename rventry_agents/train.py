@@ -428,8 +428,10 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
         "resumed_at_timesteps": evaluator.resumes,
         "torch_threads": int(t.get("torch_threads", 1)),
         "config": cfg,
+        # the run's steps, and those of the policy it keeps (model.zip: the best evaluation's)
         **({} if spec is None else {"provenance": {"algorithm": "PPO (stable-baselines3)", "start": spec["start"],
-                                                   "critic_warmup_steps": warmup, "timesteps": timesteps}}),
+                                                   "critic_warmup_steps": warmup, "timesteps": timesteps,
+                                                   "selected_at_timesteps": best["timesteps"]}}),  # fmt: skip
         "best_evaluation": best,
         "reference_cost": reference_cost,
     }

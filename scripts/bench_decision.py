@@ -32,7 +32,7 @@ from rventry_env.evaluation.rollout import rollout
 from rventry_env.util.args import positive_int
 from rventry_env.util.files import check_writable, write_json
 
-LAWS = ("learned", "dagger", "ppo-residual", "lqr", "lqr-est", "mpc")  # `learned`: the flight-set student
+LAWS = ("learned", "dagger-flight", "dagger", "ppo-residual", "lqr", "lqr-est", "mpc")  # `learned`: today `ppo`
 
 
 class TimedLaw:

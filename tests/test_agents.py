@@ -219,25 +219,34 @@ def test_a_recurrent_policy_carries_its_memory_per_vehicle_and_reset_clears_it()
 
 @pytest.mark.slow
 def test_shipped_policies_are_present_and_deterministic_for_a_seed():
+    # `learned` is the best learned policy on `flight`: today `ppo`, by its other name
     learned = load_policy("learned")
-    assert type(learned).__name__ == "LearnedGuidance" and learned.relief is not None  # a student, load-relieved
-    # `learned` is the flight-set student, the best learned policy on `flight`
-    assert learned.provenance["algorithm"] == "DAgger (supervised imitation of mpc-flight)"
-    a = rollout(load_policy("dagger-flight"), 4, seed=21, dispersion="flight")
-    b = rollout(learned, 4, seed=21, dispersion="flight")  # the same policy by its other name
-    for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
-        np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+    assert learned.provenance["algorithm"] == "PPO (stable-baselines3)"
+    b = rollout(learned, 4, seed=21, dispersion="flight")
+    student = load_policy("dagger-flight")
+    assert type(student).__name__ == "LearnedGuidance" and student.relief is not None  # a student, load-relieved
+    assert student.provenance["algorithm"] == "DAgger (supervised imitation of mpc-flight)"
+    a = rollout(student, 4, seed=21, dispersion="flight")
     dagger = load_policy("dagger")
     assert dagger.provenance["algorithm"] == "DAgger (supervised imitation of mpc)"
     c = rollout(dagger, 4, seed=21, dispersion=Dispersion.standard())
     assert (c.failure == "").all() and c.is_success.all()  # it lands every one of these
-    # `ppo` is the PPO-trained policy: the PPO residual on TV-LQR, also under its own name
+    # `ppo` is the PPO-trained policy: PPO fine-tuning of the flight-set student, which it started from
+    ppo = load_policy("ppo")
+    assert type(ppo).__name__ == "SB3Policy" and ppo.spec["mode"] == "student"
+    assert ppo.provenance["algorithm"] == "PPO (stable-baselines3)" and ppo.provenance["start"] == "dagger-flight"
+    assert 0 < ppo.provenance["selected_at_timesteps"] <= ppo.provenance["timesteps"]
+    d = rollout(ppo, 4, seed=21, dispersion="flight")
+    for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
+        np.testing.assert_array_equal(getattr(b, key), getattr(d, key))
+    assert not np.array_equal(d.cost, a.cost)  # PPO moved the student's network
+    assert d.is_success.sum() >= 2
+    # the PPO residual on TV-LQR keeps its own name
     assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
-    assert type(load_policy("ppo")).__name__ == "SB3Policy"
-    e = rollout(load_policy("ppo-residual"), 4, seed=21, dispersion=Dispersion.standard())
-    d = rollout(load_policy("ppo"), 4, seed=21, dispersion=Dispersion.standard())
+    residual = load_policy("ppo-residual")
+    assert residual.spec["mode"] == "residual"
+    e = rollout(residual, 4, seed=21, dispersion=Dispersion.standard())
     assert (e.failure == "").all()
-    np.testing.assert_array_equal(e.miss_km, d.miss_km)
 
 
 @pytest.mark.slow

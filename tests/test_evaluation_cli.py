@@ -16,7 +16,7 @@ def test_compare_on_a_few_episodes_writes_the_report_and_plots(tmp_path, capsys)
             "--plots", str(plots)]  # fmt: skip
     assert main(args) == 0
     doc = json.loads(out.read_text())
-    names = ("learned", "DAgger of mpc", "PPO residual", "plain PPO", "TV-LQR", "TV-LQR + estimation", "re-planning (mpc)",
+    names = ("learned", "DAgger of mpc-flight", "DAgger of mpc", "plain PPO", "TV-LQR", "TV-LQR + estimation", "re-planning (mpc)",
              "reference (open loop)")
     assert set(doc["runs"]) == {f"{case}/{name}" for case in ("nominal", "dispersed") for name in names}
     assert doc["runs"]["dispersed/TV-LQR"]["n_episodes"] == 2 and doc["dispersion_set"] == "standard"

@@ -218,8 +218,9 @@ def _evaluate(args) -> int:
 
 # the columns of `rventry compare`: (agent, label); the first is the learned agent given by --agent
 # (the learning agents' columns appear when their package is installed: the library never imports it).
-# `learned` is the flight-set student; `dagger`, the student of `mpc` built for the standard and wide sets
-COMPARED = (("dagger", "DAgger of mpc"), ("ppo-residual", "PPO residual"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
+# `learned` is the best learned policy on the flight set (PPO fine-tuning of `dagger-flight`, the
+# flight-set student, shown beside it); `dagger`, the student of `mpc` built for the standard and wide sets
+COMPARED = (("dagger-flight", "DAgger of mpc-flight"), ("dagger", "DAgger of mpc"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
             ("lqr-est", "TV-LQR + estimation"), ("mpc", "re-planning (mpc)"), ("reference", "reference (open loop)"))  # fmt: skip
 
 
