@@ -250,7 +250,7 @@ def test_a_straight_dive_meets_the_final_speed_at_the_target():
 def test_mpc_lands_the_nominal_case_with_alpha_at_zero():
     """Example 2's alpha(t_f) = 0, flown: tracking alone left 0.9 deg at impact on this mesh."""
     b = rollout(ReplanningGuidance(settings=replace(COARSE, terminal_alpha=True, terminal_alpha_deg=0.2)), 1)
-    assert b.is_success[0] and b.miss_km[0] < 0.5
+    assert b.is_success[0] and b.miss_km[0] < 0.1 and b.vertical_error_deg[0] < 2.0
     assert abs(b.alpha_final_deg[0]) <= 0.5
     without = rollout(ReplanningGuidance(settings=COARSE), 1)
     assert abs(without.alpha_final_deg[0]) > 0.5  # the check can fail: without the bound it does
@@ -472,13 +472,3 @@ def test_tracking_compares_the_plan_with_its_own_scales_unless_told_to_feed_the_
         np.testing.assert_array_equal(seen[track], estimate if track else planned)
     with pytest.raises(ValueError, match="track_estimate must be True or False"):
         ReplanningSettings(track_estimate=1)
-
-
-@pytest.mark.slow
-def test_mpc_flies_alpha_to_zero_at_impact_on_a_coarse_mesh():
-    """Example 2's alpha(t_f) = 0, flown: with the terminal alpha bound aimed at 0.5 deg the nominal
-    flight lands with alpha(t_f) <= 0.5 deg and within the success thresholds."""
-    b = rollout(ReplanningGuidance(settings=replace(COARSE, terminal_alpha=True, terminal_alpha_deg=0.5)), 1)
-    assert b.is_success[0]
-    assert b.alpha_final_deg[0] <= 0.5
-    assert b.vertical_error_deg[0] < 2.0 and b.miss_km[0] < 0.1
