@@ -54,8 +54,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
     ship.add_argument("run_dir",
                       help="the --out directory of a finished `rventry train ppo | recurrent-ppo | sac | dagger`")
-    ship.add_argument("--dest", help="destination (default: a DAgger run's student to the learned policy, "
-                                     "rventry_agents/data/dagger; an SB3 run to the PPO residual, rventry_agents/data/ppo)")
+    ship.add_argument("--dest", help="destination (default, by what the run trained: a DAgger student to "
+                                     "rventry_agents/data/dagger, PPO fine-tuning to data/ppo_finetune, the PPO "
+                                     "residual to data/ppo, a plain baseline to data/baselines/ALGORITHM)")
     ship.set_defaults(func=_ship)
 
 

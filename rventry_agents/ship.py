@@ -5,11 +5,12 @@ Only what evaluation needs travels, with the run's record:
 * a stable-baselines3 run: the best model on the task metric (with its optimizer state dropped:
   Adam's moment buffers are two thirds of the file and no use for inference), its VecNormalize
   statistics, how to fly it (``policy.json``), and the metadata with the exact command, the
-  evaluations and the learning curve; by default to the PPO residual's directory;
+  evaluations and the learning curve; by default where :func:`default_destination` puts what
+  the run trained (PPO fine-tuning, the PPO residual or a plain baseline);
 * a DAgger run (``rventry train dagger``): the selected student (``student.pt`` and
   ``student.json``), ``rounds.json``, ``final.json`` when the run refitted an ensemble,
   ``distil.json`` when it distilled one network, ``flight.json`` when it chose a tracker, the
-  metadata and the learning curve; by default to the learned policy's directory.
+  metadata and the learning curve; by default to ``dagger``'s directory.
 """
 
 from __future__ import annotations
@@ -31,14 +32,13 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     :param run_dir: a finished ``rventry train ppo | recurrent-ppo | sac | dagger`` output directory.
     :param dest: where to put it.
     """
-    from rventry_agents.sb3_policy import SHIPPED_PPO
     from rventry_agents.config import algorithm_class
 
     run_dir = Path(run_dir)
     if (run_dir / "student.json").exists():
         return _ship_dagger(run_dir, dest)
-    dest = Path(dest) if dest is not None else SHIPPED_PPO
     _check_finished(run_dir, ("model.zip", *RUN_FILES), "training run")
+    dest = Path(dest) if dest is not None else default_destination(run_dir)
     dest.mkdir(parents=True, exist_ok=True)
     algorithm = json.loads((run_dir / "policy.json").read_text()).get("algorithm", "ppo")
     model = algorithm_class(algorithm).load(run_dir / "model.zip", device="cpu")
@@ -52,6 +52,31 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
             shutil.copy2(run_dir / name, dest / name)
     _write_metadata(run_dir, dest)
     return dest
+
+
+def default_destination(run_dir: str | Path) -> Path:
+    """Where a finished run's policy is shipped unless told otherwise, by what the run trained: a
+    DAgger run's student to ``dagger``'s directory; PPO fine-tuning of a student (``policy.json``
+    mode ``student``) to ``ppo``'s; a residual on TV-LQR to ``ppo-residual``'s; a plain baseline
+    (mode ``direct``) to its algorithm's baseline directory."""
+    from rventry_agents.sb3_policy import BASELINE_AGENTS, SHIPPED_BASELINES, SHIPPED_PPO, SHIPPED_PPO_FINETUNE
+
+    run_dir = Path(run_dir)
+    if (run_dir / "student.json").exists():
+        from rventry_agents.dagger import SHIPPED_DAGGER
+
+        return SHIPPED_DAGGER
+    spec = json.loads((run_dir / "policy.json").read_text())
+    mode = spec.get("mode", "direct")
+    if mode == "student":
+        return SHIPPED_PPO_FINETUNE
+    if mode == "residual":
+        return SHIPPED_PPO
+    folder = spec.get("algorithm", "ppo")  # the baselines' folders are named by algorithm
+    if mode != "direct" or folder not in BASELINE_AGENTS.values():
+        raise ValueError(f"{run_dir / 'policy.json'}: no shipped place for mode {mode!r}, algorithm "
+                         f"{spec.get('algorithm')!r}; give --dest")  # fmt: skip
+    return SHIPPED_BASELINES / folder
 
 
 def _check_finished(run_dir: Path, files: tuple[str, ...], what: str) -> None:

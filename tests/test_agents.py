@@ -290,3 +290,26 @@ def test_a_saved_model_without_its_statistics_is_refused_unless_declared_raw(tmp
     (tmp_path / "policy.json").write_text(json.dumps({"mode": "direct", "normalized": False}))
     policy = SB3Policy(tmp_path / "model.zip")
     assert policy.normalize_path is None and policy.obs_mean is None
+
+
+def test_ship_puts_each_kind_of_run_in_its_own_place_by_default(tmp_path):
+    """Shipping a fine-tuning run must not overwrite the PPO residual, nor a baseline either."""
+    from rventry_agents.dagger import SHIPPED_DAGGER
+    from rventry_agents.sb3_policy import SHIPPED_PPO_FINETUNE
+    from rventry_agents.ship import default_destination
+
+    def run(name, spec=None, student=False):
+        d = tmp_path / name
+        d.mkdir()
+        if spec is not None:
+            (d / "policy.json").write_text(json.dumps(spec))
+        if student:
+            (d / "student.json").write_text("{}")
+        return d
+
+    assert default_destination(run("ft", {"algorithm": "ppo", "mode": "student"})) == SHIPPED_PPO_FINETUNE
+    assert default_destination(run("res", {"mode": "residual"})) == SHIPPED_PPO
+    assert default_destination(run("sac", {"algorithm": "sac", "mode": "direct"})) == SHIPPED_BASELINES / "sac"
+    assert default_destination(run("dagger", student=True)) == SHIPPED_DAGGER
+    with pytest.raises(ValueError, match=r"no shipped place for mode 'direct', algorithm 'a2c'; give --dest"):
+        default_destination(run("a2c", {"algorithm": "a2c", "mode": "direct"}))
