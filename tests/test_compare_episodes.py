@@ -1,22 +1,17 @@
 """scripts/compare_episodes.py: two policies on the same episodes, paired."""
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import pytest
+from script_modules import load_script  # (tests/ is on the path)
 
-_PATH = Path(__file__).resolve().parents[1] / "scripts" / "compare_episodes.py"
 THRESHOLDS = {"miss_km": 5.0, "vertical_error_deg": 5.0, "speed_error_mps": 100.0, "constraint_tolerance": 0.01}
 
 
 @pytest.fixture(scope="module")
 def ce():
-    spec = importlib.util.spec_from_file_location("compare_episodes", _PATH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("compare_episodes")
 
 
 def _report(successes, seeds=None, agent="a"):

@@ -1,20 +1,14 @@
 """scripts/bench_rhs.py: the op counts behind the README's no-trigonometry discussion."""
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
-
-_PATH = Path(__file__).resolve().parents[1] / "scripts" / "bench_rhs.py"
+from script_modules import load_script  # (tests/ is on the path)
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_rhs", _PATH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("bench_rhs")
 
 
 def test_op_counts_separate_trigonometry(bench):

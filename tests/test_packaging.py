@@ -36,15 +36,11 @@ assert Path(record_path()).resolve().is_relative_to(target)
 load_record(record_path())
 from rventry_agents.train import load_config
 load_config()
-from rventry_agents.sb3_policy import SHIPPED_PPO, SB3Policy
-assert SHIPPED_PPO.resolve().is_relative_to(target)
-policy = SB3Policy(SHIPPED_PPO)
-assert policy.obs_mean is not None or policy.normalize_path is not None
-for name in ("learning_curve.png", "metadata.json", "evaluations.json"):
-    assert (SHIPPED_PPO / name).is_file(), name
 from rventry_agents.sb3_policy import SHIPPED_PPO_AGENTS, load_shipped as load_ppo
 for name, folder in SHIPPED_PPO_AGENTS.items():  # every shipped PPO-trained policy loads from the wheel, with its record
-    assert folder.resolve().is_relative_to(target) and load_ppo(name).model is not None, name
+    policy = load_ppo(name)
+    assert folder.resolve().is_relative_to(target) and policy.model is not None, name
+    assert policy.obs_mean is not None or policy.normalize_path is not None, name
     for file in ("learning_curve.png", "metadata.json", "evaluations.json"):
         assert (folder / file).is_file(), (name, file)
 from rventry_agents.dagger import SHIPPED_DAGGER, SHIPPED_STUDENTS, load_config as load_dagger_config, load_shipped
