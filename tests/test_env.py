@@ -547,3 +547,57 @@ def test_observation_batch_is_vehicle_major_and_clips_only_the_rows_out_of_bound
     assert obs.dtype == np.float32 and obs.shape == (3, 3) and obs.flags.c_contiguous
     np.testing.assert_array_equal(obs, [[0.5, 1.0, 4.0], [1.0, 0.0, 4.0], [-0.5, -2.0, 5.0]])
     np.testing.assert_array_equal(clipped, [False, True, True])
+
+
+@pytest.mark.parametrize("gamma_deg", [-0.3, -5.0, -45.0, -89.0])
+def test_the_located_impact_is_the_root_of_the_rk4_map_in_at_most_four_substeps(gamma_deg):
+    """The impact inside a substep is the root of tau -> r(RK4(x0, tau)) - R_e (brentq on the same map,
+    written here), within 1e-6 m of the surface, from grazing to vertical, and it costs few RK4 substeps
+    (the Hermite start and the Newton steps: at most four, where the regula falsi alone took six)."""
+    from scipy.optimize import brentq
+
+    from rventry_env.core import conversions as cv
+    from rventry_env.core.backend import MATH
+    from rventry_env.core.integrate import rk4_step
+    from rventry_env.envs import propagation as prop_mod
+    from rventry_env.physics import entry_forces
+
+    model, radius = EntryModel(), 6378137.0
+    speed, h = 2500.0, 1.0
+    drop = -speed * math.sin(math.radians(gamma_deg)) * 0.6  # the surface is crossed 60 % into the step
+    x0 = cv.rv_euler_from_spherical(np.array([[radius + drop, 0.1, 0.2, speed, math.radians(gamma_deg), 1.0]]))[0]
+    x0 = list(x0[:10]) + [math.radians(8.0), math.radians(30.0)]
+    u = (0.01, -0.02)
+    k1 = entry_rhs(x0, u, model, MATH, forces=entry_forces(x0, model, MATH))
+
+    def state_at(tau):
+        return prop_mod._renormalize(rk4_step(lambda _t, y: entry_rhs(y, u, model, MATH), 0.0, tuple(x0), tau, k1=k1), MATH)
+
+    xb = state_at(h)
+    assert xb[0] < radius
+    tau_ref = brentq(lambda tau: state_at(tau)[0] - radius, 0.0, h, xtol=1e-14, rtol=1e-15)
+    evaluations = []
+    counting = type(MATH)(**{**vars(MATH), "while_loop": lambda c, b, carry: _count_while(c, b, carry, evaluations)})
+    x_hit, tau = prop_mod.Propagator(EntryTask(substeps=1), counting)._locate_impact(tuple(x0), k1, u, h, model, radius, xb)
+    assert abs(x_hit[0] - radius) <= prop_mod.IMPACT_TOLERANCE_M
+    assert tau == pytest.approx(tau_ref, abs=1e-6 / speed * 10)
+    assert evaluations[0] <= 4
+
+
+def _count_while(cond, body, carry, counter):
+    n = 0
+    while cond(carry):
+        carry = body(carry)
+        n += 1
+    counter.append(n)
+    return carry
+
+
+def test_the_impact_tolerance_is_what_the_float_type_resolves():
+    from rventry_env.envs.propagation import IMPACT_TOLERANCE_M, impact_tolerance
+
+    assert impact_tolerance(6.4e6) == IMPACT_TOLERANCE_M  # Python floats and float64 resolve 1e-6 m
+    assert impact_tolerance(np.float64(6.4e6)) == IMPACT_TOLERANCE_M
+    tol32 = impact_tolerance(np.zeros(3, np.float32))
+    ulp = float(np.spacing(np.float32(6.4e6)))
+    assert 1.0 * ulp <= tol32 <= 4.0 * ulp  # a few units in the last place at the Earth's radius (0.5 m each)

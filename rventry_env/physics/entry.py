@@ -66,15 +66,9 @@ class EntryForces(NamedTuple):
     e3_a: tuple  # the planet's spin axis in A, C_AE(:, 3); (sin latitude, ., .)
     c_ba: tuple
     aero_b: tuple  # aerodynamic specific force, B components: what an accelerometer senses
-
-    @property
-    def aero_accel(self):
-        """sqrt(L^2 + D^2) / m, the quantity bounded by a_max in Eq. ``Ex2-path``."""
-        return _hypot(self.lift_accel, self.drag_accel)
-
-
-def _hypot(a, b):
-    return (a * a + b * b) ** 0.5
+    # sqrt(L^2 + D^2) / m, the quantity bounded by a_max in Eq. Ex2-path (m/s^2). With ns.sqrt, not
+    # ** 0.5: XLA keeps a float power as pow(), which in float64 on a GPU costs a log and an exp
+    aero_accel: object
 
 
 def entry_forces(x: Sequence, model: EntryModel, ns=NUMPY) -> EntryForces:
@@ -112,7 +106,7 @@ def entry_forces(x: Sequence, model: EntryModel, ns=NUMPY) -> EntryForces:
         aero = tuple(-drag * u[i] + lift * lv[i] / ln for i in range(3))
     g_nz = sparse(model.gravity.acceleration_a(r, e3_a, ns))  # point mass: (g, 0, 0)
     accel_b = tuple(aero[i] + sparse_dot(c_ba[i], g_nz) for i in range(3))
-    return EntryForces(h, rho, q, mach, cl, cd, lift, drag, accel_b, e3_a, c_ba, aero)
+    return EntryForces(h, rho, q, mach, cl, cd, lift, drag, accel_b, e3_a, c_ba, aero, ns.sqrt(lift * lift + drag * drag))
 
 
 def entry_rhs(x: Sequence, u: Sequence, model: EntryModel, ns=NUMPY, forces: EntryForces | None = None):
