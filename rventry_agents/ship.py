@@ -93,9 +93,9 @@ def _write_metadata(run_dir: Path, dest: Path) -> None:
 
 
 def _ship_dagger(run_dir: Path, dest: str | Path | None) -> Path:
-    from rventry_agents.dagger import SHIPPED_DAGGER, load_student
+    from rventry_agents.dagger import load_student
 
-    dest = Path(dest) if dest is not None else SHIPPED_DAGGER
+    dest = Path(dest) if dest is not None else default_destination(run_dir)
     _check_finished(run_dir, DAGGER_FILES, "DAgger run")
     load_student(run_dir)  # a student that does not load is not shipped
     dest.mkdir(parents=True, exist_ok=True)

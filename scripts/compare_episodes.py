@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -33,18 +32,23 @@ def load_report(path: str) -> dict:
     return doc
 
 
+def successes(report: dict) -> np.ndarray:
+    """Each episode's basic success, in the report's order."""
+    return np.array([bool(e["success"]) for e in report["episodes"]])
+
+
 def paired(a: dict, b: dict) -> dict:
     """The paired success counts of two reports on the same episodes, and the sign test on the discordant ones."""
     sa = [(e["seed"], e["dispersion"]) for e in a["episodes"]]
     sb = [(e["seed"], e["dispersion"]) for e in b["episodes"]]
     if sa != sb:
         raise ValueError("the two reports did not fly the same episodes (seeds and draws differ)")
-    x = np.array([bool(e["success"]) for e in a["episodes"]])
-    y = np.array([bool(e["success"]) for e in b["episodes"]])
+    from scipy.stats import binomtest
+
+    x, y = successes(a), successes(b)
     only_a, only_b = int(np.sum(x & ~y)), int(np.sum(~x & y))
     n = only_a + only_b
-    k = max(only_a, only_b)
-    p = min(1.0, 2.0 * sum(math.comb(n, i) for i in range(k, n + 1)) / 2.0**n) if n else 1.0
+    p = binomtest(only_a, n, 0.5).pvalue if n else 1.0  # the exact sign test on the discordant episodes
     return {"episodes": len(x), "both": int(np.sum(x & y)), "only_a": only_a, "only_b": only_b,
             "neither": int(np.sum(~x & ~y)), "sign_test_p": p}  # fmt: skip
 
@@ -69,8 +73,7 @@ def plot(a: dict, b: dict, labels: tuple[str, str], path: str) -> None:
 
     from rventry_env.util.files import save_figure
 
-    sa = np.array([bool(e["success"]) for e in a["episodes"]])
-    sb = np.array([bool(e["success"]) for e in b["episodes"]])
+    sa, sb = successes(a), successes(b)
     groups = ((sa & sb, "both land", "0.7"), (sa & ~sb, f"only {labels[0]}", "C2"),
               (~sa & sb, f"only {labels[1]}", "C3"), (~sa & ~sb, "neither", "k"))  # fmt: skip
     fig, axes = plt.subplots(1, len(PANELS), figsize=(4.2 * len(PANELS), 4.2))

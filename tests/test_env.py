@@ -596,8 +596,9 @@ def _count_while(cond, body, carry, counter):
 def test_the_impact_tolerance_is_what_the_float_type_resolves():
     from rventry_env.envs.propagation import IMPACT_TOLERANCE_M, impact_tolerance
 
-    assert impact_tolerance(6.4e6) == IMPACT_TOLERANCE_M  # Python floats and float64 resolve 1e-6 m
-    assert impact_tolerance(np.float64(6.4e6)) == IMPACT_TOLERANCE_M
-    tol32 = impact_tolerance(np.zeros(3, np.float32))
-    ulp = float(np.spacing(np.float32(6.4e6)))
+    radius = 6378137.0
+    assert impact_tolerance(6.4e6, radius) == IMPACT_TOLERANCE_M  # Python floats and float64 resolve 1e-6 m
+    assert impact_tolerance(np.float64(6.4e6), radius) == IMPACT_TOLERANCE_M
+    tol32 = impact_tolerance(np.zeros(3, np.float32), radius)
+    ulp = float(np.spacing(np.float32(radius)))
     assert 1.0 * ulp <= tol32 <= 4.0 * ulp  # a few units in the last place at the Earth's radius (0.5 m each)

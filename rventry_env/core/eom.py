@@ -149,6 +149,11 @@ class RvEulerRates(NamedTuple):
         return (self.r_dot, *self.e_a_dot, self.v_dot, *self.e_b_dot)
 
 
+def radial_rate(v, e_b):
+    """dr/dt, Eq. kinematics-final-1: v (1 - 2 (eB2^2 + eB3^2)), from the state alone."""
+    return v * (1 - 2 * (e_b[1] * e_b[1] + e_b[2] * e_b[2]))
+
+
 def rv_euler_rates(
     r, e_a, v, e_b, accel_b, omega_e=ZERO3, alpha_e=ZERO3, c_ae=None, c_ba=None, omega_e_a=None, alpha_e_a=None
 ):
@@ -172,9 +177,8 @@ def rv_euler_rates(
         omega_e_a, alpha_e_a = frame_rates_in_a(e_a, omega_e, alpha_e, c_ae)
     if c_ba is None:
         c_ba = dcm(*e_b)
-    eb1, eb2, eb3, etab = e_b
     # kinematics, Eq. kinematics-final-1 / -2 (omega_A1 = 0)
-    r_dot = v * (1 - 2 * (eb2 * eb2 + eb3 * eb3))
+    r_dot = radial_rate(v, e_b)
     w_a2, w_a3 = omega_a(r, v, e_b)
     e_a_dot = _no_twist_rates(e_a, w_a2, w_a3)
     # kinetics, Eqs. F-apparent-3, dynamics-final-1 / -2 (omega_B1 = 0)
@@ -228,6 +232,7 @@ __all__ = [
     "Frames",
     "frames",
     "omega_a",
+    "radial_rate",
     "frame_rates_in_a",
     "apparent_force",
     "omega_b",

@@ -31,6 +31,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from rventry_env.core.eom import radial_rate
 from rventry_env.core.integrate import rk4_step
 from rventry_env.physics.entry import EntryForces, entry_forces, entry_rhs
 from rventry_env.physics.model import EntryModel
@@ -38,7 +39,6 @@ from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import EntryTask
 
 IMPACT_TOLERANCE_M = 1e-6
-EARTH_RADIUS_SCALE_M = 6.4e6  # the size of r, for the tolerance a float type can resolve
 MAX_IMPACT_ITERATIONS = 60
 
 # termination codes (0 = still flying; IDLE = not stepped this time, e.g. awaiting its reset)
@@ -229,7 +229,7 @@ class Propagator:
         :param todo: arrays: the vehicles to locate (the others keep ``xb`` and ``h``); None: all.
         """
         ns = self.ns
-        tol = impact_tolerance(x0[0])
+        tol = impact_tolerance(x0[0], radius)
 
         def rhs(_t, y):
             return entry_rhs(y, u, model, ns)
@@ -248,7 +248,7 @@ class Propagator:
             it, lo, flo, hi, fhi, side, c, fc, xc = carry
             done = finished(fc)
             # Newton from the last iterate; else Illinois regula falsi on the bracket
-            rd = radial_rate(xc)
+            rd = radial_rate(xc[5], xc[6:10])
             rd_ok = ns.fabs(rd) > 0.0
             newton = c - fc / ns.where(rd_ok, rd, 1.0)
             inside = rd_ok & (newton > lo) & (newton < hi)
@@ -273,7 +273,7 @@ class Propagator:
 
         g0 = x0[0] - radius
         g1 = xb[0] - radius
-        first = _hermite_root(g0, k1[0] * h, g1, radial_rate(xb) * h, ns) * h
+        first = _hermite_root(g0, k1[0] * h, g1, radial_rate(xb[5], xb[6:10]) * h, ns) * h
         zero = 0.0 * x0[0]
         one = 1.0 + zero
         b = h + zero
@@ -282,18 +282,14 @@ class Propagator:
         return carry[8], carry[6]
 
 
-def radial_rate(x: tuple):
-    """dr/dt from the state alone (the kinematics of rv_euler_rates: v (1 - 2 (eB2^2 + eB3^2)))."""
-    return x[5] * (1.0 - 2.0 * (x[7] * x[7] + x[8] * x[8]))
-
-
-def impact_tolerance(r) -> float:
-    """How close to the surface a located impact is (m): 1e-6 m, or two units in the last place of
-    ``r`` where its type cannot resolve that (float32: about 1.5 m at the Earth's radius)."""
+def impact_tolerance(r, radius: float) -> float:
+    """How close to the surface ``radius`` a located impact is (m): 1e-6 m, or two units in the last
+    place of the surface's radius in ``r``'s float type where that type cannot resolve 1e-6 m
+    (float32: about 1.5 m at the Earth's radius)."""
     dtype = getattr(r, "dtype", None)
     if dtype is None:
         return IMPACT_TOLERANCE_M
-    return max(IMPACT_TOLERANCE_M, 2.0 * float(np.finfo(dtype).eps) * EARTH_RADIUS_SCALE_M)
+    return max(IMPACT_TOLERANCE_M, 2.0 * float(np.finfo(dtype).eps) * radius)
 
 
 def _hermite_root(g0, d0, g1, d1, ns):
