@@ -229,7 +229,7 @@ class Propagator:
         :param todo: arrays: the vehicles to locate (the others keep ``xb`` and ``h``); None: all.
         """
         ns = self.ns
-        tol = impact_tolerance(x0[0], radius)
+        tol = impact_tolerance(x0[0], radius, ns)
 
         def rhs(_t, y):
             return entry_rhs(y, u, model, ns)
@@ -282,14 +282,16 @@ class Propagator:
         return carry[8], carry[6]
 
 
-def impact_tolerance(r, radius: float) -> float:
+def impact_tolerance(r, radius, ns=None):
     """How close to the surface ``radius`` a located impact is (m): 1e-6 m, or two units in the last
     place of the surface's radius in ``r``'s float type where that type cannot resolve 1e-6 m
-    (float32: about 1.5 m at the Earth's radius)."""
+    (float32: about 1.5 m at the Earth's radius). ``radius`` may be traced (JAX params): then pass
+    the namespace, whose ``fmax`` takes it."""
     dtype = getattr(r, "dtype", None)
     if dtype is None:
         return IMPACT_TOLERANCE_M
-    return max(IMPACT_TOLERANCE_M, 2.0 * float(np.finfo(dtype).eps) * radius)
+    fmax = max if ns is None else ns.fmax
+    return fmax(IMPACT_TOLERANCE_M, 2.0 * float(np.finfo(dtype).eps) * radius)
 
 
 def _hermite_root(g0, d0, g1, d1, ns):
