@@ -170,6 +170,7 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
             self.best_key = (-1.0, -np.inf)
             self.wall_before = 0.0  # the wall time of the run's earlier segments, when resumed
             self.resumes: list[int] = []  # the step counts the run was resumed at
+            self.t0: float | None = None  # when this segment's first learn() started
             if resumed is not None:
                 self.resumes = [*resumed.get("resumes", []), int(resumed["timesteps"])]
                 self.history = list(resumed["history"])
@@ -226,9 +227,13 @@ def _make_callbacks(cfg: dict, task: EntryTask, out: Path, reference_cost: float
             )
 
         def _on_training_start(self) -> None:
-            self.t0 = time.time()
-            if resumed is None:
-                self.evaluate()  # the untrained policy competes too: the residual starts as the classical law
+            if self.t0 is None:  # a fine-tuning's second learn() goes on counting from the first
+                self.t0 = time.time()
+            if resumed is None and not self.history:
+                # the untrained policy competes too: the residual starts as the classical law. A
+                # fine-tuning's second phase starts where its critic warm-up ended, with the actor
+                # the warm-up never moved: the evaluation at step 0 already flew it.
+                self.evaluate()
 
     ckpt = CheckpointCallback(
         save_freq=max(int(t["checkpoint_every"]) // int(cfg["env"]["num_envs"]), 1),

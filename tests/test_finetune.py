@@ -55,6 +55,10 @@ def test_a_short_fine_tuning_trains_saves_reloads_and_flies_deterministically(tm
     assert a.provenance["start"] == START and a.provenance["algorithm"].startswith("PPO")
     assert [sorted(s) for s in a.law_stats] == [["load_relief_steps"]] * 2  # the student's load relief flies too
     assert json.loads((out / "policy.json").read_text())["student"]["start"] == START
+    # the actor the warm-up froze is flown once, at step 0, and the clock runs through both phases
+    evals, meta = (json.loads((out / name).read_text()) for name in ("evaluations.json", "metadata.json"))
+    assert [e["timesteps"] for e in evals] == [0, 2048]
+    assert 0 <= meta["wall_time_s"] - evals[-1]["wall_s"] < evals[0]["wall_s"]
 
 
 def test_fine_tuning_refuses_a_start_that_is_not_a_student(tmp_path):
