@@ -12,7 +12,8 @@ sets (seed 0), the nominal J/J*, re-solve time median / p99, and the wall time o
 200-episode evaluation with ``--workers``.
 
 ``--terminal-alpha A,B,...``: the nominal flight with the terminal alpha bound aimed at each
-value (deg; 0 = off): alpha(t_f), the vertical-impact error, the miss and J/J*.
+value (deg; 0 = off): alpha(t_f), the vertical-impact error, the miss and J/J*; with
+``--episodes N``, also N episodes of ``--dispersion`` per aim, with the precision tier.
 
 ``--navigation REPORT``: what navigation leaves to guidance, from an evaluation report: the
 navigation's errors at the end, the share of episodes whose horizontal error alone is within the
@@ -36,7 +37,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from rventry_env.task import FLIGHT_ERRORS, EntryTask
+from rventry_env.task import FLIGHT_ERRORS, EntryTask, PrecisionThresholds
 from rventry_env.evaluation.parallel import EvaluationJob, concatenate, map_local, run_task
 from rventry_env.evaluation.summary import summarize
 from rventry_env.guidance.estimation import FlightEstimatorSettings
@@ -48,6 +49,10 @@ TARGETS = {"standard_success": 0.99, "wide_success": 0.95, "nominal_cost_ratio":
            "resolve_p99_s": 2.0, "wall_200_standard_s": 1800.0}  # fmt: skip
 
 DEFAULT = ReplanningSettings()
+# The scans below vary one setting at a time around the defaults as they were when each was measured:
+# before the terminal alpha bound became a default. Their base keeps it off, so that every scan's
+# command still reproduces its recorded table.
+SCANNED = replace(DEFAULT, terminal_alpha=False)
 VARIANTS = {
     "defaults": {},
     "replan every 20 s": {"replan_s": 20.0},
@@ -85,7 +90,7 @@ FLIGHT_VARIANTS = {
 # (ReplanningSettings.flight_grade() with the 2 % load relief it had then, agent mpc-flight before the
 # final-dive and estimator scans below): its fields that differ from the defaults
 _FLIGHT_GRADE = {k: v for k, v in asdict(ReplanningSettings.flight_grade(load_relief_margin=0.02)).items()
-                 if getattr(DEFAULT, k) != v}  # fmt: skip
+                 if getattr(SCANNED, k) != v}  # fmt: skip
 _LR_D1 = {k: _FLIGHT_GRADE[k] for k in ("load_relief_margin", "density_bands", "density_sigmas")}
 _AERO = {"aero_mach_rms": _FLIGHT_GRADE["aero_mach_rms"]}
 AERO_VARIANTS = {
@@ -125,7 +130,7 @@ SPLIT_VARIANTS = {
 }
 # mpc-flight as shipped, and plans that turn vertical above the target, the law diving straight from there: the
 # navigated altitude is a kilometre off at impact, and the optimum's turn to vertical takes its last second
-_MPC_FLIGHT = {k: v for k, v in asdict(ReplanningSettings.flight_grade()).items() if getattr(DEFAULT, k) != v} | _FLIGHT_EST
+_MPC_FLIGHT = {k: v for k, v in asdict(ReplanningSettings.flight_grade()).items() if getattr(SCANNED, k) != v} | _FLIGHT_EST
 DIVE_VARIANTS = {
     "mpc-flight": _MPC_FLIGHT,
     "+ vertical dive 700 m": _MPC_FLIGHT | {"vertical_dive_m": 700.0},
@@ -208,7 +213,7 @@ def scan(args) -> dict:
     for name, change in variants.items():
         change = dict(change)
         estimator = change.pop("estimator_settings", None)
-        opts = (("settings", replace(DEFAULT, **change)),) + ((("estimator_settings", estimator),) if estimator else ())
+        opts = (("settings", replace(SCANNED, **change)),) + ((("estimator_settings", estimator),) if estimator else ())
         jobs[name] = (EvaluationJob("mpc", args.dispersion, task, opts), seeds)
         jobs[name + " (nominal)"] = (EvaluationJob("mpc", "none", task, opts), [0])
     t0 = time.time()
@@ -232,7 +237,7 @@ def scan(args) -> dict:
               f"{r['resolve_p99_s']:8.3f} {r['replans_per_episode']:7.1f} {r['replan_failures']:7d} "
               f"{r['episode_cpu_s']:10.1f}")  # fmt: skip
     return {"scan": rows, "episodes": args.episodes, "dispersion": args.dispersion, "seed": args.seed,
-            "wall_s": wall, "workers": args.workers, "defaults": asdict(DEFAULT)}  # fmt: skip
+            "wall_s": wall, "workers": args.workers, "defaults": asdict(SCANNED)}  # fmt: skip
 
 
 def evaluate(args) -> dict:
@@ -289,11 +294,16 @@ def _aims(text: str) -> list[float]:
     return values
 
 
-def terminal_alpha(aims: list[float]) -> dict:
-    """The nominal flight with the terminal alpha bound aimed at each value (deg; 0: off)."""
+def terminal_alpha(aims: list[float], episodes: int | None = None, dispersion: str = "standard", seed: int = 0,
+                   workers: int = 2) -> dict:  # fmt: skip
+    """The nominal flight with the terminal alpha bound aimed at each value (deg; 0: off), and, with
+    ``episodes``, that many episodes of ``dispersion`` from ``seed`` per aim: success, the precision
+    tier, and the two terminal errors it weighs (|alpha(t_f)| and the vertical-impact error)."""
+    from rventry_env.evaluation.parallel import evaluate as run
     from rventry_env.evaluation.rollout import rollout
     from rventry_env.guidance.replanning import ReplanningGuidance
 
+    task = EntryTask()
     j_star = _reference_cost()
     rows = []
     for aim in aims:
@@ -305,6 +315,28 @@ def terminal_alpha(aims: list[float]) -> dict:
         r = rows[-1]
         print(f"aim {'off' if aim == 0 else f'{aim:g} deg'}: alpha(t_f) {r['alpha_final_deg']:.2f} deg, vertical error "
               f"{r['vertical_error_deg']:.2f} deg, miss {r['miss_m']:.1f} m, J/J* {r['cost_ratio']:.3f}", flush=True)  # fmt: skip
+        if episodes:
+            d = run(EvaluationJob("mpc", dispersion, task, (("settings", settings),)), list(range(seed, seed + episodes)),
+                    workers=workers)  # fmt: skip
+            sm = summarize(d, j_star, task)
+            alpha, vertical = np.abs(d.alpha_final_deg), d.vertical_error_deg
+            tier = PrecisionThresholds()
+            r["dispersed"] = {
+                "dispersion": dispersion, "seeds": [seed, seed + episodes - 1], "success_rate": sm["success_rate"],
+                "precision_success_rate": sm["precision_success_rate"], "precision_success_rate_ci": sm["precision_success_rate_ci"],
+                "alpha_final_deg": {"p50": float(np.median(alpha)), "p95": float(np.percentile(alpha, 95))},
+                "vertical_error_deg": {"p50": float(np.median(vertical)), "p95": float(np.percentile(vertical, 95))},
+                "miss_m_p50": 1000 * float(np.median(d.miss_km)),
+                "alpha_over_tier": int(np.sum(alpha > tier.alpha_final_deg)),
+                "vertical_over_tier": int(np.sum(vertical > tier.vertical_error_deg)),
+            }  # fmt: skip
+            x = r["dispersed"]
+            print(f"  {episodes} {dispersion} episodes: success {x['success_rate']:.2f}, precision "
+                  f"{x['precision_success_rate']:.2f}; |alpha(t_f)| p50/p95 {x['alpha_final_deg']['p50']:.2f}/"
+                  f"{x['alpha_final_deg']['p95']:.2f} deg (over the tier's {tier.alpha_final_deg:g}: {x['alpha_over_tier']}), "
+                  f"vertical p50/p95 {x['vertical_error_deg']['p50']:.2f}/{x['vertical_error_deg']['p95']:.2f} deg "
+                  f"(over {tier.vertical_error_deg:g}: {x['vertical_over_tier']}), miss p50 {x['miss_m_p50']:.0f} m",
+                  flush=True)  # fmt: skip
     return {"terminal_alpha": rows}
 
 
@@ -318,8 +350,6 @@ def navigation(path: str) -> dict:
     speed and vertical-impact errors follow it."""
     import json
     from pathlib import Path
-
-    from rventry_env.task import PrecisionThresholds
 
     doc = json.loads(Path(path).read_text())
     eps = [e for e in doc["episodes"] if "navigation_error_m" in e]
@@ -394,6 +424,7 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=positive_int, default=2)
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args(argv)
+    dispersed = args.episodes  # --terminal-alpha flies dispersed episodes only when asked
     if args.episodes is None:
         args.episodes = 40 if args.scan else 200
     if args.seed is None:
@@ -401,7 +432,8 @@ def main(argv=None) -> int:
     if args.navigation:
         out = navigation(args.navigation)
     else:
-        out = scan(args) if args.scan else evaluate(args) if args.evaluate else terminal_alpha(args.terminal_alpha)
+        out = scan(args) if args.scan else evaluate(args) if args.evaluate else terminal_alpha(
+            args.terminal_alpha, dispersed, args.dispersion, args.seed, args.workers)
     out["command"] = " ".join(["python scripts/bench_mpc.py", *(argv if argv is not None else sys.argv[1:])])
     if args.json:
         print(f"wrote {write_json(args.json, out)}")

@@ -53,7 +53,9 @@ def test_the_replanning_expert_labels_with_its_plans_angles_one_step_ahead():
     it gives the plan's angles, not its gentle tracker's next step from the drifted ones."""
     from rventry_env.guidance.replanning import ReplanningGuidance, ReplanningSettings
 
-    expert = ReplanningGuidance(settings=ReplanningSettings(mesh_intervals=10, replan_s=60.0))
+    # as the shipped students' teachers fly: without the terminal alpha bound, which takes the last
+    # step's alpha off the plan on purpose (3 deg here with it on)
+    expert = ReplanningGuidance(settings=ReplanningSettings(mesh_intervals=10, replan_s=60.0, terminal_alpha=False))
     law = DAggerLaw(expert, None, beta=1.0, seed=0)
     b = rollout(law, seeds=[7], dispersion="standard", record_history=True)
     y, n = np.concatenate(law.y), b.lengths[0]

@@ -248,12 +248,14 @@ def test_a_straight_dive_meets_the_final_speed_at_the_target():
 
 
 def test_mpc_lands_the_nominal_case_with_alpha_at_zero():
-    """Example 2's alpha(t_f) = 0, flown: tracking alone left 0.9 deg at impact on this mesh."""
-    b = rollout(ReplanningGuidance(settings=replace(COARSE, terminal_alpha=True, terminal_alpha_deg=0.2)), 1)
+    """Example 2's alpha(t_f) = 0, flown by default: tracking alone left 0.9 deg at impact on this mesh."""
+    assert (COARSE.terminal_alpha, COARSE.terminal_alpha_deg) == (True, 0.5)  # the law's defaults
+    b = rollout(ReplanningGuidance(settings=COARSE), 1)
     assert b.is_success[0] and b.miss_km[0] < 0.1 and b.vertical_error_deg[0] < 2.0
     assert abs(b.alpha_final_deg[0]) <= 0.5
-    without = rollout(ReplanningGuidance(settings=COARSE), 1)
+    without = rollout(ReplanningGuidance(settings=replace(COARSE, terminal_alpha=False)), 1)
     assert abs(without.alpha_final_deg[0]) > 0.5  # the check can fail: without the bound it does
+    assert not ReplanningSettings.flight_grade().terminal_alpha  # it cost mpc-flight landings on the flight set
 
 
 def test_the_terminal_alpha_bound_takes_alpha_out_by_impact_and_nothing_before():
