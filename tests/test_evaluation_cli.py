@@ -70,3 +70,24 @@ def test_evaluate_reports_the_precision_tier_and_intervals_on_a_new_set(tmp_path
     assert doc["dispersion"]["shape"] == "gaussian" and doc["dispersion"]["mass"] == pytest.approx(0.005)
     assert all(e["dispersion"]["mass"] != 0 for e in doc["episodes"])
     assert "precision" in capsys.readouterr().out
+
+
+def test_several_jobs_on_one_pool_fly_what_each_flies_alone():
+    """``rventry compare`` flies every law on one pool: each job gets exactly its own episodes, in its seeds' order."""
+    import numpy as np
+
+    from rventry_env.evaluation.parallel import EvaluationJob, evaluate, evaluate_many
+    from rventry_env.task import EntryTask
+
+    task = EntryTask()
+    jobs = [(EvaluationJob("lqr", "standard", task), [5, 3, 4]), (EvaluationJob("reference", "none", task), [0])]
+    seen = []
+    together = evaluate_many(jobs, workers=2, progress=lambda j, k: seen.append((j, k)))
+    assert sorted(seen) == [(0, 3), (1, 1)]
+    for (job, seeds), batch in zip(jobs, together):
+        alone = evaluate(job, seeds)
+        assert batch.seeds.tolist() == seeds
+        for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost"):
+            np.testing.assert_array_equal(getattr(batch, key), getattr(alone, key))
+    with pytest.raises(ValueError, match="no episodes to evaluate"):
+        evaluate_many([(jobs[0][0], [])])

@@ -229,7 +229,9 @@ def _compare(args) -> int:
     from rich.progress import Progress
 
     from rventry_env.task import EntryTask
+    from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
+    from rventry_env.evaluation.summary import summarize
     from rventry_env.reference import load_reference
 
     dispersion = dispersion_name(args)
@@ -245,19 +247,23 @@ def _compare(args) -> int:
     plan = [(case, agent, name, 1 if case == "nominal" else episodes[name], "none" if case == "nominal" else dispersion)
             for case in ("nominal", "dispersed") for agent, name in agents]  # fmt: skip
     runs = {}
+    task = EntryTask()
+    j_star = float(load_reference().cost)
+    # every law's episodes on one pool: the batched laws fly beside mpc's episodes, not after them
+    jobs = [(EvaluationJob(agent, d, task, record_history=True), list(range(args.seed, args.seed + n)))
+            for _, agent, _, n, d in plan]  # fmt: skip
     with Progress() as progress:
         overall = progress.add_task("rventry compare", total=sum(p[3] for p in plan))
-        for case, agent, name, n, d in plan:
-            job = progress.add_task(f"  {case}: {name}", total=n)
+        bars = [progress.add_task(f"  {case}: {name}", total=n) for case, _, name, n, _ in plan]
 
-            def advance(k, job=job):
-                progress.advance(job, k)
-                progress.advance(overall, k)
+        def advance(j, k):
+            progress.advance(bars[j], k)
+            progress.advance(overall, k)
 
-            batch, summary = run_agent(agent, n, d, args.seed, history=True, workers=args.workers,
-                                       cluster=args.cluster, progress=advance)  # fmt: skip
-            runs[(case, name)] = (batch, summary, _document(agent, n, d, args.seed, batch, summary))
-            progress.remove_task(job)
+        batches = evaluate_many(jobs, workers=args.workers, cluster=args.cluster, progress=advance)
+    for (case, agent, name, n, d), batch in zip(plan, batches):
+        summary = summarize(batch, j_star, task)
+        runs[(case, name)] = (batch, summary, _document(agent, n, d, args.seed, batch, summary))
     nominal, dispersed = runs[("nominal", label)][1], runs[("dispersed", label)][1]
     # the learned policy's dispersed-success target exists for the sets it was built for; the
     # flight-grade sets are reported against the oracle's ceiling instead (`rventry oracle`)

@@ -161,29 +161,48 @@ def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: st
     :param cluster: the address of a Dask scheduler (instead of local processes).
     :param progress: called with the number of episodes each finished task held.
     """
-    seeds = [int(s) for s in seeds]
-    if not seeds:
-        raise ValueError("no episodes to evaluate")
+    return evaluate_many([(job, seeds)], workers, cluster, None if progress is None else (lambda _j, k: progress(k)))[0]
+
+
+def evaluate_many(jobs: list[tuple[EvaluationJob, list[int]]], workers: int = 1, cluster: str | None = None,
+                  progress: Callable[[int, int], None] | None = None) -> list[EpisodeBatch]:  # fmt: skip
+    """:func:`evaluate` for several jobs at once, on one pool (or cluster): the tasks of all of them
+    share the workers, so a law that flies in one batched task runs beside another's episodes
+    instead of leaving a core idle. Each job's episodes are exactly those :func:`evaluate` gives.
+
+    :param jobs: (job, seeds) pairs.
+    :param progress: called with (the job's index, the number of episodes a finished task held).
+    """
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
-    tasks = split(seeds, episodes_per_task(job, len(seeds)))
-    results: list[EpisodeBatch | None] = [None] * len(tasks)
+    calls, owner = [], []
+    for j, (job, seeds) in enumerate(jobs):
+        seeds = [int(s) for s in seeds]
+        if not seeds:
+            raise ValueError("no episodes to evaluate")
+        for k, t in enumerate(split(seeds, episodes_per_task(job, len(seeds)))):
+            calls.append((job, t))
+            owner.append((j, k))
+    # the laws that fly an episode per task (the slow ones) first: the batched ones fill in beside them
+    order = sorted(range(len(calls)), key=lambda i: len(calls[i][1]))
+    calls, owner = [calls[i] for i in order], [owner[i] for i in order]
+    results: list[EpisodeBatch | None] = [None] * len(calls)
 
     def done(i, batch):
         results[i] = batch
         if progress is not None:
-            progress(len(tasks[i]))
+            progress(owner[i][0], len(calls[i][1]))
 
     if cluster is not None:
-        _on_cluster(job, tasks, cluster, done)
+        map_cluster(run_task, calls, cluster, done,
+                    keys=[f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}" for i, (job, t) in enumerate(calls)])  # fmt: skip
     else:
-        map_local(run_task, [(job, t) for t in tasks], workers, done)
-    return concatenate(results)
-
-
-def _on_cluster(job: EvaluationJob, tasks: list[list[int]], address: str, done) -> None:
-    map_cluster(run_task, [(job, t) for t in tasks], address, done,
-                keys=[f"rventry-{job.agent}-{t[0]}-{len(t)}-{i}" for i, t in enumerate(tasks)])  # fmt: skip
+        map_local(run_task, calls, workers, done)
+    out = []
+    for j in range(len(jobs)):  # each job's tasks back in its seeds' order
+        mine = sorted((owner[i][1], i) for i in range(len(calls)) if owner[i][0] == j)
+        out.append(concatenate([results[i] for _, i in mine]))
+    return out
 
 
 def map_cluster(fn: Callable, calls: list[tuple], address: str, done: Callable[[int, Any], None],
@@ -259,4 +278,4 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["WorkerLost", "end_with_parent", "EvaluationJob", "evaluate", "map_local", "map_cluster", "map_tasks", "run_task", "concatenate", "split", "default_workers"]
+__all__ = ["WorkerLost", "end_with_parent", "EvaluationJob", "evaluate", "evaluate_many", "map_local", "map_cluster", "map_tasks", "run_task", "concatenate", "split", "default_workers"]
