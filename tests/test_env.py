@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import gymnasium as gym
@@ -359,6 +360,60 @@ def test_vector_env_reproduces_n_single_envs(dispersion):
                 live[i] = False
                 assert info["_miss_km"][i] and info["miss_km"][i] == pytest.approx(si["miss_km"], rel=1e-9)
                 assert info["failure"][i] == si["failure"]
+
+
+def _one_copy_episode(dispersion, seed, on_floats, steps=None, **kw):
+    """Every output of a one-copy vector env over an episode (or ``steps`` steps), actions from ``seed``."""
+    venv = RvEntryVectorEnv(num_envs=1, task=TASK, dispersion=dispersion, **kw)
+    if not on_floats:
+        venv._one_prop = None  # the array path, as for N copies
+    rng = np.random.default_rng(seed)
+    out = [copy.deepcopy(venv.reset(seed=seed))]
+    for _ in range(steps or 3000):
+        a = np.array([[rng.uniform(-0.3, 0.1), rng.uniform(-1, 1)]], np.float32)
+        out.append(copy.deepcopy(venv.step(a)))
+        if steps is None and (out[-1][2][0] or out[-1][3][0]):
+            break
+    return out
+
+
+def _assert_same_bits(a, b):
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), set(a) ^ set(b)
+        for k in a:
+            _assert_same_bits(a[k], b[k])
+    elif isinstance(a, (tuple, list)):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            _assert_same_bits(x, y)
+    else:
+        x, y = np.asarray(a), np.asarray(b)
+        assert x.dtype == y.dtype and x.shape == y.shape and (np.array_equal(x, y) or np.array_equal(x, y, equal_nan=True)), (x, y)
+
+
+@pytest.mark.parametrize("dispersion, seed, kw", [
+    (None, 4, {}), ("standard", 4, {}), ("flight", 4, {}), ("peer", 4, {}), ("flight", 3, {"targets": "footprint"}),
+    ("standard", 3, {"max_episode_steps": 60}), ("wide", 3, {"dt": 50.0}),
+])  # fmt: skip
+def test_one_copy_steps_on_floats_with_the_array_paths_bits(dispersion, seed, kw):
+    """A one-copy vector env (an evaluation's episode per task) steps on Python floats: every
+    observation, reward, ending and info value equals the array path's, bit for bit, landing,
+    skipping out, at the time limit and in a diverging coarse step alike."""
+    fast = _one_copy_episode(dispersion, seed, True, **kw)
+    slow = _one_copy_episode(dispersion, seed, False, **kw)
+    assert len(fast) == len(slow) > 10
+    _assert_same_bits(fast, slow)
+    ends = {"dt": "non-finite state", "max_episode_steps": "time limit"}
+    expected = next((v for k, v in ends.items() if k in kw), None)
+    if expected is not None:
+        assert fast[-1][4]["failure"][0] == expected
+
+
+def test_one_copy_on_floats_keeps_the_autoreset_modes_bits():
+    for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+        kw = {"autoreset_mode": mode, "max_episode_steps": 120}
+        _assert_same_bits(_one_copy_episode("flight", 7, True, steps=300, **kw),
+                          _one_copy_episode("flight", 7, False, steps=300, **kw))  # fmt: skip
 
 
 def test_vector_env_autoreset_next_step_and_same_step():

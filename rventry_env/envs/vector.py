@@ -9,14 +9,15 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from rventry_env.core.backend import NUMPY
+from rventry_env.core.backend import MATH, NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
 from rventry_env.envs.allocator import keep_freed_memory
 from rventry_env.envs.observation import observe
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
-from rventry_env.envs.transition import Flight, advance
+from rventry_env.envs.propagation import Propagator
+from rventry_env.envs.transition import Flight, Transition, advance
 from rventry_env.envs.uncertainty import FlightState
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
 from rventry_env.physics.model import EntryModel, scaled_model
@@ -108,6 +109,9 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         if self.num_envs >= 2048:
             keep_freed_memory()  # 3-6x faster array temporaries at large N (see allocator.py)
         self._rngs: list[np.random.Generator] | None = None
+        # one copy (an evaluation's episode per task): its step on Python floats, see _advance_one
+        self._one_prop = Propagator(self.task, MATH, self.reward) if self.num_envs == 1 else None
+        self._one_model: EntryModel | None = None
 
     # ------------------------------------------------------------------ state
     @property
@@ -236,6 +240,12 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                 self.model if np.all(self._density == 1) and np.all(self._lift == 1) and np.all(self._drag == 1)
                 else scaled_model(self.model, self._density, self._lift, self._drag)
             )  # fmt: skip
+        if self._one_prop is not None:  # the same model as plain numbers
+            scales = (float(self._density[0]), float(self._lift[0]), float(self._drag[0]))
+            self._one_model = (
+                self._errors.model(*scales, single=True) if self._errors.any_model
+                else self.model if self._model is self.model else scaled_model(self.model, *scales)
+            )  # fmt: skip
         for c in range(12):
             self._x[c][idx] = x0[:, c]
         self._forces = self._prop.forces(self._x, self._model)
@@ -267,10 +277,13 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
 
     def _advance_all(self, a: np.ndarray, active: np.ndarray) -> "Stepped":
         """One control step of the active copies (actions ``a`` clipped): the backend's part of ``step``."""
-        tr = advance(
-            Flight(self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q),
-            (a[:, 0], a[:, 1]), self._model, self._prop, self.max_episode_steps, self._target, active=active,
-        )  # fmt: skip
+        if self._one_prop is not None and active[0]:
+            tr = self._advance_one(a)
+        else:
+            tr = advance(
+                Flight(self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q),
+                (a[:, 0], a[:, 1]), self._model, self._prop, self.max_episode_steps, self._target, active=active,
+            )  # fmt: skip
         self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q = tr.flight
         self._c_ae = tr.c_ae
         self._measure(tr.out.elapsed, active)
@@ -278,6 +291,23 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         info = common.flight_info(self._x, self._forces, self._c_ae, self._t, self._cost, self._radius, self._g0, NUMPY)
         return Stepped(tr.reward, tr.terminated, tr.truncated, tr.out.alpha_saturated, obs, obs_clipped, info,
                        tr.outcome, self._max_load, self._min_q)  # fmt: skip
+
+    def _advance_one(self, a: np.ndarray) -> Transition:
+        """The step of a single copy, on Python floats (the ``MATH`` namespace), as arrays of one.
+
+        The same code and the same floating-point operations as the array path, so the same
+        bits (``tests/test_env.py`` compares the two over whole episodes of every set), without
+        NumPy's per-call overhead: a few hundred operations on arrays of one element cost
+        about 1 us each, ten times their arithmetic. An evaluation flies a re-planning law's
+        episodes one per task, so this is most of the environment's share of their time.
+        """
+        one = lambda c: float(c[0])  # noqa: E731
+        flight = Flight(tuple(map(one, self._x)), _map_leaves(one, self._forces), one(self._t), int(self._steps[0]),
+                        one(self._cost), one(self._max_load), one(self._min_q))  # fmt: skip
+        target = tuple(float(np.reshape(c, -1)[0]) for c in self._target)
+        tr = advance(flight, (float(a[0, 0]), float(a[0, 1])), self._one_model, self._one_prop, self.max_episode_steps,
+                     target)  # fmt: skip
+        return _map_leaves(_array_of_one, tr)
 
     def _draw(self, idx: np.ndarray, dispersion: Dispersion | None) -> tuple[np.ndarray, list]:
         """Draw new episodes for copies ``idx`` from their generators: their initial states (len(idx), 12)
@@ -353,6 +383,27 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         lat, lon = common.latitude_longitude(self._c_ae[0], NUMPY)
         for i in range(len(self._tracks)) if only is None else only:
             self._tracks[i].append(self._t[i], self._x[0][i] - self._radius, self._x[5][i], lat[i], lon[i])
+
+
+def _map_leaves(fn, tree):
+    """``fn`` applied to every number of nested named tuples and tuples (None stays None)."""
+    if tree is None:
+        return None
+    if isinstance(tree, tuple):
+        items = [_map_leaves(fn, v) for v in tree]
+        return type(tree)(*items) if hasattr(tree, "_fields") else tuple(items)
+    return fn(tree)
+
+
+def _array_of_one(v) -> np.ndarray:
+    """A number of the one-copy step as the array path's array of one."""
+    if isinstance(v, (bool, np.bool_)):
+        return np.array([v], dtype=bool)
+    if isinstance(v, str):
+        return np.array([v], dtype=object)
+    if isinstance(v, (int, np.integer)):
+        return np.array([v], dtype=np.int64)
+    return np.array([v], dtype=float)
 
 
 def make_vector_env(num_envs: int = 1, backend: str = "numpy", dtype: str = "float64", **kwargs) -> RvEntryVectorEnv:

@@ -49,11 +49,11 @@ def uniform_table(x, start: float, step: float, values, ns):
     if ns.name == "casadi":
         # held at the end values beyond the grid (a B-spline itself falls to zero out there)
         return _casadi_table(start, step, values)(ns.fmin(ns.fmax(x, start), start + step * k_max))
-    if ns.name == "math":
-        u = min(max((x - start) / step, 0.0), float(k_max))
+    if ns.name == "math":  # the array path's arithmetic, operation for operation: the same bits
+        u = min(max((x - start) * (1.0 / step), 0.0), float(k_max))
         i = min(int(u), k_max - 1)
-        w = u - i
-        return float(values[i]) * (1.0 - w) + float(values[i + 1]) * w
+        lo = float(values[i])
+        return lo + (float(values[i + 1]) - lo) * (u - i)
     return table_gather(values, *table_index(x, start, step, k_max, ns), ns)
 
 
