@@ -362,17 +362,20 @@ def test_vector_env_reproduces_n_single_envs(dispersion):
                 assert info["failure"][i] == si["failure"]
 
 
-def _one_copy_episode(dispersion, seed, on_floats, steps=None, **kw):
-    """Every output of a one-copy vector env over an episode (or ``steps`` steps), actions from ``seed``."""
-    venv = RvEntryVectorEnv(num_envs=1, task=TASK, dispersion=dispersion, **kw)
+def _few_copies_episode(dispersion, seed, on_floats, n=1, steps=None, **kw):
+    """Every output of an ``n``-copy vector env until every episode ended (or over ``steps``
+    steps), actions drawn from ``seed``."""
+    venv = RvEntryVectorEnv(num_envs=n, task=TASK, dispersion=dispersion, **kw)
     if not on_floats:
-        venv._one_prop = None  # the array path, as for N copies
+        venv._float_prop = None  # the array path, as for many copies
     rng = np.random.default_rng(seed)
     out = [copy.deepcopy(venv.reset(seed=seed))]
+    ended = np.zeros(n, bool)
     for _ in range(steps or 3000):
-        a = np.array([[rng.uniform(-0.3, 0.1), rng.uniform(-1, 1)]], np.float32)
+        a = np.column_stack([rng.uniform(-0.3, 0.1, n), rng.uniform(-1, 1, n)]).astype(np.float32)
         out.append(copy.deepcopy(venv.step(a)))
-        if steps is None and (out[-1][2][0] or out[-1][3][0]):
+        ended |= out[-1][2] | out[-1][3]
+        if steps is None and ended.all():
             break
     return out
 
@@ -391,29 +394,47 @@ def _assert_same_bits(a, b):
         assert x.dtype == y.dtype and x.shape == y.shape and (np.array_equal(x, y) or np.array_equal(x, y, equal_nan=True)), (x, y)
 
 
-@pytest.mark.parametrize("dispersion, seed, kw", [
-    (None, 4, {}), ("standard", 4, {}), ("flight", 4, {}), ("peer", 4, {}), ("flight", 3, {"targets": "footprint"}),
-    ("standard", 3, {"max_episode_steps": 60}), ("wide", 3, {"dt": 50.0}),
+@pytest.mark.parametrize("dispersion, seed, n, kw", [
+    (None, 4, 1, {}), ("standard", 4, 1, {}), ("flight", 4, 1, {}), ("peer", 4, 1, {}),
+    ("flight", 3, 1, {"targets": "footprint"}), ("standard", 3, 1, {"max_episode_steps": 60}),
+    ("wide", 3, 1, {"dt": 50.0}), ("flight", 3, 3, {"autoreset_mode": AutoresetMode.DISABLED}),
+    ("peer", 6, 3, {"targets": "footprint", "autoreset_mode": AutoresetMode.DISABLED}),
 ])  # fmt: skip
-def test_one_copy_steps_on_floats_with_the_array_paths_bits(dispersion, seed, kw):
-    """A one-copy vector env (an evaluation's episode per task) steps on Python floats: every
-    observation, reward, ending and info value equals the array path's, bit for bit, landing,
-    skipping out, at the time limit and in a diverging coarse step alike."""
-    fast = _one_copy_episode(dispersion, seed, True, **kw)
-    slow = _one_copy_episode(dispersion, seed, False, **kw)
+def test_a_few_copies_step_on_floats_with_the_array_paths_bits(dispersion, seed, n, kw):
+    """Up to FLOAT_STEP_MAX_COPIES copies (an evaluation's episode per task) are each stepped on
+    Python floats: every observation, reward, ending and info value equals the array path's, bit
+    for bit, landing, skipping out, at the time limit, in a diverging coarse step and with copies
+    frozen at their end while the others fly on."""
+    fast = _few_copies_episode(dispersion, seed, True, n, **kw)
+    slow = _few_copies_episode(dispersion, seed, False, n, **kw)
     assert len(fast) == len(slow) > 10
     _assert_same_bits(fast, slow)
     ends = {"dt": "non-finite state", "max_episode_steps": "time limit"}
     expected = next((v for k, v in ends.items() if k in kw), None)
     if expected is not None:
         assert fast[-1][4]["failure"][0] == expected
+    if n > 1:  # the episodes ended on different steps: frozen copies beside flying ones
+        assert len({int(np.argmax([o[2][i] | o[3][i] for o in fast[1:]])) for i in range(n)}) > 1
 
 
-def test_one_copy_on_floats_keeps_the_autoreset_modes_bits():
-    for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+def test_a_few_copies_on_floats_keep_the_autoreset_modes_bits():
+    for n, mode in ((1, AutoresetMode.NEXT_STEP), (2, AutoresetMode.SAME_STEP)):
         kw = {"autoreset_mode": mode, "max_episode_steps": 120}
-        _assert_same_bits(_one_copy_episode("flight", 7, True, steps=300, **kw),
-                          _one_copy_episode("flight", 7, False, steps=300, **kw))  # fmt: skip
+        _assert_same_bits(_few_copies_episode("flight", 7, True, n, steps=300, **kw),
+                          _few_copies_episode("flight", 7, False, n, steps=300, **kw))  # fmt: skip
+
+
+def test_a_model_that_evaluates_on_arrays_only_keeps_a_single_copy_on_arrays():
+    from rventry_env.physics import TabulatedAtmosphere
+
+    h = np.linspace(0.0, 150e3, 61)
+    model = EntryModel(atmosphere=TabulatedAtmosphere(tuple(h), tuple(1.225 * np.exp(-h / 7200.0))))
+    venv = RvEntryVectorEnv(num_envs=1, task=TASK, model=model)
+    assert venv._float_prop is None  # TabulatedAtmosphere refuses Python floats
+    venv.reset(seed=0)
+    obs, *_ = venv.step(np.zeros((1, 2), np.float32))
+    assert np.all(np.isfinite(obs))
+    assert RvEntryVectorEnv(num_envs=1, task=TASK)._float_prop is not None
 
 
 def test_vector_env_autoreset_next_step_and_same_step():

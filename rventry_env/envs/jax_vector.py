@@ -150,6 +150,7 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         if render_mode is not None:
             raise ValueError(f"backend='jax' does not render (render_mode={render_mode!r}); use backend='numpy'")
         super().__init__(num_envs, **kwargs)
+        self._float_prop = None  # every step is the compiled one, however few the copies
         if self.task.targets != "fixed":
             raise ValueError(f"backend='jax' flies the fixed target; targets={self.task.targets!r} needs backend='numpy'")
         self.dtype = dtype

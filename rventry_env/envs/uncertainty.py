@@ -95,14 +95,19 @@ class FlightState:
         self.senses[i] = dispersion.has_sensing
         self.any_sensing |= bool(self.senses[i])
 
-    def model(self, density, lift, drag, single: bool = False) -> EntryModel:
+    def model(self, density, lift, drag, single: bool = False, row: int = 0) -> EntryModel:
         """The truth model: the base with the scale factors and, where any copy draws them, the
-        profiles, the Mach-dependent aerodynamics, the mass (and the wind)."""
+        profiles, the Mach-dependent aerodynamics, the mass (and the wind).
+
+        :param single: one copy's model as plain numbers and one profile: copy ``row``'s (the
+            scale factors are then that copy's numbers).
+        """
         m = scaled_model(self.base, density, lift, drag)
         if not self.any_model:
             return m
-        row = (lambda a: a[0]) if single else (lambda a: a)
-        num = (lambda a: float(a[0])) if single else (lambda a: a)
+        j = row
+        row = (lambda a: a[j]) if single else (lambda a: a)
+        num = (lambda a: float(a[j])) if single else (lambda a: a)
         veh = m.vehicle
         aero = MachVaryingAerodynamics(veh.aerodynamics, num(self.aero[:, 0]), num(self.aero[:, 1]),
                                        num(self.aero[:, 2]), num(self.aero[:, 3]))  # fmt: skip
