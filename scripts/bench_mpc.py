@@ -38,7 +38,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from rventry_env.task import FLIGHT_ERRORS, EntryTask, PrecisionThresholds
-from rventry_env.evaluation.parallel import EvaluationJob, concatenate, map_local, run_task
+from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
 from rventry_env.evaluation.summary import summarize
 from rventry_env.guidance.estimation import FlightEstimatorSettings
 from rventry_env.guidance.replanning import ReplanningSettings
@@ -157,23 +157,15 @@ def _reference_cost() -> float:
 
 
 def run_all(jobs: dict, workers: int, progress_label: str) -> dict:
-    """Run {name: (job, seeds)} as one-episode tasks on one pool; returns {name: batch}."""
+    """Run {name: (job, seeds)} on one pool (``evaluate_many``); returns {name: batch}."""
     from rich.progress import Progress
 
-    tasks = [(name, job, s) for name, (job, seeds) in jobs.items() for s in seeds]
-    results: list = [None] * len(tasks)
+    names = list(jobs)
     with Progress() as bar:
-        job_bar = bar.add_task(progress_label, total=len(tasks))
-
-        def done(i, batch):
-            results[i] = batch
-            bar.advance(job_bar)
-
-        map_local(run_task, [(job, [s]) for _, job, s in tasks], workers, done)
-    out: dict = {name: [] for name in jobs}
-    for (name, _, _), batch in zip(tasks, results):
-        out[name].append(batch)  # tasks are in seed order within each name
-    return {name: concatenate(batches) for name, batches in out.items()}
+        job_bar = bar.add_task(progress_label, total=sum(len(seeds) for _, seeds in jobs.values()))
+        batches = evaluate_many([jobs[name] for name in names], workers,
+                                progress=lambda _job, episodes: bar.advance(job_bar, episodes))  # fmt: skip
+    return dict(zip(names, batches))
 
 
 def _failures(batch) -> list[dict]:
