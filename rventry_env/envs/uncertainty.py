@@ -105,18 +105,17 @@ class FlightState:
         m = scaled_model(self.base, density, lift, drag)
         if not self.any_model:
             return m
-        j = row
-        row = (lambda a: a[j]) if single else (lambda a: a)
-        num = (lambda a: float(a[j])) if single else (lambda a: a)
+        table = (lambda a: a[row]) if single else (lambda a: a)
+        num = (lambda a: float(a[row])) if single else (lambda a: a)
         veh = m.vehicle
         aero = MachVaryingAerodynamics(veh.aerodynamics, num(self.aero[:, 0]), num(self.aero[:, 1]),
                                        num(self.aero[:, 2]), num(self.aero[:, 3]))  # fmt: skip
         changes = {
-            "atmosphere": ProfileAtmosphere(m.atmosphere, GRID_START_M, GRID_STEP_M, row(self.log_factors)),
+            "atmosphere": ProfileAtmosphere(m.atmosphere, GRID_START_M, GRID_STEP_M, table(self.log_factors)),
             "vehicle": dataclasses.replace(veh, mass=num(self.base.vehicle.mass * self.mass), aerodynamics=aero),
         }
         if self.any_wind:
-            changes["wind"] = ProfileWind(GRID_START_M, GRID_STEP_M, row(self.wind_east), row(self.wind_north))
+            changes["wind"] = ProfileWind(GRID_START_M, GRID_STEP_M, table(self.wind_east), table(self.wind_north))
         return m.replace(**changes)
 
     def draw_info(self, draws9: np.ndarray, extras: list, single: bool = False) -> dict:
