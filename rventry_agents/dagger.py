@@ -88,6 +88,11 @@ def load_config(path=None) -> dict:
     try:
         flight_trackers(cfg)
         flight_margins(cfg)
+        for i, r in enumerate(cfg["rounds"]):
+            m = r.get("load_relief_margin", 0.0)
+            if not isinstance(m, (int, float)) or isinstance(m, bool):
+                raise ValueError(f"round {i}: load_relief_margin takes a fraction of the load bound, got {m!r}")
+            _margins([m], f"round {i}: load_relief_margin")
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{where}: {exc}") from None
     return cfg
@@ -107,13 +112,30 @@ def flight_trackers(cfg: dict) -> list[Horizon]:
 def flight_margins(cfg: dict) -> list[float]:
     """The candidate load-relief margins of ``[flight]``: ``load_relief_margins``, each a fraction
     in [0, 1) of the load bound (none: the trained margin flies)."""
-    margins = cfg.get("flight", {}).get("load_relief_margins", [])
+    return _margins(cfg.get("flight", {}).get("load_relief_margins", []), "[flight] load_relief_margins")
+
+
+def _margins(margins, name: str) -> list[float]:
+    """Load-relief margins, checked: fractions in [0, 1) of the load bound; ``name`` says whose in an error."""
     if not isinstance(margins, list) or not all(isinstance(m, (int, float)) and not isinstance(m, bool) for m in margins):
-        raise ValueError(f"[flight] load_relief_margins takes a list of fractions of the load bound, got {margins!r}")
+        raise ValueError(f"{name} takes a list of fractions of the load bound, got {margins!r}")
     try:
         return [LoadRelief(task=EntryTask(), margin=float(m)).margin for m in margins]  # a bad margin fails here
     except ValueError as exc:
-        raise ValueError(f"[flight] load_relief_margins: {exc}") from None
+        raise ValueError(f"{name}: {exc}") from None
+
+
+def _law(run: "RunSetup", laws: list) -> dict:
+    """The last of ``laws`` that is given, else the [student] one."""
+    return next((law for law in reversed(laws) if law is not None), run.law)
+
+
+def round_law(run: "RunSetup", k: int) -> dict:
+    """The law round ``k``'s student flies, in the round and in its selection: the [student] one,
+    with the round's own ``load_relief_margin`` where it names one (rounds that fly the margin
+    chosen after the earlier rounds: the states they visit are those of the student as it will fly)."""
+    rnd = run.cfg["rounds"][k]
+    return run.law if "load_relief_margin" not in rnd else {**run.law, "load_relief_margin": float(rnd["load_relief_margin"])}
 
 
 def select_metric(student, cfg: dict, task: EntryTask) -> dict:
@@ -146,6 +168,7 @@ class Selected:
     weights: bytes
     members: int
     hidden: tuple[int, ...]
+    law: dict | None = None  # the law it was selected flying (:func:`round_law`); None: the [student] one
 
     def network(self):
         return network_from_bytes(self.weights, self.hidden, self.members)
@@ -203,6 +226,7 @@ class Rounds:
     xs: list = field(default_factory=list)  # features per round
     ys: list = field(default_factory=list)  # expert labels per round
     records: list = field(default_factory=list)
+    laws: list = field(default_factory=list)  # the law each round's student flew (:func:`round_law`)
     best: Selected | None = None
 
     @property
@@ -290,6 +314,11 @@ def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds
     if (record["episodes"], record["beta"]) != (n, beta):
         raise ValueError(f"cannot resume {run.out}: its round {k} flew {record['episodes']} episodes at beta "
                          f"{record['beta']}, the config says {n} at {beta}")  # fmt: skip
+    law = round_law(run, k)
+    flown = record.get("load_relief_margin", run.law["load_relief_margin"])  # records of before name none: the [student] one
+    if flown != law["load_relief_margin"]:
+        raise ValueError(f"cannot resume {run.out}: its round {k} flew the load-relief margin {flown}, the config "
+                         f"says {law['load_relief_margin']}")  # fmt: skip
     with np.load(run.out / f"data_round_{k}.npz") as d:
         if "angles" not in d:
             raise ValueError(f"cannot resume {run.out}: its round {k} was recorded with another kind of label "
@@ -297,6 +326,7 @@ def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds
         rounds.xs.append(d["x"])
         rounds.ys.append(d["angles"])
     rounds.records.append(record)
+    rounds.laws.append(law)
 
 
 def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, student, rounds: Rounds, clock: RunClock,
@@ -304,10 +334,11 @@ def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, stud
     """Round ``k``: fly ``n`` episodes (the expert's action with probability ``beta``), label every
     state, refit a new student on all the data so far and select it alone; returns it and its record."""
     blob = None if student is None else network_bytes(student)
+    law = round_law(run, k)
     jobs = [CollectJob(seed=first_seed + i, dispersion=run.cfg["data"]["dispersion"],
                        beta=beta if blob else 1.0, student=blob, hidden=run.hidden, task=run.task, expert=run.expert,
-                       expert_settings=run.expert_settings, horizon=run.law["horizon"],
-                       load_relief_margin=run.law["load_relief_margin"], members=run.members)
+                       expert_settings=run.expert_settings, horizon=law["horizon"],
+                       load_relief_margin=law["load_relief_margin"], members=run.members)
             for i in range(n)]  # fmt: skip
     tid = bar.add_task(f"round {k}: {n} episodes, beta {beta}", total=n)
     res = collect(jobs, run.workers, progress=lambda d: bar.advance(tid, d), cluster=run.cluster)
@@ -318,11 +349,13 @@ def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, stud
     atomic_write(run.out / f"data_round_{k}.npz", buf.getvalue())
     rounds.xs.append(x)
     rounds.ys.append(y)
+    rounds.laws.append(law)
     flown_success = float(np.mean([r["success"] for r in res]))
     student = new_network(run.hidden, run.members, run.fit_seed, f"round {k}")
     losses = fit(student, rounds.features(), rounds.labels(), **run.fit_settings())
-    metric = select_metric(LearnedGuidance(student, task=run.task, **run.law), run.cfg, run.task)
+    metric = select_metric(LearnedGuidance(student, task=run.task, **law), run.cfg, run.task)
     rec = {"round": k, "episodes": n, "beta": beta, "samples": int(sum(len(a) for a in rounds.xs)),
+           **({} if law is run.law else {"load_relief_margin": law["load_relief_margin"]}),
            "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
            "wall_s": clock.elapsed(), **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
     rounds.records.append(rec)
@@ -357,12 +390,12 @@ def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool 
                                                  run.members)  # fmt: skip
                     sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
                     rounds.best = Selected(sel, (run.out / f"student_round_{sel}.pt").read_bytes(), run.members,
-                                           run.hidden)  # fmt: skip
+                                           run.hidden, rounds.laws[sel])  # fmt: skip
             else:
                 student, rec = _fly_round(run, k, n, beta, next_seed, student, rounds, clock, bar)
                 if rounds.best is None or _select_key(rec) > _select_key(rounds.records[rounds.best.source]):
-                    rounds.best = Selected(k, network_bytes(student), run.members, run.hidden)
-                    _write_selected(run.out, rounds.best, run.law, run.task)
+                    rounds.best = Selected(k, network_bytes(student), run.members, run.hidden, rounds.laws[k])
+                    _write_selected(run.out, rounds.best, rounds.best.law, run.task)
             next_seed += n
     write_json(run.out / "rounds.json", rounds.records)
     return rounds
@@ -386,7 +419,9 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
     else:
         ensemble = new_network(run.hidden, n_final, run.fit_seed, "final")
         losses = fit(ensemble, rounds.features(), rounds.labels(), **run.fit_settings())
-        metric = select_metric(LearnedGuidance(ensemble, task=run.task, **run.law), run.cfg, run.task)
+        # the ensemble flies the last round's law: the newest data was flown with it
+        metric = select_metric(LearnedGuidance(ensemble, task=run.task, **_law(run, rounds.laws[-1:])), run.cfg,
+                               run.task)  # fmt: skip
         final = {"members": n_final, "samples": rounds.samples, "fit_loss_last": losses[-1],
                  "wall_s": clock.elapsed(), **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
         atomic_write(run.out / "student_final.pt", network_bytes(ensemble))
@@ -394,8 +429,9 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
         print(f"final ensemble of {n_final}: student alone on the selection set: success "
               f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
     if _select_key(final) > _select_key(rounds.records[best.source]):
-        best = Selected("final", (run.out / "student_final.pt").read_bytes(), n_final, run.hidden)
-        _write_selected(run.out, best, run.law, run.task)
+        best = Selected("final", (run.out / "student_final.pt").read_bytes(), n_final, run.hidden,
+                        _law(run, rounds.laws[-1:]))  # fmt: skip
+        _write_selected(run.out, best, best.law, run.task)
     return best, final
 
 
@@ -407,12 +443,13 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
         for name in ("distil.json", "student_distilled.pt"):
             (run.out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
         return teacher, None
-    distilled, taken = _distil(run.cfg, run.out, teacher, rounds.xs, rounds.samples, run.law, run.task,
+    law = _law(run, [teacher.law])  # the distilled network flies as its teacher does
+    distilled, taken = _distil(run.cfg, run.out, teacher, rounds.xs, rounds.samples, law, run.task,
                                run.fit_seed, resume)  # fmt: skip
     if taken:
         clock.credit(distilled["wall_s"])  # a distillation taken as it was counts in the run's wall time
-    best = Selected("distilled", (run.out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]))
-    _write_selected(run.out, best, run.law, run.task, distilled_from=distilled["teacher"])
+    best = Selected("distilled", (run.out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]), law)
+    _write_selected(run.out, best, law, run.task, distilled_from=distilled["teacher"])
     return best, distilled
 
 
@@ -424,7 +461,8 @@ def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None)
     if not run.trackers and not run.margins:
         (run.out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
         return None
-    network, horizons, trained = best.network(), [run.law["horizon"], *run.trackers], run.law["load_relief_margin"]
+    law = _law(run, [best.law])
+    network, horizons, trained = best.network(), [law["horizon"], *run.trackers], law["load_relief_margin"]
     scan = choose_tracker(network, horizons, trained, run.cfg, run.task)
     i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon
     record = {"student": best.source, "candidates": scan}
@@ -436,7 +474,7 @@ def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None)
         record["relief_candidates"] = relief
         chosen, margin = relief[k], margins[k]
     write_json(run.out / "flight.json", record)
-    _write_selected(run.out, best, {**run.law, "load_relief_margin": margin}, run.task,
+    _write_selected(run.out, best, {**law, "load_relief_margin": margin}, run.task,
                     tracker=None if i == 0 else run.trackers[i - 1],
                     distilled_from=None if distilled is None else distilled["teacher"],
                     trained_margin=trained)  # fmt: skip

@@ -189,6 +189,35 @@ def test_the_relief_scan_flies_the_chosen_tracker_with_each_margin_and_keeps_the
             _run(tmp_path, SMALL.replace("tracking_descent_mps", f"load_relief_margins = {bad}\ntracking_descent_mps"))
 
 
+def test_a_round_flies_its_own_load_relief_margin_and_a_resume_keeps_it(tmp_path):
+    from rventry_agents.dagger import _take_round, round_law
+
+    later = SMALL.replace("[fit]", "[[rounds]]\nepisodes = 1\nbeta = 0.0\nload_relief_margin = 0.05\n[fit]")
+    run = _run(tmp_path, later)
+    assert [round_law(run, k)["load_relief_margin"] for k in range(3)] == [0.02, 0.02, 0.05]
+    assert round_law(run, 2)["horizon"] == run.law["horizon"]  # only the margin is the round's own
+    # a resume takes a recorded round only when it flew the margin the config gives it
+    run.out.mkdir(exist_ok=True)
+    np.savez(run.out / "data_round_2.npz", x=np.zeros((3, N_FEATURES), np.float32), angles=np.zeros((3, 2), np.float32))
+    flown = {"round": 2, "episodes": 1, "beta": 0.0, "samples": 3}
+    for record in (flown, {**flown, "load_relief_margin": 0.04}):  # the [student] 0.02, or another
+        with pytest.raises(ValueError, match=r"round 2 flew the load-relief margin 0.0[24], the config says 0.05"):
+            _take_round(run, 2, 1, 0.0, record, Rounds())
+    rounds = Rounds()
+    _take_round(run, 2, 1, 0.0, {**flown, "load_relief_margin": 0.05}, rounds)
+    assert rounds.laws == [round_law(run, 2)] and len(rounds.xs) == 1
+    # the networks fitted after the rounds fly the last round's law; the relief scan starts from it
+    rounds = _rounds(run)
+    rounds.laws = [round_law(run, 0), round_law(run, 2)]
+    best, final = refit_ensemble(run, rounds, RunClock(), resume=False)
+    assert best.law == (rounds.laws[-1] if best.source == "final" else None)  # None: the synthetic round 0's
+    chosen = choose_flight_tracker(run, Selected("final", best.weights, best.members, best.hidden, rounds.laws[-1]), None)
+    assert chosen["load_relief_margin"] == 0.05
+    for bad in ("1.5", "true", '"4 %"'):
+        with pytest.raises(ValueError, match="round 2: load_relief_margin"):
+            _run(tmp_path, later.replace("load_relief_margin = 0.05", f"load_relief_margin = {bad}"))
+
+
 def _weights(out):
     """The saved network's tensors (by name) and its self-description (widths, members, inputs)."""
     import torch
