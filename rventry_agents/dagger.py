@@ -10,7 +10,9 @@ A run writes into its output directory:
   on all the rounds' data after the last round, and its selection figures;
 * ``student_distilled.pt`` and ``distil.json``: with ``[distil]``, one network fitted to the
   selected network's commands (an ensemble's mean) on all the rounds' states, which replaces it
-  (one network costs a third of three per decision), and its selection figures;
+  (one network costs a third of three per decision; with ``keep_teacher_if_better``, a teacher
+  that is one network of the same widths keeps flying if it does better on the selection set),
+  and its selection figures;
 * ``flight.json``: with ``[flight] tracking``, the selected network flown on the selection set
   with each candidate tracker horizon, and the one chosen; with ``[flight] load_relief_margins``,
   then with the chosen tracker and each candidate load-relief margin, and the one chosen;
@@ -80,6 +82,9 @@ def load_config(path=None) -> dict:
             value = d.get(key, 1)
             if not (isinstance(value, int) and value >= 1):
                 raise ValueError(f"{where}: [distil] {key} must be a whole number >= 1, got {value!r}")
+        if not isinstance(d.get("keep_teacher_if_better", False), bool):
+            raise ValueError(f"{where}: [distil] keep_teacher_if_better takes true or false, got "
+                             f"{d['keep_teacher_if_better']!r}")  # fmt: skip
         below = d.get("emphasis_below_m", 0.0)
         if not (isinstance(below, (int, float)) and below >= 0):
             raise ValueError(f"{where}: [distil] emphasis_below_m must be an altitude >= 0 (m), got {below!r}")
@@ -438,7 +443,9 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
 def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: RunClock,
                     resume: bool) -> tuple[Selected, dict | None]:  # fmt: skip
     """``[distil]``: one network fitted to the selected network's commands (:func:`_distil`), which
-    flies in its place; returns the network that flies and the distillation's record (None without one)."""
+    flies in its place (with ``keep_teacher_if_better``, not where its teacher is one network of the
+    same widths that does better on the selection set); returns the network that flies and the distillation's record (None without
+    one, or when the teacher flies)."""
     if "distil" not in run.cfg:
         for name in ("distil.json", "student_distilled.pt"):
             (run.out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
@@ -448,6 +455,15 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
                                run.fit_seed, resume)  # fmt: skip
     if taken:
         clock.credit(distilled["wall_s"])  # a distillation taken as it was counts in the run's wall time
+    if (run.cfg["distil"].get("keep_teacher_if_better", False) and teacher.members == 1
+            and tuple(distilled["hidden"]) == teacher.hidden and isinstance(teacher.source, int)
+            and _select_key(distilled) < _select_key(rounds.records[teacher.source])):  # fmt: skip
+        # one network of its teacher's widths saves nothing per decision: it flies only if it does as well
+        write_json(run.out / "distil.json", {**distilled, "flies": False})
+        print(f"the distilled network does worse than round {teacher.source} on the selection set and saves nothing "
+              f"per decision: round {teacher.source} flies")  # fmt: skip
+        _write_selected(run.out, teacher, law, run.task)
+        return teacher, None
     best = Selected("distilled", (run.out / "student_distilled.pt").read_bytes(), 1, tuple(distilled["hidden"]), law)
     _write_selected(run.out, best, law, run.task, distilled_from=distilled["teacher"])
     return best, distilled

@@ -173,11 +173,16 @@ def load_start(start: str, task) -> LearnedGuidance:
 
 
 def student_spec(law: LearnedGuidance, scales: StudentScales, start: str) -> dict:
-    """How to fly a fine-tuned policy (``policy.json``'s ``student``): the student it started from, its
-    standardization, its tracker horizon and its load relief."""
-    from rventry_agents.dagger import horizon_keys
+    """How to fly a fine-tuned policy (``policy.json``'s ``student``): the student it started from (its
+    name and the SHA-256 of its saved weights, which name one network when a name is shipped anew),
+    its standardization, its tracker horizon and its load relief."""
+    import hashlib
 
-    return {"start": start, "scales": scales.as_dict(), **horizon_keys(law.horizon, "tracking"),
+    from rventry_agents.dagger import horizon_keys
+    from rventry_agents.imitation import network_bytes
+
+    return {"start": start, "start_sha256": hashlib.sha256(network_bytes(law.network)).hexdigest(),
+            "scales": scales.as_dict(), **horizon_keys(law.horizon, "tracking"),
             "load_relief_margin": law.load_relief_margin}  # fmt: skip
 
 

@@ -148,6 +148,28 @@ def test_the_distilled_network_flies_in_place_of_its_teacher(tmp_path):
     assert not (run.out / "distil.json").exists()
 
 
+def test_a_network_distilled_at_its_teachers_widths_flies_only_if_it_does_as_well(tmp_path):
+    same_width = SMALL + DISTIL.replace("hidden = [8]", "hidden = [16, 16]")
+    plain = _run(tmp_path, same_width, name="plain")
+    plain.out.mkdir(exist_ok=True)
+    rounds = _rounds(plain)
+    rounds.records[0]["select_success_rate"] = 1.0  # a teacher no distilled network of 2 episodes beats
+    assert distil_selected(plain, rounds, rounds.best, RunClock(), resume=False)[0].source == "distilled"  # the default
+    run = _run(tmp_path, same_width + "keep_teacher_if_better = true\n")
+    run.out.mkdir(exist_ok=True)  # prepare_run made it
+    best, rec = distil_selected(run, rounds, rounds.best, RunClock(), resume=False)
+    assert best == rounds.best and rec is None
+    assert json.loads((run.out / "distil.json").read_text())["flies"] is False  # measured, recorded, not flown
+    student = json.loads((run.out / "student.json").read_text())
+    assert student["selected_round"] == 0 and "distilled_from" not in student
+    assert (run.out / "student.pt").read_bytes() == rounds.best.weights
+    rounds.records[0]["select_success_rate"] = -1.0  # a teacher any distilled network beats
+    best, rec = distil_selected(run, rounds, rounds.best, RunClock(), resume=True)
+    assert best.source == "distilled" and rec["teacher"] == 0
+    with pytest.raises(ValueError, match=r"\[distil\] keep_teacher_if_better takes true or false, got 'yes'"):
+        _run(tmp_path, same_width + 'keep_teacher_if_better = "yes"\n')
+
+
 def test_the_tracker_scan_keeps_the_trained_horizon_unless_a_candidate_beats_it(tmp_path):
     run = _run(tmp_path)
     run.out.mkdir(exist_ok=True)  # prepare_run made it

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import tomllib
 
 import numpy as np
 import pytest
 
+from rventry_agents.imitation import network_bytes
 from rventry_agents.train import FINETUNE_CONFIG, train_sb3
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
@@ -38,7 +40,9 @@ def test_step_zero_flies_exactly_like_the_student(frozen):
     for key in ("miss_km", "vertical_error_deg", "speed_error_mps", "cost", "max_load_factor_g"):
         np.testing.assert_array_equal(getattr(ppo, key), getattr(student, key))
     meta = json.loads((frozen / "metadata.json").read_text())
-    assert meta["provenance"] == {"algorithm": "PPO (stable-baselines3)", "start": START, "critic_warmup_steps": 512,
+    start_sha = hashlib.sha256(network_bytes(load_agent(START).network)).hexdigest()  # the student's weights, named
+    assert meta["provenance"] == {"algorithm": "PPO (stable-baselines3)", "start": START, "start_sha256": start_sha,
+                                  "critic_warmup_steps": 512,
                                   "timesteps": 512, "selected_at_timesteps": meta["best_evaluation"]["timesteps"]}  # fmt: skip
     assert meta["best_evaluation"]["timesteps"] in (0, 512)
 
@@ -54,7 +58,8 @@ def test_a_short_fine_tuning_trains_saves_reloads_and_flies_deterministically(tm
     assert not np.array_equal(a.cost, student.cost)  # the actor moved after the warm-up
     assert a.provenance["start"] == START and a.provenance["algorithm"].startswith("PPO")
     assert [sorted(s) for s in a.law_stats] == [["load_relief_steps"]] * 2  # the student's load relief flies too
-    assert json.loads((out / "policy.json").read_text())["student"]["start"] == START
+    spec = json.loads((out / "policy.json").read_text())["student"]
+    assert spec["start"] == START and spec["start_sha256"] == a.provenance["start_sha256"]
     # the actor the warm-up froze is flown once, at step 0, and the clock runs through both phases
     evals, meta = (json.loads((out / name).read_text()) for name in ("evaluations.json", "metadata.json"))
     assert [e["timesteps"] for e in evals] == [0, 2048]
