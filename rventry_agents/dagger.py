@@ -5,7 +5,8 @@ A run writes into its output directory:
 
 * ``data_round_K.npz``: the features and expert labels flown in round K (so a refit needs
   no new flights);
-* ``student_round_K.pt``: the network fitted after round K;
+* ``student_round_K.pt``: the network fitted after round K (``rounds.json`` keeps its SHA-256: a
+  resume that finds the file gone fits it again from the seed and data, and checks it);
 * ``student_final.pt`` and ``final.json``: with ``[final] members`` > 1, an ensemble refitted
   on all the rounds' data after the last round, and its selection figures;
 * ``student_distilled.pt`` and ``distil.json``: with ``[distil]``, one network fitted to the
@@ -361,6 +362,7 @@ def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, stud
     metric = select_metric(LearnedGuidance(student, task=run.task, **law), run.cfg, run.task)
     rec = {"round": k, "episodes": n, "beta": beta, "samples": int(sum(len(a) for a in rounds.xs)),
            **({} if law is run.law else {"load_relief_margin": law["load_relief_margin"]}),
+           "network_sha256": hashlib.sha256(network_bytes(student)).hexdigest(),
            "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
            "wall_s": clock.elapsed(), **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
     rounds.records.append(rec)
@@ -372,6 +374,28 @@ def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, stud
         f"miss p50 {metric['miss_km_p50']:.2f} km, violations {metric['violation_rate']:.2f}"
     )  # fmt: skip
     return student, rec
+
+
+def _round_network(run: RunSetup, k: int, rounds: Rounds) -> bytes:
+    """Round ``k``'s network as its run saved it; where the file is gone, fitted again from the
+    run's seed and the data of rounds 0..k (the fit is deterministic for one torch thread count)
+    and checked against the SHA-256 its record keeps, then saved."""
+    path = run.out / f"student_round_{k}.pt"
+    if path.is_file():
+        return path.read_bytes()
+    net = new_network(run.hidden, run.members, run.fit_seed, f"round {k}")
+    fit(net, np.concatenate(rounds.xs[: k + 1]), np.concatenate(rounds.ys[: k + 1]), **run.fit_settings())
+    blob = network_bytes(net)
+    want, got = rounds.records[k].get("network_sha256"), hashlib.sha256(blob).hexdigest()
+    if want is not None and got != want:
+        raise ValueError(f"cannot resume {run.out}: {path.name} is missing, and fitting it again from the run's seed "
+                         f"and data gave another network (SHA-256 {got[:12]}..., recorded {want[:12]}...); the fit's "
+                         "result depends on torch's thread count: resume with the --workers the run was started "
+                         "with, or start a new run")  # fmt: skip
+    print(f"round {k}: {path.name} was missing; fitted again from the run's seed and data"
+          + ("" if want is None else ", the recorded network bit for bit"))  # fmt: skip
+    atomic_write(path, blob)
+    return blob
 
 
 def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool = True) -> Rounds:
@@ -391,11 +415,10 @@ def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool 
                 _take_round(run, k, n, beta, done[k], rounds)
                 bar.console.print(f"round {k}: taken from {run.out}")
                 if k == len(done) - 1:  # the student to go on with, and the best so far
-                    student = network_from_bytes((run.out / f"student_round_{k}.pt").read_bytes(), run.hidden,
-                                                 run.members)  # fmt: skip
+                    student = network_from_bytes(_round_network(run, k, rounds), run.hidden, run.members)
                     sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
-                    rounds.best = Selected(sel, (run.out / f"student_round_{sel}.pt").read_bytes(), run.members,
-                                           run.hidden, rounds.laws[sel])  # fmt: skip
+                    rounds.best = Selected(sel, _round_network(run, sel, rounds), run.members, run.hidden,
+                                           rounds.laws[sel])  # fmt: skip
             else:
                 student, rec = _fly_round(run, k, n, beta, next_seed, student, rounds, clock, bar)
                 if rounds.best is None or _select_key(rec) > _select_key(rounds.records[rounds.best.source]):

@@ -148,6 +148,31 @@ def test_the_distilled_network_flies_in_place_of_its_teacher(tmp_path):
     assert not (run.out / "distil.json").exists()
 
 
+def test_a_lost_round_network_is_fitted_again_and_checked_against_its_record(tmp_path):
+    import hashlib
+
+    from rventry_agents.dagger import _round_network
+
+    run = _run(tmp_path)
+    run.out.mkdir(exist_ok=True)  # prepare_run made it
+    rounds = _rounds(run)
+    path = run.out / "student_round_1.pt"
+    blob = _round_network(run, 1, rounds)  # no file, no recorded hash (a run of before): fitted and saved
+    assert path.read_bytes() == blob and _round_network(run, 1, rounds) == blob  # then read, not fitted
+    path.unlink()
+    rounds.records[1]["network_sha256"] = hashlib.sha256(blob).hexdigest()
+    assert _round_network(run, 1, rounds) == blob  # the seed and data give the recorded network again
+    path.unlink()
+    rounds.records[1]["network_sha256"] = "0" * 64
+    with pytest.raises(ValueError, match=r"student_round_1.pt is missing, and fitting it again .* another network"):
+        _round_network(run, 1, rounds)
+    assert not path.exists()  # nothing written that the record disowns
+    rounds.records[0]["network_sha256"] = "0" * 64  # round 1's fit uses rounds 0 and 1's data, not round 0's hash
+    path.unlink(missing_ok=True)
+    rounds.records[1]["network_sha256"] = hashlib.sha256(blob).hexdigest()
+    assert _round_network(run, 1, rounds) == blob
+
+
 def test_a_network_distilled_at_its_teachers_widths_flies_only_if_it_does_as_well(tmp_path):
     same_width = SMALL + DISTIL.replace("hidden = [8]", "hidden = [16, 16]")
     plain = _run(tmp_path, same_width, name="plain")
@@ -263,6 +288,7 @@ def test_two_runs_agree_and_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
     (tmp_path / "c.toml").write_text(SMALL)  # interrupted after two rounds, then resumed with all three
     train_dagger(tmp_path / "c.toml", tmp_path / "c", workers=1, progress_bar=False)
     (tmp_path / "c.toml").write_text(three)
+    (tmp_path / "c" / "student_round_1.pt").unlink()  # lost: the resume fits it again, bit for bit
     train_dagger(tmp_path / "c.toml", tmp_path / "c", workers=1, progress_bar=False, resume=True)
     runs = {name: tmp_path / name for name in "abc"}
     rounds = {n: _without_wall(json.loads((p / "rounds.json").read_text())) for n, p in runs.items()}
