@@ -95,10 +95,8 @@ def load_config(path=None) -> dict:
         flight_trackers(cfg)
         flight_margins(cfg)
         for i, r in enumerate(cfg["rounds"]):
-            m = r.get("load_relief_margin", 0.0)
-            if not isinstance(m, (int, float)) or isinstance(m, bool):
-                raise ValueError(f"round {i}: load_relief_margin takes a fraction of the load bound, got {m!r}")
-            _margins([m], f"round {i}: load_relief_margin")
+            if "load_relief_margin" in r:
+                _margin(r["load_relief_margin"], f"round {i}: load_relief_margin")
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{where}: {exc}") from None
     return cfg
@@ -122,18 +120,25 @@ def flight_margins(cfg: dict) -> list[float]:
 
 
 def _margins(margins, name: str) -> list[float]:
-    """Load-relief margins, checked: fractions in [0, 1) of the load bound; ``name`` says whose in an error."""
-    if not isinstance(margins, list) or not all(isinstance(m, (int, float)) and not isinstance(m, bool) for m in margins):
+    """A list of load-relief margins, each checked by :func:`_margin`; ``name`` says whose in an error."""
+    if not isinstance(margins, list):
         raise ValueError(f"{name} takes a list of fractions of the load bound, got {margins!r}")
+    return [_margin(m, name) for m in margins]
+
+
+def _margin(margin, name: str) -> float:
+    """A load-relief margin, checked: a fraction in [0, 1) of the load bound; ``name`` says whose in an error."""
+    if not isinstance(margin, (int, float)) or isinstance(margin, bool):
+        raise ValueError(f"{name} takes a fraction of the load bound, got {margin!r}")
     try:
-        return [LoadRelief(task=EntryTask(), margin=float(m)).margin for m in margins]  # a bad margin fails here
+        return LoadRelief(task=EntryTask(), margin=float(margin)).margin  # a bad margin fails here
     except ValueError as exc:
         raise ValueError(f"{name}: {exc}") from None
 
 
-def _law(run: "RunSetup", laws: list) -> dict:
-    """The last of ``laws`` that is given, else the [student] one."""
-    return next((law for law in reversed(laws) if law is not None), run.law)
+def _law(run: "RunSetup", law: dict | None) -> dict:
+    """``law``, or the [student] one where none is given."""
+    return run.law if law is None else law
 
 
 def round_law(run: "RunSetup", k: int) -> dict:
@@ -141,7 +146,9 @@ def round_law(run: "RunSetup", k: int) -> dict:
     with the round's own ``load_relief_margin`` where it names one (rounds that fly the margin
     chosen after the earlier rounds: the states they visit are those of the student as it will fly)."""
     rnd = run.cfg["rounds"][k]
-    return run.law if "load_relief_margin" not in rnd else {**run.law, "load_relief_margin": float(rnd["load_relief_margin"])}
+    if "load_relief_margin" not in rnd:
+        return run.law
+    return {**run.law, "load_relief_margin": float(rnd["load_relief_margin"])}
 
 
 def select_metric(student, cfg: dict, task: EntryTask) -> dict:
@@ -321,7 +328,8 @@ def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds
         raise ValueError(f"cannot resume {run.out}: its round {k} flew {record['episodes']} episodes at beta "
                          f"{record['beta']}, the config says {n} at {beta}")  # fmt: skip
     law = round_law(run, k)
-    flown = record.get("load_relief_margin", run.law["load_relief_margin"])  # records of before name none: the [student] one
+    # records of before name no margin: they flew the [student] one
+    flown = record.get("load_relief_margin", run.law["load_relief_margin"])
     if flown != law["load_relief_margin"]:
         raise ValueError(f"cannot resume {run.out}: its round {k} flew the load-relief margin {flown}, the config "
                          f"says {law['load_relief_margin']}")  # fmt: skip
@@ -360,13 +368,13 @@ def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, stud
     student = new_network(run.hidden, run.members, run.fit_seed, f"round {k}")
     losses = fit(student, rounds.features(), rounds.labels(), **run.fit_settings())
     metric = select_metric(LearnedGuidance(student, task=run.task, **law), run.cfg, run.task)
+    weights = network_bytes(student)
     rec = {"round": k, "episodes": n, "beta": beta, "samples": int(sum(len(a) for a in rounds.xs)),
-           **({} if law is run.law else {"load_relief_margin": law["load_relief_margin"]}),
-           "network_sha256": hashlib.sha256(network_bytes(student)).hexdigest(),
+           "load_relief_margin": law["load_relief_margin"], "network_sha256": hashlib.sha256(weights).hexdigest(),
            "flown_success_rate": flown_success, "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
            "wall_s": clock.elapsed(), **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
     rounds.records.append(rec)
-    atomic_write(run.out / f"student_round_{k}.pt", network_bytes(student))
+    atomic_write(run.out / f"student_round_{k}.pt", weights)
     write_json(run.out / "rounds.json", rounds.records)  # progress survives an interrupted run
     bar.console.print(
         f"round {k}: {rec['samples']} samples, flown success {flown_success:.2f}, fit loss "
@@ -435,6 +443,7 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
     Returns the selected network and the ensemble's record (None without one)."""
     n_final = int(run.cfg.get("final", {}).get("members", 1))
     best = rounds.best
+    law = _law(run, rounds.laws[-1] if rounds.laws else None)  # the last round's: the newest data was flown with it
     if n_final == 1:
         (run.out / "final.json").unlink(missing_ok=True)  # an earlier run's ensemble, which this run does not refit
         return best, None
@@ -447,9 +456,7 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
     else:
         ensemble = new_network(run.hidden, n_final, run.fit_seed, "final")
         losses = fit(ensemble, rounds.features(), rounds.labels(), **run.fit_settings())
-        # the ensemble flies the last round's law: the newest data was flown with it
-        metric = select_metric(LearnedGuidance(ensemble, task=run.task, **_law(run, rounds.laws[-1:])), run.cfg,
-                               run.task)  # fmt: skip
+        metric = select_metric(LearnedGuidance(ensemble, task=run.task, **law), run.cfg, run.task)
         final = {"members": n_final, "samples": rounds.samples, "fit_loss_last": losses[-1],
                  "wall_s": clock.elapsed(), **{f"select_{key}": v for key, v in metric.items()}}  # fmt: skip
         atomic_write(run.out / "student_final.pt", network_bytes(ensemble))
@@ -457,9 +464,8 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
         print(f"final ensemble of {n_final}: student alone on the selection set: success "
               f"{metric['success_rate']:.2f}, miss p50 {metric['miss_km_p50']:.2f} km")  # fmt: skip
     if _select_key(final) > _select_key(rounds.records[best.source]):
-        best = Selected("final", (run.out / "student_final.pt").read_bytes(), n_final, run.hidden,
-                        _law(run, rounds.laws[-1:]))  # fmt: skip
-        _write_selected(run.out, best, best.law, run.task)
+        best = Selected("final", (run.out / "student_final.pt").read_bytes(), n_final, run.hidden, law)
+        _write_selected(run.out, best, law, run.task)
     return best, final
 
 
@@ -467,13 +473,13 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
                     resume: bool) -> tuple[Selected, dict | None]:  # fmt: skip
     """``[distil]``: one network fitted to the selected network's commands (:func:`_distil`), which
     flies in its place (with ``keep_teacher_if_better``, not where its teacher is one network of the
-    same widths that does better on the selection set); returns the network that flies and the distillation's record (None without
-    one, or when the teacher flies)."""
+    same widths that does better on the selection set); returns the network that flies and the
+    distillation's record (None without one, or when the teacher flies)."""
     if "distil" not in run.cfg:
         for name in ("distil.json", "student_distilled.pt"):
             (run.out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
         return teacher, None
-    law = _law(run, [teacher.law])  # the distilled network flies as its teacher does
+    law = _law(run, teacher.law)  # the distilled network flies as its teacher does
     distilled, taken = _distil(run.cfg, run.out, teacher, rounds.xs, rounds.samples, law, run.task,
                                run.fit_seed, resume)  # fmt: skip
     if taken:
@@ -500,7 +506,7 @@ def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None)
     if not run.trackers and not run.margins:
         (run.out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
         return None
-    law = _law(run, [best.law])
+    law = _law(run, best.law)
     network, horizons, trained = best.network(), [law["horizon"], *run.trackers], law["load_relief_margin"]
     scan = choose_tracker(network, horizons, trained, run.cfg, run.task)
     i = max(range(len(scan)), key=lambda j: _select_key(scan[j]))  # the first of equals: the trained horizon

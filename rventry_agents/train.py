@@ -435,7 +435,8 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
         "config": cfg,
         # the run's steps, and those of the policy it keeps (model.zip: the best evaluation's)
         **({} if spec is None else {"provenance": {"algorithm": "PPO (stable-baselines3)", "start": spec["start"],
-                                                   "start_sha256": spec["start_sha256"], "critic_warmup_steps": warmup, "timesteps": timesteps,
+                                                   "start_sha256": spec["start_sha256"],
+                                                   "critic_warmup_steps": warmup, "timesteps": timesteps,
                                                    "selected_at_timesteps": best["timesteps"]}}),  # fmt: skip
         "best_evaluation": best,
         "reference_cost": reference_cost,
