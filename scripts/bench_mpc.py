@@ -39,6 +39,7 @@ import numpy as np
 
 from rventry_env.task import FLIGHT_ERRORS, EntryTask, PrecisionThresholds
 from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
+from rventry_env.evaluation.agents import peer_settings
 from rventry_env.evaluation.summary import summarize
 from rventry_env.guidance.estimation import FlightEstimatorSettings
 from rventry_env.guidance.replanning import ReplanningSettings
@@ -143,7 +144,8 @@ TRACK_VARIANTS = {"+ tracking with the estimate": _MPC_FLIGHT | {"track_estimate
 # share that is C_D
 PEER_VARIANTS = {
     "mpc-flight": _MPC_FLIGHT,
-    "+ the peer set's statistics, drag split": _MPC_FLIGHT | {"density_bands": ((100_000.0, 0.25, 1e8),), "drag_rms": 0.20},
+    "+ the peer set's statistics, drag split (mpc-peer)": {k: v for k, v in asdict(peer_settings()).items()
+                                                           if getattr(SCANNED, k) != v} | _FLIGHT_EST,
 }
 VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS, "final": FINAL_VARIANTS,
                 "estimator": ESTIMATOR_VARIANTS, "split": SPLIT_VARIANTS, "dive": DIVE_VARIANTS,

@@ -12,7 +12,8 @@ listed as refused.
 
 ``--effects`` instead flies the laws on the ``flight`` set's parts one at a time (its scalar
 dispersions alone, the climatology alone, the density perturbation alone, the winds alone, the
-Mach-dependent aerodynamics alone, the sensors and navigation alone): which effect breaks which law.
+Mach-dependent aerodynamics alone, the sensors and navigation alone), and on the whole set with
+perfect sensors and navigation: which effect breaks which law (``--effect NAME ...``: those rows only).
 
 Run: ``python scripts/bench_sets.py [--sets flight peer peer-0.1] [--laws ...] [--episodes 200]
 [--mpc-episodes 20] [--workers 2] [--targets footprint] [--effects] --json out/bench_sets.json``
@@ -37,6 +38,7 @@ def main():
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--targets", choices=("fixed", "footprint"), default="fixed")
     ap.add_argument("--effects", action="store_true", help="the flight set's effects one at a time")
+    ap.add_argument("--effect", nargs="+", metavar="NAME", help="with --effects: only these rows (default: every one)")
     ap.add_argument("--json", required=True)
     args = ap.parse_args()
     if args.effects:
@@ -75,9 +77,10 @@ def main():
 
 
 def effect_sets() -> dict:
-    """The flight set's parts, each alone (dicts of Dispersion fields)."""
+    """The flight set's parts, each alone, and the set with perfect sensors and navigation (Dispersions)."""
     import dataclasses
 
+    from rventry_env.evaluation.oracle import perfect_sensing
     from rventry_env.task import FLIGHT_ERRORS as F
     from rventry_env.task import Dispersion, FlightErrors
 
@@ -91,6 +94,7 @@ def effect_sets() -> dict:
         "winds": Dispersion(flight=FlightErrors(wind_mean_mps=F.wind_mean_mps, wind_bands=F.wind_bands)),
         "Mach-dependent C_L/C_D": Dispersion(flight=FlightErrors(lift_mach=F.lift_mach, drag_mach=F.drag_mach)),
         "sensors and navigation": Dispersion(flight=FlightErrors(**sensing)),
+        "all but sensors and navigation": perfect_sensing(flight),
     }
 
 
@@ -101,7 +105,13 @@ def effects(args) -> None:
     out: dict = {"episodes": args.episodes, "effects": {}}
     lines = ["| effect alone | " + " | ".join(f"`{law}`" for law in args.laws) + " |",
              "|---|" + "---|" * len(args.laws)]  # fmt: skip
-    for name, d in effect_sets().items():
+    sets = effect_sets()
+    unknown = sorted(set(args.effect or ()) - set(sets))
+    if unknown:
+        raise SystemExit(f"unknown effect(s) {unknown}: choose from {sorted(sets)}")
+    for name, d in sets.items():
+        if args.effect and name not in args.effect:
+            continue
         cells = []
         for law in args.laws:
             n = args.mpc_episodes if law.startswith("mpc") else args.episodes

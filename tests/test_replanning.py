@@ -426,6 +426,26 @@ def test_the_flight_grade_preset_is_what_mpc_flight_flies():
     assert law.estimator.settings.density_bands == FLIGHT_ERRORS.density_bands
 
 
+def test_mpc_peer_is_mpc_flight_sized_by_the_peer_sets_published_statistics():
+    """The peer set's density is one constant factor (a band over every altitude flown, correlated far
+    beyond the flight) and its C_D error splits the q bound; everything else is mpc-flight's."""
+    from rventry_env.evaluation.agents import load_agent
+    from rventry_env.guidance.estimation import FlightEstimator
+    from rventry_env.task import Dispersion
+    from rventry_env.task.flight import band_spread
+
+    d = Dispersion.peer()
+    law = load_agent("mpc-peer", EntryTask())
+    flight = load_agent("mpc-flight", EntryTask())
+    ((top, rms, length),) = law.settings.density_bands
+    assert (rms, law.settings.drag_rms) == (d.density, d.drag) == (0.25, 0.20)
+    entry_h = EntryTask().problem.initial_state(0.0)[0]
+    assert top >= entry_h and band_spread(law.settings.density_bands, 0.0, entry_h) < 0.03 * rms  # one factor
+    assert replace(law.settings, density_bands=None, drag_rms=None) == replace(flight.settings, density_bands=None,
+                                                                               drag_rms=None)  # fmt: skip
+    assert isinstance(law.estimator, FlightEstimator) and law.estimator.settings == flight.estimator.settings
+
+
 def test_the_q_bound_carries_the_drag_scale_share_that_is_not_density():
     """With the density's rms at the current altitude and C_D's, the posterior share of ln k_D on C_D
     tightens every q node by exp(share + k spread), on top of nothing else; a high measured drag

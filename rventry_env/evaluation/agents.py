@@ -53,6 +53,28 @@ def _mpc_flight(task, **options):
     return ReplanningGuidance(task=task, **(preset | options))
 
 
+# the peer set's density is one constant factor: a single Gauss-Markov band over every altitude flown, with a
+# correlation length far beyond the flight
+_CONSTANT_BAND = (100_000.0, 1e8)
+
+
+def peer_settings():
+    """:class:`~rventry_env.guidance.replanning.ReplanningSettings` of ``mpc-flight`` with its margins sized by
+    the ``peer`` set's published statistics (:meth:`~rventry_env.task.Dispersion.peer`) instead of the
+    ``flight`` set's: the density a constant factor (one band of its rms), and the q bound carrying the drag
+    scale's share that is C_D (its rms). Chosen against ``mpc-flight`` on seeds 1000-1019 of ``peer``."""
+    from rventry_env.guidance.replanning import ReplanningSettings
+    from rventry_env.task import Dispersion
+
+    d = Dispersion.peer()
+    return ReplanningSettings.flight_grade(density_bands=((_CONSTANT_BAND[0], d.density, _CONSTANT_BAND[1]),),
+                                           drag_rms=d.drag)  # fmt: skip
+
+
+def _mpc_peer(task, **options):
+    return _mpc_flight(task, **({"settings": peer_settings()} | options))
+
+
 # name -> (description, factory(task, **options))
 BUILTIN: dict[str, tuple[str, Callable]] = {
     "reference": ("open-loop replay of the optimal collocation reference", _reference),
@@ -62,6 +84,8 @@ BUILTIN: dict[str, tuple[str, Callable]] = {
     "mpc-flight": ("the same re-planning with flight-grade estimation (scales as processes in altitude and Mach, "
                    "the wind) and margins: load relief, and margins from the density's "
                    "and the aerodynamics' uncertainty", _mpc_flight),
+    "mpc-peer": ("mpc-flight with its margins sized by the peer set's published statistics (density a constant "
+                 "factor of 25 % rms, C_D 20 % rms)", _mpc_peer),
 }
 
 

@@ -145,7 +145,8 @@ def band_profile(bands: tuple, grid: np.ndarray = GRID_M) -> tuple[np.ndarray, n
     above it (the last band above every top)."""
     tops = np.array([b[0] for b in bands])
     k = np.minimum(np.searchsorted(tops, grid, side="left"), len(bands) - 1)
-    return np.array([bands[i][1] for i in k]), np.array([bands[i][2] for i in k])
+    rms, corr = np.array([b[1] for b in bands]), np.array([b[2] for b in bands])
+    return rms[k], corr[k]  # a number's band is a 0-d array
 
 
 def band_spread(bands: tuple, h_from, h_to) -> np.ndarray:
