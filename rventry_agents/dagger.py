@@ -52,6 +52,7 @@ from rventry_agents.imitation import (
 )
 from rventry_env.task import EntryTask
 from rventry_env.guidance.load_relief import LoadRelief
+from rventry_env.guidance.q_floor import QFloor
 from rventry_env.util.files import atomic_write, check_writable, dumps_json, save_figure, write_json
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
@@ -272,6 +273,9 @@ def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None
     check_writable(folders=(out,))
     task = EntryTask()
     law = student_law(cfg["student"], task)
+    if law.pop("q_floor_margin") is not None:
+        raise ValueError("[student] q_floor_margin: the DAgger rounds fly no q floor; choose one for a trained policy "
+                         "with scripts/choose_q_floor.py")  # fmt: skip
     trackers = flight_trackers(cfg)
     for h in (law["horizon"], *trackers):
         h.check_step(task.dt)
@@ -620,12 +624,16 @@ def student_law(student_cfg: dict, task: EntryTask) -> dict:
       (``[flight]``), else the labels' ``lookahead_*``, which the rounds fly; one step when none is
       named (the students trained before the horizon existed, with one-step labels and a deadbeat
       tracker);
-    * ``load_relief_margin``, None when none is named (no load relief)."""
+    * ``load_relief_margin``, None when none is named (no load relief);
+    * ``q_floor_margin``, None when none is named (no q floor)."""
     horizon = _horizon_from(student_cfg, "tracking") or _horizon_from(student_cfg, "lookahead")
     margin = student_cfg.get("load_relief_margin")
     if margin is not None:
         margin = LoadRelief(task=task, margin=float(margin)).margin  # a bad margin fails here, not in a worker
-    return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin}
+    floor = student_cfg.get("q_floor_margin")
+    if floor is not None:
+        floor = QFloor(task=task, margin=float(floor)).margin
+    return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin, "q_floor_margin": floor}
 
 
 def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, tracker: Horizon | None = None,

@@ -95,9 +95,7 @@ class StudentVecEnv(VecEnvWrapper):
         info = self.venv.last_infos
         rates = tracking_rates(self.scales.commands(actions).astype(float), state, self.law.task,
                                self.law.horizon.seconds(state, self.law.radius, self.law.task.dt))  # fmt: skip
-        if self.law.relief is not None:
-            rates = self.law.relief(rates, state, info["sensed_accel_b"]).astype(np.float32)
-        self.venv.step_async(rates)
+        self.venv.step_async(self.law.limit(rates, state, info["sensed_accel_b"]))
 
     def step_wait(self):
         obs, reward, dones, infos = self.venv.step_wait()
@@ -175,7 +173,7 @@ def load_start(start: str, task) -> LearnedGuidance:
 def student_spec(law: LearnedGuidance, scales: StudentScales, start: str) -> dict:
     """How to fly a fine-tuned policy (``policy.json``'s ``student``): the student it started from (its
     name and the SHA-256 of its saved weights, which name one network when a name is shipped anew),
-    its standardization, its tracker horizon and its load relief."""
+    its standardization, its tracker horizon, its load relief and its q floor."""
     import hashlib
 
     from rventry_agents.dagger import horizon_keys
@@ -183,7 +181,7 @@ def student_spec(law: LearnedGuidance, scales: StudentScales, start: str) -> dic
 
     return {"start": start, "start_sha256": hashlib.sha256(network_bytes(law.network)).hexdigest(),
             "scales": scales.as_dict(), **horizon_keys(law.horizon, "tracking"),
-            "load_relief_margin": law.load_relief_margin}  # fmt: skip
+            "load_relief_margin": law.load_relief_margin, "q_floor_margin": law.q_floor_margin}  # fmt: skip
 
 
 def fine_tuned_law(policy, spec: dict, task) -> LearnedGuidance:

@@ -45,6 +45,7 @@ from rventry_env.envs.observation import feature_names
 from rventry_env.guidance.estimation import AeroScaleEstimator
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.load_relief import LoadRelief
+from rventry_env.guidance.q_floor import QFloor
 from rventry_env.physics import EntryModel
 
 OBSERVATION_NAMES = feature_names()
@@ -160,12 +161,17 @@ class LearnedGuidance(Law):
         :attr:`relief` then reports the capped steps, and :meth:`episode_stats` each episode's
         count of them (``load_relief_steps``), over the calls in which it was flying (the
         measurement's ``flying`` mask).
+    :param q_floor_margin: when given, the rates first pass through
+        :class:`~rventry_env.guidance.q_floor.QFloor` with this margin, which rolls the lift away
+        from the vertical where the coming apex of a climb is predicted below ``q_min (1 + margin)``;
+        :meth:`episode_stats` then counts those steps too (``q_floor_steps``).
     """
 
     retargets = True  # its inputs see the target through the observation's target features
 
     def __init__(self, network, model: EntryModel | None = None, task: EntryTask | None = None,
-                 horizon: Horizon | None = None, load_relief_margin: float | None = None):  # fmt: skip
+                 horizon: Horizon | None = None, load_relief_margin: float | None = None,
+                 q_floor_margin: float | None = None):  # fmt: skip
         model = EntryModel() if model is None else model
         self.network = network.eval()
         self.tracker = FeatureTracker(model)
@@ -175,11 +181,14 @@ class LearnedGuidance(Law):
         self.horizon.check_step(self.task.dt)
         self.load_relief_margin = load_relief_margin
         self.relief = None if load_relief_margin is None else LoadRelief(model, self.task, load_relief_margin)
+        self.q_floor_margin = q_floor_margin
+        self.q_floor = None if q_floor_margin is None else QFloor(model, self.task, q_floor_margin)
 
     def reset(self, n_episodes: int) -> None:
         self.tracker.reset(n_episodes)
-        if self.relief is not None:
-            self.relief.reset(n_episodes)
+        for limiter in (self.q_floor, self.relief):
+            if limiter is not None:
+                limiter.reset(n_episodes)
 
     def __call__(self, m: Measurement) -> np.ndarray:
         return self.act(self.tracker(m), m.navigation_state, m.sensed_accel_b, m.flying)
@@ -191,14 +200,25 @@ class LearnedGuidance(Law):
         commands = network_commands(self.network, f)
         state = np.asarray(state, float)
         rates = tracking_rates(commands.astype(float), state, self.task, self.horizon.seconds(state, self.radius, self.task.dt))
-        if self.relief is not None:
-            rates = self.relief(rates, state, sensed_accel_b, count=flying).astype(np.float32)
+        return self.limit(rates, state, sensed_accel_b, flying)
+
+    def limit(self, rates, state, sensed_accel_b, flying=None) -> np.ndarray:
+        """The tracker's ``rates`` through the law's limiters: the q floor (the bank rate, and alpha
+        where the bank alone cannot hold it), then the load relief (the alpha rate)."""
+        for limiter in (self.q_floor, self.relief):
+            if limiter is not None:
+                rates = limiter(rates, state, sensed_accel_b, count=flying).astype(np.float32)
         return rates
 
     def episode_stats(self) -> list[dict]:
-        """Per episode since :meth:`reset`: ``load_relief_steps``, the steps the load relief capped
-        (none without load relief)."""
-        return [] if self.relief is None else [{"load_relief_steps": int(k)} for k in self.relief.steps]
+        """Per episode since :meth:`reset`: ``load_relief_steps``, the steps the load relief capped,
+        and ``q_floor_steps``, the steps the q floor took the bank (each only where the law has it)."""
+        counts = {name: lim.steps for name, lim in (("load_relief_steps", self.relief), ("q_floor_steps", self.q_floor))
+                  if lim is not None}  # fmt: skip
+        if not counts:
+            return []
+        n = len(next(iter(counts.values())))
+        return [{name: int(steps[i]) for name, steps in counts.items()} for i in range(n)]
 
 
 class DAggerLaw(Law):

@@ -181,12 +181,22 @@ class SB3Policy(Law):
              "timesteps": self.metadata.get("timesteps"), "seed": self.metadata.get("seed")}
             if self.from_run else None)  # fmt: skip
         if self.spec["mode"] == "student":
-            from rventry_agents.finetune import fine_tuned_law
-
-            self._act = fine_tuned_law(self.model.policy, self.spec["student"], self.task)
+            floor = self.spec["student"].get("q_floor_margin")
+            self.with_q_floor(floor)
+            if floor is not None and self.provenance is not None:
+                self.provenance = {**self.provenance, "q_floor_margin": floor}
         else:
             self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"],
                                     self.spec.get("authority_rad"), self.task)  # fmt: skip
+
+    def with_q_floor(self, margin: float | None) -> "SB3Policy":
+        """A student-mode policy flies with the q floor ``margin`` (None: none) in place of its own."""
+        from rventry_agents.finetune import fine_tuned_law
+
+        if self.spec["mode"] != "student":
+            raise ValueError(f"a q floor belongs to a policy fine-tuned from a student, not to a {self.spec['mode']!r} one")
+        self._act = fine_tuned_law(self.model.policy, {**self.spec["student"], "q_floor_margin": margin}, self.task)
+        return self
 
     def reset(self, n_episodes: int) -> None:
         self._act.reset(n_episodes)

@@ -311,13 +311,6 @@ def test_the_oracle_solves_and_flies_one_flight_draw_on_a_coarse_mesh():
     assert 0.5 < rec["J"] < 5.0 and rec["replay"]["failure"] == ""  # it flew to the ground
     assert rec["flyable"] == rec["replay"]["success"]
     assert s["draws"] == 1 and s["flyable_fraction"] == float(rec["flyable"]) and len(s["flyable_fraction_ci"]) == 2
-    # the same plan flown as a law flies it, on the draw's accelerometer and navigation: the truth's replay has no
-    # navigation error, this one has the draw's, and it lands elsewhere
-    perfect, navigated = rec["replay"]["navigation_error_m"], rec["replay_navigation"]["navigation_error_m"]
-    assert perfect == {"horizontal": 0.0, "vertical": 0.0} and navigated["horizontal"] > 10.0
-    assert rec["replay_navigation"]["miss_km"] != rec["replay"]["miss_km"] and rec["replay_navigation"]["failure"] == ""
-    assert rec["flyable_navigation"] == (rec["converged"] and rec["replay_navigation"]["success"])
-    assert s["navigation_flyable_fraction"] == float(rec["flyable_navigation"])
 
 
 def test_the_navigation_state_is_the_true_position_and_velocity_plus_the_errors():

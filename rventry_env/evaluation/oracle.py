@@ -20,12 +20,6 @@ The flyable fraction, with its Wilson interval, bounds what any law can reach on
 law knows less than the oracle. Sensor and navigation errors do not limit it (it knows the
 truth), and a draw the solver cannot solve counts as not flyable, so the figure is a lower
 bound on the true ceiling.
-
-On a set with sensor and navigation errors the same plan is also flown a second time through the
-draw as a law flies it: the tracker fed the vehicle's navigation state, with the draw's
-accelerometer and navigation errors (``replay_navigation``, ``flyable_navigation``). That is
-perfect knowledge of the air and the vehicle without perfect knowledge of where the vehicle is:
-``navigation_flyable_fraction`` says what the set's navigation alone leaves of the ceiling.
 """
 
 from __future__ import annotations
@@ -175,7 +169,6 @@ def perfect_sensing(dispersion):
 def oracle_draw(dispersion, seed: int, task: EntryTask, settings: OracleSettings) -> dict:
     """One draw: solve with its truth, replay through it; a JSON-friendly record."""
     from rventry_env.guidance.tvlqr import NeighboringOptimalGuidance
-    from rventry_env.task import Dispersion
 
     start = time.perf_counter()
     perfect = perfect_sensing(dispersion)
@@ -185,25 +178,15 @@ def oracle_draw(dispersion, seed: int, task: EntryTask, settings: OracleSettings
            "nlp_iterations": int(sol.nlp_iterations), "J": float(sol.cost) if math.isfinite(sol.cost) else None,
            "tf_s": float(sol.tf)}  # fmt: skip
     tracker = NeighboringOptimalGuidance(reference=sol, task=task, model=model)
-    rec["replay"] = _replay(tracker, seed, perfect, task)
-    rec["flyable"] = bool(sol.success and rec["replay"]["success"])
-    if perfect != Dispersion.parse(dispersion):  # the set's sensors and navigation err: fly the plan on them too
-        tracker.reset(1)
-        rec["replay_navigation"] = _replay(tracker, seed, dispersion, task)
-        rec["flyable_navigation"] = bool(sol.success and rec["replay_navigation"]["success"])
-    rec["wall_s"] = time.perf_counter() - start
-    return rec
-
-
-def _replay(tracker, seed: int, dispersion, task: EntryTask) -> dict:
-    """The tracked plan flown through the draw ``seed`` of ``dispersion``: the replay's record."""
-    batch = rollout(tracker, seeds=[seed], dispersion=dispersion, task=task)
+    batch = rollout(tracker, seeds=[seed], dispersion=perfect, task=task)
     rep = batch.records()[0]
     rep["precision_success"] = bool(precision_success(batch, task)[0])
-    keys = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
-            "min_dynamic_pressure_pa", "constraint_violation", "success", "precision_success", "failure",
-            "navigation_error_m")  # fmt: skip
-    return {k: rep[k] for k in keys if k in rep}
+    rec["replay"] = {k: rep[k] for k in ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost",
+                                         "max_load_factor_g", "min_dynamic_pressure_pa", "constraint_violation",
+                                         "success", "precision_success", "failure")}  # fmt: skip
+    rec["flyable"] = bool(sol.success and rep["success"])
+    rec["wall_s"] = time.perf_counter() - start
+    return rec
 
 
 def oracle(dispersion, seeds, task: EntryTask | None = None, settings: OracleSettings | None = None, workers: int = 1,
@@ -232,10 +215,6 @@ def summarize_oracle(records: list[dict]) -> dict:
     flyable = np.array([r["flyable"] for r in records], bool)
     precise = np.array([r["converged"] and r["replay"]["precision_success"] for r in records], bool)
     j = np.array([r["J"] for r in records if r["converged"] and r["J"] is not None], float)
-    navigated = {}
-    if any("flyable_navigation" in r for r in records):
-        nav = np.array([r.get("flyable_navigation", r["flyable"]) for r in records], bool)
-        navigated = {"navigation_flyable_fraction": float(nav.mean()), "navigation_flyable_fraction_ci": rate_interval(nav)}
     return {
         "draws": len(records),
         "flyable_fraction": float(flyable.mean()),
@@ -244,7 +223,6 @@ def summarize_oracle(records: list[dict]) -> dict:
         "precision_flyable_fraction_ci": rate_interval(precise),
         "converged": int(sum(r["converged"] for r in records)),
         "J": {f"p{q}": float(np.percentile(j, q)) for q in (5, 50, 95)} if j.size else None,
-        **navigated,
     }
 
 

@@ -44,10 +44,7 @@ def _oracle(args) -> int:
     print(f"oracle, {args.dispersion}: {s['draws']} draw(s): flyable {s['flyable_fraction']:.2f} "
           f"[{s['flyable_fraction_ci'][0]:.2f}, {s['flyable_fraction_ci'][1]:.2f}], precision "
           f"{s['precision_flyable_fraction']:.2f}, converged {s['converged']}, J p50 "
-          + (f"{s['J']['p50']:.3f}" if s["J"] else "-")
-          + (f"; flown on the set's navigation: flyable {s['navigation_flyable_fraction']:.2f} "
-             f"[{s['navigation_flyable_fraction_ci'][0]:.2f}, {s['navigation_flyable_fraction_ci'][1]:.2f}]"
-             if "navigation_flyable_fraction" in s else ""))  # fmt: skip
+          + (f"{s['J']['p50']:.3f}" if s["J"] else "-"))  # fmt: skip
     return 0
 
 

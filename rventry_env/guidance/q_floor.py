@@ -1,0 +1,143 @@
+"""A predictive floor on the dynamic pressure: the coming apex of a skip, kept above q_min.
+
+The q bound is lost at the apex of a skip, where a vehicle that climbed too fast coasts into air
+thinner than its plan assumed. Unlike the load factor, which answers alpha within the control step
+(:class:`~rventry_env.guidance.load_relief.LoadRelief`), the apex is tens of seconds away when it
+is decided: a one-step check would act too late. :class:`QFloor` sits after any law's rates and,
+for each vehicle that is climbing with a dynamic pressure within ``watch`` times its floor,
+predicts the flight to the apex:
+
+* one control step with the rates the law asks for, then the angles held, by RK4 steps of
+  ``step_s`` on the model's own equations of motion
+  (:func:`~rventry_env.physics.entry.entry_rhs`), until the vehicle descends or ``horizon_s``;
+* calibrated by what the accelerometer senses now, as the load relief is: the predicted q is the
+  model's times the ratio of the sensed aerodynamic acceleration to the model's at the current
+  state (the accelerometer sees density times the coefficients; the share that is density is what
+  the q bound cares about, and that is what the observation's air data assume too).
+
+Where the least q before the apex falls below ``q_min (1 + margin)``, the bank rate is replaced by
+whichever full rate (left or right) predicts the higher apex q: the lift is rolled away from the
+vertical, the climb ends lower, in denser air. Where neither side keeps the floor, alpha also goes
+down at its full rate if that predicts a higher apex q (less lift, and less drag to slow the vehicle
+on the way up). The next step asks again with the law's own rates, so the law has its angles back
+as soon as its own command would keep the floor. It sees only what a vehicle measures: the navigation state and the
+sensed acceleration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rventry_env.core.eom import radial_rate
+from rventry_env.core.integrate import rk4_step
+from rventry_env.physics import EntryModel
+from rventry_env.physics.entry import IDX, entry_forces, entry_rhs
+from rventry_env.task import EntryTask
+
+
+# (alpha rate, bank rate) of each candidate: None keeps the law's
+CANDIDATES = ((None, None), (None, -1.0), (None, 1.0), (-1.0, -1.0), (-1.0, 1.0))
+
+
+class QFloor:
+    """Replaces the bank rate of the vehicles whose predicted apex would take q below ``q_min (1 + margin)``.
+
+    :param margin: fraction of q_min kept free above it (>= 0).
+    :param horizon_s: how far ahead the apex is looked for (s).
+    :param step_s: the prediction's RK4 step (s).
+    :param watch: vehicles are checked while climbing with their sensed q below ``watch`` times the floor.
+
+    After each call, :attr:`active` (N,) says which vehicles had their bank rate replaced, and
+    :attr:`steps` (N,) counts the replaced steps of each vehicle since :meth:`reset`.
+    """
+
+    def __init__(self, model: EntryModel | None = None, task: EntryTask | None = None, margin: float = 0.02,
+                 horizon_s: float = 90.0, step_s: float = 2.0, watch: float = 1.5):  # fmt: skip
+        for name, v, ok in (("margin", margin, margin >= 0), ("horizon_s", horizon_s, horizon_s > 0),
+                            ("step_s", step_s, step_s > 0), ("watch", watch, watch >= 1)):  # fmt: skip
+            if not (np.isfinite(v) and ok):
+                raise ValueError(f"q floor {name} must be a finite number {'>= 1' if name == 'watch' else '>= 0' if name == 'margin' else '> 0'}, got {v!r}")
+        self.model = EntryModel() if model is None else model
+        self.task = EntryTask() if task is None else task
+        self.margin, self.horizon_s, self.step_s, self.watch = float(margin), float(horizon_s), float(step_s), float(watch)
+        self.floor_pa = self.task.problem.q_min * (1.0 + self.margin)
+        self.active = np.zeros(0, dtype=bool)
+        self.steps = np.zeros(0, dtype=np.int64)
+
+    def reset(self, n: int) -> None:
+        self.active = np.zeros(n, dtype=bool)
+        self.steps = np.zeros(n, dtype=np.int64)
+
+    def apex_q(self, x: np.ndarray, u_alpha: np.ndarray, u_sigma: np.ndarray) -> np.ndarray:
+        """The model's least dynamic pressure (Pa) from now to the apex (N,): one control step with
+        the rates (rad/s), then the angles held, until the vehicle descends or the horizon ends."""
+        p, model = self.task.problem, self.model
+        dt = self.task.dt
+
+        def rhs_with(u):
+            return lambda _t, y: entry_rhs(y, u, model)
+
+        y = rk4_step(rhs_with((u_alpha, u_sigma)), 0.0, tuple(x.T), dt)
+        y = (*y[:10], np.clip(y[IDX.alpha], 0.0, p.alpha_max), y[11])
+        q_min = np.minimum(np.asarray(entry_forces(tuple(x.T), model).dynamic_pressure),
+                           np.asarray(entry_forces(y, model).dynamic_pressure))  # fmt: skip
+        climbing = np.asarray(radial_rate(y[5], y[6:10])) > 0.0
+        hold = rhs_with((0.0 * u_alpha, 0.0 * u_sigma))
+        t = dt
+        while t < self.horizon_s and climbing.any():
+            y = rk4_step(hold, 0.0, y, self.step_s)
+            t += self.step_s
+            q = np.asarray(entry_forces(y, model).dynamic_pressure)
+            q_min = np.where(climbing, np.fmin(q_min, q), q_min)
+            climbing &= np.asarray(radial_rate(y[5], y[6:10])) > 0.0
+        return q_min
+
+    def __call__(self, rates, state, sensed_accel_b, count=None) -> np.ndarray:
+        """The rates (N, 2), fractions of their bounds, with the bank rate replaced where needed.
+        ``count`` (N,) bool: which vehicles' replaced steps :attr:`steps` counts (default all)."""
+        if sensed_accel_b is None:
+            raise ValueError("the q floor needs the sensed acceleration (info['sensed_accel_b'])")
+        rates = np.array(rates, dtype=float)
+        x = np.asarray(state, dtype=float)
+        sensed = np.asarray(sensed_accel_b, dtype=float)
+        if rates.shape != (len(x), 2) or x.shape[1:] != (12,) or sensed.shape != (len(x), 3):
+            raise ValueError(f"the q floor needs rates (N, 2), state (N, 12) and sensed acceleration (N, 3), got "
+                             f"{rates.shape}, {x.shape} and {sensed.shape}")  # fmt: skip
+        if len(self.steps) != len(x):
+            self.reset(len(x))
+        self.active = np.zeros(len(x), dtype=bool)
+        f = entry_forces(tuple(x.T), self.model)
+        calib = np.linalg.norm(sensed, axis=1) / np.maximum(np.asarray(f.aero_accel), 1e-12)
+        q_now = calib * np.asarray(f.dynamic_pressure)
+        climbing = np.asarray(radial_rate(x[:, IDX.v], x[:, 6:10].T)) > 0.0
+        watched = np.nonzero(climbing & (q_now < self.watch * self.floor_pa) & np.isfinite(q_now))[0]
+        if watched.size == 0:
+            return rates
+        p = self.task.problem
+        m = len(watched)
+        # five candidates per watched vehicle, in one prediction: the law's rates; the law's alpha rate with the full
+        # bank rate either way; alpha down at full rate with the full bank rate either way
+        a, s = rates[watched, 0], rates[watched, 1]
+        one = np.ones(m)
+        ua = np.concatenate([a, a, a, -one, -one])
+        us = np.concatenate([s, -one, one, -one, one])
+        xs = np.tile(x[watched], (len(CANDIDATES), 1))
+        with np.errstate(all="ignore"):
+            apex = self.apex_q(xs, ua * p.u_alpha_max, us * p.u_sigma_max).reshape(len(CANDIDATES), m) * calib[watched]
+        apex = np.where(np.isfinite(apex), apex, -np.inf)
+        low = apex[0] < self.floor_pa
+        if not low.any():
+            return rates
+        # the bank alone where it keeps the floor (the better side), else whichever candidate reaches highest
+        bank = 1 + np.argmax(apex[1:3], axis=0)
+        best = np.where(apex[1:3].max(axis=0) >= self.floor_pa, bank, 1 + np.argmax(apex[1:], axis=0))
+        pick = best[low]
+        idx = watched[low]
+        rates[idx, 0] = np.where(pick >= 3, -1.0, rates[idx, 0])
+        rates[idx, 1] = np.where(pick % 2 == 1, -1.0, 1.0)
+        self.active[idx] = True
+        self.steps += self.active if count is None else self.active & np.asarray(count, dtype=bool)
+        return rates
+
+
+__all__ = ["QFloor"]
