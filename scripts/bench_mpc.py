@@ -147,9 +147,15 @@ PEER_VARIANTS = {
     "+ the peer set's statistics, drag split (mpc-peer)": {k: v for k, v in asdict(peer_settings()).items()
                                                            if getattr(SCANNED, k) != v} | _FLIGHT_EST,
 }
+# a predictive floor on q at a climb's apex, between plans (the learned policy's q breaches on wide and flight went)
+FLOOR_VARIANTS = {
+    "mpc-flight": _MPC_FLIGHT,
+    "+ q floor 2 %": _MPC_FLIGHT | {"q_floor_margin": 0.02},
+    "+ q floor 5 %": _MPC_FLIGHT | {"q_floor_margin": 0.05},
+}
 VARIANT_SETS = {"defaults": VARIANTS, "flight": FLIGHT_VARIANTS, "aero": AERO_VARIANTS, "final": FINAL_VARIANTS,
                 "estimator": ESTIMATOR_VARIANTS, "split": SPLIT_VARIANTS, "dive": DIVE_VARIANTS,
-                "track": TRACK_VARIANTS, "peer": PEER_VARIANTS}
+                "track": TRACK_VARIANTS, "peer": PEER_VARIANTS, "floor": FLOOR_VARIANTS}
 
 
 def _reference_cost() -> float:
@@ -412,7 +418,7 @@ def main(argv=None) -> int:
                          "flight estimator with the load relief's chance margin and the q bound's drag split; "
                          "dive: plans that turn vertical above the target, around mpc-flight; track: mpc-flight's "
                          "tracking fed the estimate rather than the plan's pessimistic L/D; peer: mpc-flight told "
-                         "the peer set's statistics")
+                         "the peer set's statistics; floor: mpc-flight with a q floor between plans")
     ap.add_argument("--sets", nargs="+", default=["standard", "wide"], choices=("standard", "wide"))
     ap.add_argument("--seed", type=non_negative_int, help="first seed (scan: 100000, evaluate: 0)")
     ap.add_argument("--workers", type=positive_int, default=2)

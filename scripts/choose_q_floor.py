@@ -9,7 +9,8 @@ mean success over the sets is chosen (a tie goes to no floor, then to the smalle
 policy then flies by (``student.q_floor_margin``, ``student.q_floor_selection``).
 
 Run: ``python scripts/choose_q_floor.py rventry_agents/data/ppo_finetune [--margins 0.02 0.05 0.08]
-[--sets flight wide] [--episodes 200] [--seed 100000] [--write] --json out/q_floor.json``
+[--sets flight wide] [--episodes 200] [--seed 100000] [--write] --json out/q_floor.json``, or
+``python scripts/choose_q_floor.py RUN --record out/q_floor.json`` to record an earlier run's choice.
 """
 
 from __future__ import annotations
@@ -28,8 +29,14 @@ def main():
     ap.add_argument("--episodes", type=int, default=200)
     ap.add_argument("--seed", type=int, default=100000)
     ap.add_argument("--write", action="store_true", help="record the choice in the run's policy.json")
-    ap.add_argument("--json", required=True)
+    ap.add_argument("--record", metavar="JSON", help="record the choice of an earlier run of this script (its --json) "
+                                                     "in the run's policy.json, without flying again")
+    ap.add_argument("--json", help="write the candidates' figures here")
     args = ap.parse_args()
+    if args.record:
+        return record_choice(Path(args.run), json.loads(Path(args.record).read_text()))
+    if not args.json:
+        ap.error("--json is required unless --record is given")
 
     from rich.progress import Progress
 
@@ -72,10 +79,22 @@ def main():
     write_json(args.json, out)
     print(f"chosen: {chosen} (mean success {score[chosen]:.3f} over {', '.join(args.sets)})")
     if args.write:
-        spec["student"]["q_floor_margin"] = margin
-        spec["student"]["q_floor_selection"] = record
-        write_json(spec_path, spec)
-        print(f"recorded in {spec_path}")
+        record_choice(run, out)
+
+
+def record_choice(run: Path, out: dict) -> None:
+    """The choice in ``out`` (this script's --json) into the run's policy.json."""
+    from rventry_env.util.files import write_json
+
+    if Path(out["run"]).resolve() != run.resolve():
+        raise SystemExit(f"the choice was made for {out['run']}, not for {run}")
+    spec_path = run / "policy.json"
+    spec = json.loads(spec_path.read_text())
+    spec["student"]["q_floor_margin"] = out["chosen"]
+    spec["student"]["q_floor_selection"] = {k: out[k] for k in ("chosen", "sets", "seeds", "episodes", "success",
+                                                                   "command")}  # fmt: skip
+    write_json(spec_path, spec)
+    print(f"recorded in {spec_path}: q floor {out['chosen']}")
 
 
 if __name__ == "__main__":

@@ -103,3 +103,57 @@ def test_bad_inputs_are_named():
         floor(np.zeros((3, 2)), x, None)
     with pytest.raises(ValueError, match=r"rates \(N, 2\), state \(N, 12\) and sensed acceleration \(N, 3\)"):
         floor(np.zeros((2, 2)), x, np.zeros((3, 3)))
+
+
+def test_the_shipped_ppo_flies_the_q_floor_chosen_on_selection_seeds_and_says_so():
+    """``ppo`` flies the margin its policy.json records (chosen on seeds away from the evaluation's),
+    reports it in its provenance and counts its steps; without the floor it is the policy as trained."""
+    import json
+
+    from rventry_agents.sb3_policy import SHIPPED_PPO_AGENTS, load_shipped
+
+    spec = json.loads((SHIPPED_PPO_AGENTS["ppo"] / "policy.json").read_text())["student"]
+    sel = spec["q_floor_selection"]
+    assert spec["q_floor_margin"] == sel["chosen"] and sel["seeds"][0] >= 100000  # not the evaluation's seeds 0-199
+    score = {k: sum(v.values()) for k, v in sel["success"].items()}
+    assert score[f"{sel['chosen']:g}"] == max(score.values())
+    ppo = load_shipped("ppo")
+    assert ppo.provenance["q_floor_margin"] == spec["q_floor_margin"] and ppo._act.q_floor.margin == spec["q_floor_margin"]
+    b = rollout(ppo, seeds=[3], dispersion="wide", max_episode_steps=400)
+    assert set(b.law_stats[0]) == {"load_relief_steps", "q_floor_steps"}
+    bare = load_shipped("ppo").with_q_floor(None)
+    assert bare._act.q_floor is None and bare._act.relief is not None
+    assert set(rollout(bare, seeds=[3], dispersion="wide", max_episode_steps=50).law_stats[0]) == {"load_relief_steps"}
+
+
+def test_the_q_floor_comes_before_the_load_relief_and_each_law_refuses_a_bad_margin():
+    from rventry_agents.dagger import student_law
+    from rventry_env.guidance.replanning import ReplanningSettings
+
+    assert student_law({"q_floor_margin": 0.05}, EntryTask())["q_floor_margin"] == 0.05
+    with pytest.raises(ValueError, match="q floor margin must be a finite number >= 0"):
+        student_law({"q_floor_margin": -0.05}, EntryTask())
+    with pytest.raises(ValueError, match="q_floor_margin must be None"):
+        ReplanningSettings(q_floor_margin=float("nan"))
+    # the learned law's chain: the q floor takes the bank (and alpha), then the load relief caps alpha
+    from rventry_agents.sb3_policy import load_shipped
+
+    law = load_shipped("ppo")._act
+    calls = []
+    for name in ("q_floor", "relief"):
+        inner = getattr(law, name)
+        setattr(law, name, lambda r, *a, _n=name, _f=inner, **k: calls.append(_n) or _f(r, *a, **k))
+        getattr(law, name).reset = inner.reset
+    x = load_reference().state(np.array([240.0]))
+    law.limit(np.zeros((1, 2)), x, np.stack(entry_forces(tuple(x.T), EntryModel()).aero_b, axis=1))
+    assert calls == ["q_floor", "relief"]
+
+
+def test_a_dagger_config_that_names_a_q_floor_is_refused(tmp_path):
+    from rventry_agents.dagger import DEFAULT_CONFIG, train_dagger
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(DEFAULT_CONFIG.read_text().replace("[student]", "[student]\nq_floor_margin = 0.05", 1))
+    with pytest.raises(ValueError, match=r"\[student\] q_floor_margin: the DAgger rounds fly no q floor"):
+        train_dagger(cfg, tmp_path / "out", workers=1, progress_bar=False)
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())

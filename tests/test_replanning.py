@@ -420,7 +420,7 @@ def test_the_flight_grade_preset_is_what_mpc_flight_flies():
     assert s.density_bands == FLIGHT_ERRORS.density_bands and s.aero_mach_rms == FLIGHT_ERRORS.lift_mach
     assert ReplanningSettings.flight_grade(q_margin=0.08).q_margin == 0.08
     law = load_agent("mpc-flight", EntryTask(), settings=replace(s, mesh_intervals=10, replan_s=60.0))
-    assert law.settings.aero_mach_rms == 0.03 and law.relief is not None
+    assert law.settings.aero_mach_rms == 0.03 and law.relief is not None and law.q_floor is None  # no q floor
     # the flight-grade estimator, on the flight set's published statistics, with the wind
     assert isinstance(law.estimator, FlightEstimator) and law.estimator.settings.wind_sigma == FLIGHT_ERRORS.wind_mean_mps
     assert law.estimator.settings.density_bands == FLIGHT_ERRORS.density_bands
@@ -494,3 +494,12 @@ def test_tracking_compares_the_plan_with_its_own_scales_unless_told_to_feed_the_
         np.testing.assert_array_equal(seen[track], estimate if track else planned)
     with pytest.raises(ValueError, match="track_estimate must be True or False"):
         ReplanningSettings(track_estimate=1)
+
+
+def test_a_q_floor_between_plans_is_flown_and_counted():
+    """``q_floor_margin`` puts :class:`~rventry_env.guidance.q_floor.QFloor` before the load relief;
+    each episode's record counts the steps it took the bank."""
+    law = ReplanningGuidance(settings=replace(COARSE, q_floor_margin=0.05, load_relief_margin=0.02))
+    assert law.q_floor.margin == 0.05
+    b = rollout(law, seeds=[0], dispersion="standard", max_episode_steps=20)
+    assert {"q_floor_steps", "load_relief_steps"} <= set(b.law_stats[0]) and b.law_stats[0]["q_floor_steps"] == 0

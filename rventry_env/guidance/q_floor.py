@@ -15,12 +15,15 @@ predicts the flight to the apex:
   state (the accelerometer sees density times the coefficients; the share that is density is what
   the q bound cares about, and that is what the observation's air data assume too).
 
-Where the least q before the apex falls below ``q_min (1 + margin)``, the bank rate is replaced by
-whichever full rate (left or right) predicts the higher apex q: the lift is rolled away from the
-vertical, the climb ends lower, in denser air. Where neither side keeps the floor, alpha also goes
-down at its full rate if that predicts a higher apex q (less lift, and less drag to slow the vehicle
-on the way up). The next step asks again with the law's own rates, so the law has its angles back
-as soon as its own command would keep the floor. It sees only what a vehicle measures: the navigation state and the
+Where the least q before the apex falls below ``q_min (1 + margin)``, the rates are replaced by the
+least change that keeps the floor, predicted the same way: the bank held, or rolled at half or
+full rate either way (the lift away from the vertical: the climb ends lower, in denser air), the
+one nearest the law's bank rate (the running cost charges the bank rate squared); where no bank rate keeps it, alpha down at its full rate as well
+(less lift, and less drag to slow the vehicle on the way up); where nothing keeps it, whatever
+reaches the highest apex q. The next step asks again with the law's own rates, so the law has its
+angles back as soon as its own command would keep the floor. A first version knew only the two
+full bank rates and flipped between them every step at the bank that keeps the lift furthest
+down: holding the bank is a candidate for that reason. It sees only what a vehicle measures: the navigation state and the
 sensed acceleration.
 """
 
@@ -35,8 +38,11 @@ from rventry_env.physics.entry import IDX, entry_forces, entry_rhs
 from rventry_env.task import EntryTask
 
 
-# (alpha rate, bank rate) of each candidate: None keeps the law's
-CANDIDATES = ((None, None), (None, -1.0), (None, 1.0), (-1.0, -1.0), (-1.0, 1.0))
+# (alpha rate, bank rate) of each candidate, fractions of their bounds: None keeps the law's. The law's own rates
+# first; then its alpha rate with the bank held, or rolled at half or full rate either way; then alpha down at its
+# full rate with the bank held or rolled at full rate either way
+CANDIDATES = ((None, None), (None, 0.0), (None, -0.5), (None, 0.5), (None, -1.0), (None, 1.0), (-1.0, 0.0),
+              (-1.0, -1.0), (-1.0, 1.0))  # fmt: skip
 
 
 class QFloor:
@@ -115,12 +121,9 @@ class QFloor:
             return rates
         p = self.task.problem
         m = len(watched)
-        # five candidates per watched vehicle, in one prediction: the law's rates; the law's alpha rate with the full
-        # bank rate either way; alpha down at full rate with the full bank rate either way
-        a, s = rates[watched, 0], rates[watched, 1]
-        one = np.ones(m)
-        ua = np.concatenate([a, a, a, -one, -one])
-        us = np.concatenate([s, -one, one, -one, one])
+        law = rates[watched]
+        ua = np.concatenate([law[:, 0] if a is None else np.full(m, a) for a, _ in CANDIDATES])
+        us = np.concatenate([law[:, 1] if b is None else np.full(m, b) for _, b in CANDIDATES])
         xs = np.tile(x[watched], (len(CANDIDATES), 1))
         with np.errstate(all="ignore"):
             apex = self.apex_q(xs, ua * p.u_alpha_max, us * p.u_sigma_max).reshape(len(CANDIDATES), m) * calib[watched]
@@ -128,13 +131,18 @@ class QFloor:
         low = apex[0] < self.floor_pa
         if not low.any():
             return rates
-        # the bank alone where it keeps the floor (the better side), else whichever candidate reaches highest
-        bank = 1 + np.argmax(apex[1:3], axis=0)
-        best = np.where(apex[1:3].max(axis=0) >= self.floor_pa, bank, 1 + np.argmax(apex[1:], axis=0))
+        # the least change that keeps the floor: the bank first (the rate nearest the law's), then alpha down as
+        # well; where nothing keeps it, the candidate that reaches the highest apex q
+        cand_a, cand_s = ua.reshape(len(CANDIDATES), m), us.reshape(len(CANDIDATES), m)
+        change = np.abs(cand_s - law[:, 1]) + 4.0 * (cand_a != law[:, 0])  # alpha's change ranks after any bank's
+        change = np.where(apex >= self.floor_pa, change, np.inf)
+        change[0] = np.inf  # the law's own rates fall short
+        best = np.where(np.isfinite(change.min(axis=0)), np.argmin(change, axis=0), 1 + np.argmax(apex[1:], axis=0))
         pick = best[low]
         idx = watched[low]
-        rates[idx, 0] = np.where(pick >= 3, -1.0, rates[idx, 0])
-        rates[idx, 1] = np.where(pick % 2 == 1, -1.0, 1.0)
+        cols = np.nonzero(low)[0]
+        rates[idx, 0] = cand_a[pick, cols]
+        rates[idx, 1] = cand_s[pick, cols]
         self.active[idx] = True
         self.steps += self.active if count is None else self.active & np.asarray(count, dtype=bool)
         return rates

@@ -54,6 +54,10 @@ Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
   by that many sigma of the density's and the aerodynamics' spread over the step (the same bands
   and Mach statistics as the plan's margins): a chance constraint on the next second, which costs
   nothing in a glide and a few per cent in a dive that drops a kilometre a second.
+* **A q floor between plans** (``q_floor_margin``, off by default). Before the load relief the
+  rates pass through :class:`~rventry_env.guidance.q_floor.QFloor`, which predicts a climbing
+  vehicle's flight to its apex and rolls the lift away from the vertical where the apex's q,
+  calibrated on the accelerometer, would fall under ``q_min (1 + margin)``.
 * **Margins that follow the density's uncertainty** (``density_bands``, off by default). The
   accelerometer tells the density ratio where the vehicle is; elsewhere the plan extrapolates
   it. With the atmosphere's perturbation statistics known as Gauss-Markov bands in altitude
@@ -147,6 +151,7 @@ class ReplanningSettings:
     track_estimate: bool = False
     load_relief_margin: float | None = None
     load_relief_sigmas: float = 0.0
+    q_floor_margin: float | None = None
     drag_rms: float | None = None
     split_sigmas: float = 1.0
     density_bands: tuple | None = None
@@ -185,6 +190,9 @@ class ReplanningSettings:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
         if self.load_relief_margin is not None and not (0.0 <= self.load_relief_margin < 1.0):
             raise ValueError(f"load_relief_margin must be None (off) or in [0, 1), got {self.load_relief_margin!r}")
+        if self.q_floor_margin is not None and not (isinstance(self.q_floor_margin, (int, float))
+                                                    and math.isfinite(self.q_floor_margin) and self.q_floor_margin >= 0):  # fmt: skip
+            raise ValueError(f"q_floor_margin must be None (off) or a finite fraction >= 0, got {self.q_floor_margin!r}")
         if self.drag_rms is not None and not (isinstance(self.drag_rms, (int, float)) and math.isfinite(self.drag_rms)
                                               and self.drag_rms >= 0 and self.density_bands is not None):  # fmt: skip
             raise ValueError(f"drag_rms must be None (off) or a finite rms >= 0, with density_bands to split the drag "
@@ -528,6 +536,11 @@ class ReplanningGuidance(Law):
             self.relief = LoadRelief(self.model, self.task, s.load_relief_margin, sigmas=s.load_relief_sigmas,
                                      density_bands=s.density_bands, aero_mach_rms=s.aero_mach_rms,
                                      aero_mach_range=s.aero_mach_range)  # fmt: skip
+        self.q_floor = None
+        if self.settings.q_floor_margin is not None:
+            from rventry_env.guidance.q_floor import QFloor
+
+            self.q_floor = QFloor(self.model, self.task, self.settings.q_floor_margin)
         self.reset(1)
 
     def reset(self, n_episodes: int) -> None:
@@ -541,8 +554,9 @@ class ReplanningGuidance(Law):
         self.aimed = [None] * self.n  # the target each episode's planner aims at (None: the task's)
         self.last_replan = np.full(self.n, -np.inf)
         self.logs = [_EpisodeLog() for _ in range(self.n)]
-        if self.relief is not None:
-            self.relief.reset(self.n)
+        for limiter in (self.q_floor, self.relief):
+            if limiter is not None:
+                limiter.reset(self.n)
 
     # ------------------------------------------------------------------ planning
     def _track(self, t_start: float, sol, theta: np.ndarray) -> _Track:
@@ -662,8 +676,9 @@ class ReplanningGuidance(Law):
             u[:, 0] = np.minimum(u[:, 0], alpha_rate_bound(state, self.task, self.model.planet.radius,
                                                            tolerance=math.radians(self.settings.terminal_alpha_deg)))
         rates = np.clip(u / self.u_max, -1.0, 1.0)
-        if self.relief is not None:
-            rates = self.relief(rates, state, m.sensed_accel_b, count=m.flying)
+        for limiter in (self.q_floor, self.relief):
+            if limiter is not None:
+                rates = limiter(rates, state, m.sensed_accel_b, count=m.flying)
         return rates.astype(np.float32)
 
     def episode_stats(self) -> list[dict]:
@@ -682,9 +697,10 @@ class ReplanningGuidance(Law):
                 "replan_failure_events": [list(f) for f in log.failures],
                 "solve_times_s": [round(float(x), 5) for x in t],
             })  # fmt: skip
-        if self.relief is not None:
-            for rec, k in zip(out, self.relief.steps):
-                rec["load_relief_steps"] = int(k)
+        for name, limiter in (("load_relief_steps", self.relief), ("q_floor_steps", self.q_floor)):
+            if limiter is not None:
+                for rec, k in zip(out, limiter.steps):
+                    rec[name] = int(k)
         return out
 
 
