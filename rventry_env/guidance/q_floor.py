@@ -87,15 +87,17 @@ class QFloor:
         y = (*y[:10], np.clip(y[IDX.alpha], 0.0, p.alpha_max), y[11])
         q_min = np.minimum(np.asarray(entry_forces(tuple(x.T), model).dynamic_pressure),
                            np.asarray(entry_forces(y, model).dynamic_pressure))  # fmt: skip
-        climbing = np.asarray(radial_rate(y[5], y[6:10])) > 0.0
-        hold = rhs_with((0.0 * u_alpha, 0.0 * u_sigma))
+        # on with the vehicles still climbing only: the others have passed their apex
+        live = np.nonzero(np.asarray(radial_rate(y[5], y[6:10])) > 0.0)[0]
+        y = tuple(np.asarray(c)[live] for c in y)
+        hold = rhs_with((0.0, 0.0))
         t = dt
-        while t < self.horizon_s and climbing.any():
+        while t < self.horizon_s and live.size:
             y = rk4_step(hold, 0.0, y, self.step_s)
             t += self.step_s
-            q = np.asarray(entry_forces(y, model).dynamic_pressure)
-            q_min = np.where(climbing, np.fmin(q_min, q), q_min)
-            climbing &= np.asarray(radial_rate(y[5], y[6:10])) > 0.0
+            q_min[live] = np.fmin(q_min[live], np.asarray(entry_forces(y, model).dynamic_pressure))
+            still = np.asarray(radial_rate(y[5], y[6:10])) > 0.0
+            live, y = live[still], tuple(c[still] for c in y)
         return q_min
 
     def __call__(self, rates, state, sensed_accel_b, count=None) -> np.ndarray:
@@ -120,27 +122,28 @@ class QFloor:
         if watched.size == 0:
             return rates
         p = self.task.problem
-        m = len(watched)
-        law = rates[watched]
-        ua = np.concatenate([law[:, 0] if a is None else np.full(m, a) for a, _ in CANDIDATES])
-        us = np.concatenate([law[:, 1] if b is None else np.full(m, b) for _, b in CANDIDATES])
-        xs = np.tile(x[watched], (len(CANDIDATES), 1))
-        with np.errstate(all="ignore"):
-            apex = self.apex_q(xs, ua * p.u_alpha_max, us * p.u_sigma_max).reshape(len(CANDIDATES), m) * calib[watched]
-        apex = np.where(np.isfinite(apex), apex, -np.inf)
-        low = apex[0] < self.floor_pa
+        with np.errstate(all="ignore"):  # first the law's own rates: most watched vehicles keep the floor with them
+            own = self.apex_q(x[watched], rates[watched, 0] * p.u_alpha_max, rates[watched, 1] * p.u_sigma_max)
+        own = np.where(np.isfinite(own), own * calib[watched], -np.inf)
+        low = own < self.floor_pa
         if not low.any():
             return rates
+        idx = watched[low]
+        m = len(idx)
+        law = rates[idx]
+        alts = CANDIDATES[1:]
+        ua = np.concatenate([law[:, 0] if a is None else np.full(m, a) for a, _ in alts])
+        us = np.concatenate([law[:, 1] if b is None else np.full(m, b) for _, b in alts])
+        with np.errstate(all="ignore"):
+            apex = self.apex_q(np.tile(x[idx], (len(alts), 1)), ua * p.u_alpha_max, us * p.u_sigma_max)
+        apex = np.where(np.isfinite(apex), apex, -np.inf).reshape(len(alts), m) * calib[idx]
         # the least change that keeps the floor: the bank first (the rate nearest the law's), then alpha down as
         # well; where nothing keeps it, the candidate that reaches the highest apex q
-        cand_a, cand_s = ua.reshape(len(CANDIDATES), m), us.reshape(len(CANDIDATES), m)
+        cand_a, cand_s = ua.reshape(len(alts), m), us.reshape(len(alts), m)
         change = np.abs(cand_s - law[:, 1]) + 4.0 * (cand_a != law[:, 0])  # alpha's change ranks after any bank's
         change = np.where(apex >= self.floor_pa, change, np.inf)
-        change[0] = np.inf  # the law's own rates fall short
-        best = np.where(np.isfinite(change.min(axis=0)), np.argmin(change, axis=0), 1 + np.argmax(apex[1:], axis=0))
-        pick = best[low]
-        idx = watched[low]
-        cols = np.nonzero(low)[0]
+        pick = np.where(np.isfinite(change.min(axis=0)), np.argmin(change, axis=0), np.argmax(apex, axis=0))
+        cols = np.arange(m)
         rates[idx, 0] = cand_a[pick, cols]
         rates[idx, 1] = cand_s[pick, cols]
         self.active[idx] = True
