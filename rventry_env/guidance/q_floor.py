@@ -58,7 +58,7 @@ class QFloor:
     """
 
     def __init__(self, model: EntryModel | None = None, task: EntryTask | None = None, margin: float = 0.02,
-                 horizon_s: float = 90.0, step_s: float = 2.0, watch: float = 1.5):  # fmt: skip
+                 horizon_s: float = 90.0, step_s: float = 10.0, watch: float = 1.5):  # fmt: skip
         for name, v, ok in (("margin", margin, margin >= 0), ("horizon_s", horizon_s, horizon_s > 0),
                             ("step_s", step_s, step_s > 0), ("watch", watch, watch >= 1)):  # fmt: skip
             if not (np.isfinite(v) and ok):
