@@ -77,16 +77,49 @@ def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNam
 NUMPY = _array_namespace(np, "numpy", float_dtype=np.float64, known=bool, while_loop=_py_while, when=_py_when)
 
 
-# Plain Python floats: one vehicle stepped without NumPy's per-call overhead.
+# Plain Python floats: one vehicle stepped without NumPy's per-call overhead. The transcendental
+# functions are NumPy's, called on the float: on a CPU where NumPy dispatches them to SIMD kernels
+# (AVX-512: exp, log, tanh, atan2 and others differ from the C library's by an ulp in a few per
+# cent of arguments) the C library's would part the float path from the array path, which the
+# vector env's copies take interchangeably. Outside each function's finite range the C library's
+# is called instead, so that an overflow raises as before (the float path reports it as a
+# non-finite state) rather than warn.
+_np_exp, _np_log, _np_sin, _np_cos, _np_tanh, _np_atan2 = np.exp, np.log, np.sin, np.cos, np.tanh, np.arctan2
+
+
+def _exp(x):
+    return float(_np_exp(x)) if x < 709.0 else math.exp(x)
+
+
+def _log(x):
+    return float(_np_log(x)) if x > 0.0 else math.log(x)
+
+
+def _sin(x):
+    return float(_np_sin(x)) if math.isfinite(x) else math.sin(x)
+
+
+def _cos(x):
+    return float(_np_cos(x)) if math.isfinite(x) else math.cos(x)
+
+
+def _tanh(x):
+    return float(_np_tanh(x))
+
+
+def _atan2(y, x):
+    return float(_np_atan2(y, x))
+
+
 MATH = SimpleNamespace(
     name="math",
-    sqrt=math.sqrt,
-    exp=math.exp,
-    log=math.log,
-    sin=math.sin,
-    cos=math.cos,
-    tanh=math.tanh,
-    arctan2=math.atan2,
+    sqrt=math.sqrt,  # correctly rounded in both
+    exp=_exp,
+    log=_log,
+    sin=_sin,
+    cos=_cos,
+    tanh=_tanh,
+    arctan2=_atan2,
     fabs=abs,
     fmax=max,
     fmin=min,
