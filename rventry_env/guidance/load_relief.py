@@ -47,7 +47,45 @@ from rventry_env.physics.uncertainty import MachVaryingAerodynamics
 SEARCH_BITS = 4  # halvings per vectorized evaluation: 15 trial rates per vehicle
 
 
-class LoadRelief:
+class RateLimiter:
+    """What a limiter of a law's rates shares (:class:`LoadRelief`, :class:`~rventry_env.guidance.q_floor.QFloor`):
+    its model and task, :attr:`active` (N,), the vehicles it changed in the last call, :attr:`steps`
+    (N,), the steps it changed each vehicle's rates since :meth:`reset`, and the checks of a call's
+    inputs. ``who`` names it in an error."""
+
+    who = "a rate limiter"
+
+    def __init__(self, model: EntryModel | None, task: EntryTask | None):
+        self.model = EntryModel() if model is None else model
+        self.task = EntryTask() if task is None else task
+        self.reset(0)
+
+    def reset(self, n: int) -> None:
+        self.active = np.zeros(n, dtype=bool)
+        self.steps = np.zeros(n, dtype=np.int64)
+
+    def _inputs(self, rates, state, sensed_accel_b) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A call's rates (a copy, N x 2), navigation states (N, 12) and sensed acceleration (N, 3) as
+        float arrays, checked; a batch of another size starts the counts again."""
+        if sensed_accel_b is None:
+            raise ValueError(f"{self.who} needs the sensed acceleration (info['sensed_accel_b'])")
+        rates = np.array(rates, dtype=float)
+        x = np.asarray(state, dtype=float)
+        sensed = np.asarray(sensed_accel_b, dtype=float)
+        if rates.shape != (len(x), 2) or x.shape[1:] != (12,) or sensed.shape != (len(x), 3):
+            raise ValueError(f"{self.who} needs rates (N, 2), state (N, 12) and sensed acceleration (N, 3), got "
+                             f"{rates.shape}, {x.shape} and {sensed.shape}")  # fmt: skip
+        if len(self.steps) != len(x):
+            self.reset(len(x))
+        return rates, x, sensed
+
+    def _count(self, count) -> None:
+        """Add this call's :attr:`active` to :attr:`steps`; ``count`` (N,) bool, when given, the
+        vehicles counted (a caller leaves out the frozen copies of ended episodes)."""
+        self.steps += self.active if count is None else self.active & np.asarray(count, dtype=bool)
+
+
+class LoadRelief(RateLimiter):
     """Caps the alpha rate of a batch of vehicles so that the predicted load factor stays at or
     below ``a_max (1 - margin)``.
 
@@ -62,6 +100,8 @@ class LoadRelief:
     After each call, :attr:`active` (N,) says which vehicles were capped, and :attr:`steps`
     (N,) counts the capped steps of each vehicle since :meth:`reset`.
     """
+
+    who = "load relief"
 
     def __init__(self, model: EntryModel | None = None, task: EntryTask | None = None, margin: float = 0.01,
                  iterations: int = 14, sigmas: float = 0.0, density_bands: tuple | None = None,
@@ -83,17 +123,10 @@ class LoadRelief:
             density_bands = parse_bands(density_bands, "load relief density_bands")
         self.sigmas, self.density_bands = float(sigmas), density_bands
         self.aero_mach_rms, self.aero_mach_range = aero_mach_rms, tuple(aero_mach_range)
-        self.model = EntryModel() if model is None else model
-        self.task = EntryTask() if task is None else task
+        super().__init__(model, task)
         self.margin = float(margin)
         self.iterations = int(iterations)
         self.limit_g = self.task.problem.a_max_g * (1.0 - self.margin)
-        self.active = np.zeros(0, dtype=bool)
-        self.steps = np.zeros(0, dtype=np.int64)
-
-    def reset(self, n: int) -> None:
-        self.active = np.zeros(n, dtype=bool)
-        self.steps = np.zeros(n, dtype=np.int64)
 
     def _loads(self, x: np.ndarray, u_alpha: np.ndarray, u_sigma: np.ndarray):
         """The model's load factor (g) now and one control step ahead with the given rates (rad/s),
@@ -127,23 +160,14 @@ class LoadRelief:
         """The rates (N, 2), fractions of their bounds, with the alpha rate capped where needed.
         ``count`` (N,) bool: which vehicles' capped steps :attr:`steps` counts (default all; a
         caller leaves out the frozen copies of ended episodes)."""
-        if sensed_accel_b is None:
-            raise ValueError("load relief needs the sensed acceleration (info['sensed_accel_b'])")
-        rates = np.array(rates, dtype=float)
-        x = np.asarray(state, dtype=float)
-        sensed = np.asarray(sensed_accel_b, dtype=float)
-        if rates.shape != (len(x), 2) or x.shape[1:] != (12,) or sensed.shape != (len(x), 3):
-            raise ValueError(f"load relief needs rates (N, 2), state (N, 12) and sensed acceleration (N, 3), got "
-                             f"{rates.shape}, {x.shape} and {sensed.shape}")  # fmt: skip
-        if len(self.steps) != len(x):
-            self.reset(len(x))
+        rates, x, sensed = self._inputs(rates, state, sensed_accel_b)
         p = self.task.problem
         n_now, n_ahead, x_ahead, limit = self._loads(x, rates[:, 0] * p.u_alpha_max, rates[:, 1] * p.u_sigma_max)
         calib = np.linalg.norm(sensed, axis=1) / self.model.planet.g0 / np.maximum(n_now, 1e-9)
         over = calib * n_ahead > limit
         self.active = over
         if np.any(over):
-            self.steps += over if count is None else over & np.asarray(count, dtype=bool)
+            self._count(count)
             xs, k, alpha0, lim = x_ahead[over], calib[over], x[over, IDX.alpha], limit[over, None]
             lo = np.full(len(xs), -1.0)  # the full down-rate: taken when no rate meets the limit
             hi = rates[over, 0]  # over the limit
@@ -161,4 +185,4 @@ class LoadRelief:
         return rates
 
 
-__all__ = ["LoadRelief"]
+__all__ = ["RateLimiter", "LoadRelief"]

@@ -18,13 +18,13 @@ predicts the flight to the apex:
 Where the least q before the apex falls below ``q_min (1 + margin)``, the rates are replaced by the
 least change that keeps the floor, predicted the same way: the bank held, or rolled at half or
 full rate either way (the lift away from the vertical: the climb ends lower, in denser air), the
-one nearest the law's bank rate (the running cost charges the bank rate squared); where no bank rate keeps it, alpha down at its full rate as well
-(less lift, and less drag to slow the vehicle on the way up); where nothing keeps it, whatever
-reaches the highest apex q. The next step asks again with the law's own rates, so the law has its
-angles back as soon as its own command would keep the floor. A first version knew only the two
-full bank rates and flipped between them every step at the bank that keeps the lift furthest
-down: holding the bank is a candidate for that reason. It sees only what a vehicle measures: the navigation state and the
-sensed acceleration.
+one nearest the law's bank rate (the running cost charges the bank rate squared); where no bank
+rate keeps it, alpha down at its full rate as well (less lift, and less drag to slow the vehicle
+on the way up); where nothing keeps it, whatever reaches the highest apex q. The next step asks
+again with the law's own rates, so the law has its angles back as soon as its own command would
+keep the floor. A first version knew only the two full bank rates and flipped between them every
+step at the bank that keeps the lift furthest down: holding the bank is a candidate for that
+reason. It sees only what a vehicle measures: the navigation state and the sensed acceleration.
 """
 
 from __future__ import annotations
@@ -33,46 +33,42 @@ import numpy as np
 
 from rventry_env.core.eom import radial_rate
 from rventry_env.core.integrate import rk4_step
+from rventry_env.guidance.load_relief import RateLimiter
 from rventry_env.physics import EntryModel
 from rventry_env.physics.entry import IDX, entry_forces, entry_rhs
 from rventry_env.task import EntryTask
 
 
-# (alpha rate, bank rate) of each candidate, fractions of their bounds: None keeps the law's. The law's own rates
-# first; then its alpha rate with the bank held, or rolled at half or full rate either way; then alpha down at its
-# full rate with the bank held or rolled at full rate either way
-CANDIDATES = ((None, None), (None, 0.0), (None, -0.5), (None, 0.5), (None, -1.0), (None, 1.0), (-1.0, 0.0),
-              (-1.0, -1.0), (-1.0, 1.0))  # fmt: skip
+# (alpha rate, bank rate) of each candidate tried where the law's own rates fall short, fractions of their bounds
+# (None keeps the law's): its alpha rate with the bank held, or rolled at half or full rate either way; then alpha
+# down at its full rate with the bank held or rolled at full rate either way
+CANDIDATES = ((None, 0.0), (None, -0.5), (None, 0.5), (None, -1.0), (None, 1.0), (-1.0, 0.0), (-1.0, -1.0),
+              (-1.0, 1.0))  # fmt: skip
 
 
-class QFloor:
-    """Replaces the bank rate of the vehicles whose predicted apex would take q below ``q_min (1 + margin)``.
+class QFloor(RateLimiter):
+    """Replaces the rates of the vehicles whose predicted apex would take q below ``q_min (1 + margin)``.
 
     :param margin: fraction of q_min kept free above it (>= 0).
     :param horizon_s: how far ahead the apex is looked for (s).
     :param step_s: the prediction's RK4 step (s).
     :param watch: vehicles are checked while climbing with their sensed q below ``watch`` times the floor.
 
-    After each call, :attr:`active` (N,) says which vehicles had their bank rate replaced, and
+    After each call, :attr:`active` (N,) says which vehicles had their rates replaced, and
     :attr:`steps` (N,) counts the replaced steps of each vehicle since :meth:`reset`.
     """
 
+    who = "the q floor"
+
     def __init__(self, model: EntryModel | None = None, task: EntryTask | None = None, margin: float = 0.02,
                  horizon_s: float = 90.0, step_s: float = 10.0, watch: float = 1.5):  # fmt: skip
-        for name, v, ok in (("margin", margin, margin >= 0), ("horizon_s", horizon_s, horizon_s > 0),
-                            ("step_s", step_s, step_s > 0), ("watch", watch, watch >= 1)):  # fmt: skip
+        for name, v, ok, need in (("margin", margin, margin >= 0, ">= 0"), ("horizon_s", horizon_s, horizon_s > 0, "> 0"),
+                                  ("step_s", step_s, step_s > 0, "> 0"), ("watch", watch, watch >= 1, ">= 1")):  # fmt: skip
             if not (np.isfinite(v) and ok):
-                raise ValueError(f"q floor {name} must be a finite number {'>= 1' if name == 'watch' else '>= 0' if name == 'margin' else '> 0'}, got {v!r}")
-        self.model = EntryModel() if model is None else model
-        self.task = EntryTask() if task is None else task
+                raise ValueError(f"q floor {name} must be a finite number {need}, got {v!r}")
+        super().__init__(model, task)
         self.margin, self.horizon_s, self.step_s, self.watch = float(margin), float(horizon_s), float(step_s), float(watch)
         self.floor_pa = self.task.problem.q_min * (1.0 + self.margin)
-        self.active = np.zeros(0, dtype=bool)
-        self.steps = np.zeros(0, dtype=np.int64)
-
-    def reset(self, n: int) -> None:
-        self.active = np.zeros(n, dtype=bool)
-        self.steps = np.zeros(n, dtype=np.int64)
 
     def apex_q(self, x: np.ndarray, u_alpha: np.ndarray, u_sigma: np.ndarray) -> np.ndarray:
         """The model's least dynamic pressure (Pa) from now to the apex (N,): one control step with
@@ -101,18 +97,9 @@ class QFloor:
         return q_min
 
     def __call__(self, rates, state, sensed_accel_b, count=None) -> np.ndarray:
-        """The rates (N, 2), fractions of their bounds, with the bank rate replaced where needed.
+        """The rates (N, 2), fractions of their bounds, replaced where the apex would pass under the floor.
         ``count`` (N,) bool: which vehicles' replaced steps :attr:`steps` counts (default all)."""
-        if sensed_accel_b is None:
-            raise ValueError("the q floor needs the sensed acceleration (info['sensed_accel_b'])")
-        rates = np.array(rates, dtype=float)
-        x = np.asarray(state, dtype=float)
-        sensed = np.asarray(sensed_accel_b, dtype=float)
-        if rates.shape != (len(x), 2) or x.shape[1:] != (12,) or sensed.shape != (len(x), 3):
-            raise ValueError(f"the q floor needs rates (N, 2), state (N, 12) and sensed acceleration (N, 3), got "
-                             f"{rates.shape}, {x.shape} and {sensed.shape}")  # fmt: skip
-        if len(self.steps) != len(x):
-            self.reset(len(x))
+        rates, x, sensed = self._inputs(rates, state, sensed_accel_b)
         self.active = np.zeros(len(x), dtype=bool)
         f = entry_forces(tuple(x.T), self.model)
         calib = np.linalg.norm(sensed, axis=1) / np.maximum(np.asarray(f.aero_accel), 1e-12)
@@ -131,15 +118,15 @@ class QFloor:
         idx = watched[low]
         m = len(idx)
         law = rates[idx]
-        alts = CANDIDATES[1:]
-        ua = np.concatenate([law[:, 0] if a is None else np.full(m, a) for a, _ in alts])
-        us = np.concatenate([law[:, 1] if b is None else np.full(m, b) for _, b in alts])
+        k = len(CANDIDATES)
+        ua = np.concatenate([law[:, 0] if a is None else np.full(m, a) for a, _ in CANDIDATES])
+        us = np.concatenate([law[:, 1] if b is None else np.full(m, b) for _, b in CANDIDATES])
         with np.errstate(all="ignore"):
-            apex = self.apex_q(np.tile(x[idx], (len(alts), 1)), ua * p.u_alpha_max, us * p.u_sigma_max)
-        apex = np.where(np.isfinite(apex), apex, -np.inf).reshape(len(alts), m) * calib[idx]
+            apex = self.apex_q(np.tile(x[idx], (k, 1)), ua * p.u_alpha_max, us * p.u_sigma_max)
+        apex = np.where(np.isfinite(apex), apex, -np.inf).reshape(k, m) * calib[idx]
         # the least change that keeps the floor: the bank first (the rate nearest the law's), then alpha down as
         # well; where nothing keeps it, the candidate that reaches the highest apex q
-        cand_a, cand_s = ua.reshape(len(alts), m), us.reshape(len(alts), m)
+        cand_a, cand_s = ua.reshape(k, m), us.reshape(k, m)
         change = np.abs(cand_s - law[:, 1]) + 4.0 * (cand_a != law[:, 0])  # alpha's change ranks after any bank's
         change = np.where(apex >= self.floor_pa, change, np.inf)
         pick = np.where(np.isfinite(change.min(axis=0)), np.argmin(change, axis=0), np.argmax(apex, axis=0))
@@ -147,7 +134,7 @@ class QFloor:
         rates[idx, 0] = cand_a[pick, cols]
         rates[idx, 1] = cand_s[pick, cols]
         self.active[idx] = True
-        self.steps += self.active if count is None else self.active & np.asarray(count, dtype=bool)
+        self._count(count)
         return rates
 
 
