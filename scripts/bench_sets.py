@@ -83,10 +83,10 @@ def effect_sets() -> dict:
     from rventry_env.evaluation.oracle import perfect_sensing
     from rventry_env.task import FLIGHT_ERRORS as F
     from rventry_env.task import Dispersion, FlightErrors
+    from rventry_env.task.flight import SENSING_FIELDS
 
     flight = Dispersion.parse("flight")
-    sensing = {k: getattr(F, k) for k in ("accel_bias_mps2", "accel_scale", "accel_misalignment_rad",
-                                          "accel_noise_mps2", "nav_position_m", "nav_velocity_mps")}  # fmt: skip
+    sensing = {k: getattr(F, k) for k in SENSING_FIELDS}
     return {
         "entry state, C_L/C_D, mass": dataclasses.replace(flight, flight=None),
         "NRLMSIS climatology": Dispersion(flight=FlightErrors(climatology=True)),

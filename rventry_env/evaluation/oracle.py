@@ -157,13 +157,12 @@ def perfect_sensing(dispersion):
     import dataclasses
 
     from rventry_env.task import Dispersion
+    from rventry_env.task.flight import SENSING_FIELDS
 
     d = Dispersion.parse(dispersion)
     if d.flight is None:
         return d
-    zero = {k: 0.0 for k in ("accel_bias_mps2", "accel_scale", "accel_misalignment_rad", "accel_noise_mps2",
-                             "nav_position_m", "nav_velocity_mps")}  # fmt: skip
-    return dataclasses.replace(d, flight=dataclasses.replace(d.flight, **zero))
+    return dataclasses.replace(d, flight=dataclasses.replace(d.flight, **{k: 0.0 for k in SENSING_FIELDS}))
 
 
 def oracle_draw(dispersion, seed: int, task: EntryTask, settings: OracleSettings) -> dict:

@@ -56,6 +56,11 @@ def parse_bands(value, what: str) -> tuple:
     return bands
 
 
+# the fields of FlightErrors that make the vehicle's sensors and navigation err (the rest is the truth's)
+SENSING_FIELDS = ("accel_bias_mps2", "accel_scale", "accel_misalignment_rad", "accel_noise_mps2", "nav_position_m",
+                  "nav_velocity_mps")  # fmt: skip
+
+
 @dataclass(frozen=True)
 class FlightErrors:
     """Magnitudes (1 sigma) of the flight-grade errors; every default is zero (off).
@@ -133,8 +138,7 @@ class FlightErrors:
 
     @property
     def has_sensing(self) -> bool:
-        return any(getattr(self, n) > 0 for n in ("accel_bias_mps2", "accel_scale", "accel_misalignment_rad",
-                                                  "accel_noise_mps2", "nav_position_m", "nav_velocity_mps"))  # fmt: skip
+        return any(getattr(self, n) > 0 for n in SENSING_FIELDS)
 
     def describe(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -296,6 +300,7 @@ def draw_flight(rng: np.random.Generator, flight: FlightErrors, problem) -> dict
 
 
 __all__ = [
+    "SENSING_FIELDS",
     "GRID_START_M",
     "GRID_STEP_M",
     "GRID_POINTS",
