@@ -159,14 +159,24 @@ class ActorCommands:
         return self.policy.action_net(latent) * self._out_scale + self._out_mean
 
 
-def load_start(start: str, task) -> LearnedGuidance:
-    """The student PPO starts from: an agent name (``dagger``) or a DAgger run's directory."""
+def load_start(start: str, task, q_floor_margin: float | None = None) -> LearnedGuidance:
+    """The student PPO starts from: an agent name (``dagger``) or a DAgger run's directory.
+
+    :param q_floor_margin: when given, the student's law flies a q floor of this margin in
+        training (the student's own, if any, is replaced): PPO then learns the policy that the
+        floor completes, and the fine-tuned policy flies the same floor (``policy.json``).
+    """
     from rventry_env.evaluation.agents import load_agent
+    from rventry_env.guidance.q_floor import QFloor
 
     law = load_agent(start, task)
     if not isinstance(law, LearnedGuidance):
         raise ValueError(f"PPO fine-tuning starts from an imitation student (the agent 'dagger' or a DAgger run), "
                          f"not {start!r} ({type(law).__name__})")  # fmt: skip
+    if q_floor_margin is not None:
+        margin = QFloor(task=task, margin=q_floor_margin).margin  # a bad margin fails here, naming itself
+        law = LearnedGuidance(law.network, task=task, horizon=law.horizon, load_relief_margin=law.load_relief_margin,
+                              q_floor_margin=margin)  # fmt: skip
     return law
 
 

@@ -349,7 +349,7 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
     if mode == "student":  # the starting point is checked before anything is written
         from rventry_agents.finetune import StudentScales, load_start, student_spec
 
-        law = load_start(cfg["policy"]["start"], task)
+        law = load_start(cfg["policy"]["start"], task, cfg["policy"].get("q_floor_margin"))
         student = (law, StudentScales.of(law.network))
         spec = student_spec(law, student[1], cfg["policy"]["start"])
         kwargs["net_arch"] = {"pi": list(law.network.hidden), "vf": kwargs["net_arch"]["vf"]}

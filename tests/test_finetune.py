@@ -72,3 +72,25 @@ def test_fine_tuning_refuses_a_start_that_is_not_a_student(tmp_path):
     with pytest.raises(ValueError, match="starts from an imitation student .* not 'lqr'"):
         train_sb3("ppo", cfg, out=tmp_path / "run", progress_bar=False)
     assert not (tmp_path / "run").exists()  # refused before anything was written
+
+
+@pytest.mark.slow
+def test_a_q_floor_in_the_config_is_flown_in_training_and_by_the_trained_policy(tmp_path):
+    cfg = _small(512, 512)
+    cfg["policy"]["q_floor_margin"] = 0.08
+    out = train_sb3("ppo", cfg, out=tmp_path / "run", progress_bar=False)
+    spec = json.loads((out / "policy.json").read_text())["student"]
+    assert spec["q_floor_margin"] == 0.08
+    # the actor never left the student (all warm-up): the policy is the student flying the floor
+    law = load_agent(str(out / "final_model.zip"))
+    assert law.provenance["q_floor_margin"] == 0.08
+    b = rollout(law, seeds=[11], dispersion="wide")
+    assert sorted(b.law_stats[0]) == ["load_relief_steps", "q_floor_steps"]
+
+
+def test_fine_tuning_refuses_a_bad_q_floor_margin_before_writing(tmp_path):
+    cfg = _small(512, 0)
+    cfg["policy"]["q_floor_margin"] = -0.05
+    with pytest.raises(ValueError, match="margin"):
+        train_sb3("ppo", cfg, out=tmp_path / "run", progress_bar=False)
+    assert not (tmp_path / "run").exists()
