@@ -11,6 +11,8 @@ policy then flies by (``student.q_floor_margin``, ``student.q_floor_selection``)
 Run: ``python scripts/choose_q_floor.py rventry_agents/data/ppo_finetune [--margins 0.02 0.05 0.08]
 [--sets flight wide] [--episodes 200] [--seed 100000] [--write] --json out/q_floor.json``, or
 ``python scripts/choose_q_floor.py RUN --record out/q_floor.json`` to record an earlier run's choice.
+In place of a run, a student's agent name (``dagger-flight``) flies that student with each floor: the
+start a fine-tuned policy is measured against with its limiters equal (nothing is written to it).
 """
 
 from __future__ import annotations
@@ -23,7 +25,8 @@ from pathlib import Path
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("run", help="a run directory with policy.json and model.zip (a policy fine-tuned from a student)")
+    ap.add_argument("run", help="a run directory with policy.json and model.zip (a policy fine-tuned from a student), "
+                                "or a student's agent name (dagger-flight) to measure the start with each floor")
     ap.add_argument("--margins", type=float, nargs="+", default=[0.02, 0.05, 0.08])
     ap.add_argument("--sets", nargs="+", default=["flight", "wide"])
     ap.add_argument("--episodes", type=int, default=200)
@@ -33,6 +36,8 @@ def main():
                                                      "in the run's policy.json, without flying again")
     ap.add_argument("--json", help="write the candidates' figures here")
     args = ap.parse_args()
+    if (args.write or args.record) and not Path(args.run).is_dir():
+        raise SystemExit(f"--write and --record record a choice in a run directory's policy.json; {args.run!r} is not one")
     if args.record:
         return record_choice(Path(args.run), json.loads(Path(args.record).read_text()))
     if not args.json:
@@ -46,10 +51,22 @@ def main():
     from rventry_env.util.files import check_writable, write_json
 
     run = Path(args.run)
-    spec_path = run / "policy.json"
-    spec = json.loads(spec_path.read_text())
-    if spec.get("mode") != "student":
-        raise SystemExit(f"{spec_path}: a q floor is chosen for a policy fine-tuned from a student (mode 'student')")
+    if run.is_dir():
+        spec_path = run / "policy.json"
+        spec = json.loads(spec_path.read_text())
+        if spec.get("mode") != "student":
+            raise SystemExit(f"{spec_path}: a q floor is chosen for a policy fine-tuned from a student (mode 'student')")
+
+        def flown(margin):
+            return SB3Policy(run).with_q_floor(margin)
+    else:  # an imitation student by name: what its fine-tuned policies are measured against
+        from rventry_agents.finetune import load_start
+        from rventry_env.task import EntryTask
+
+        def flown(margin):
+            return load_start(args.run, EntryTask(), margin)
+
+        flown(None)  # not a student: fails here, naming it
     for m in args.margins:
         QFloor(margin=m)  # a bad margin fails here
     check_writable(args.json)
@@ -61,7 +78,7 @@ def main():
         job = bar.add_task("q floor candidates", total=len(candidates) * len(args.sets))
         for m in candidates:
             label = "none" if m is None else f"{m:g}"
-            policy = SB3Policy(run).with_q_floor(m)
+            policy = flown(m)
             table[label] = {}
             for s in args.sets:
                 b = rollout(policy, seeds=seeds, dispersion=s)

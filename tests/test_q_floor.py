@@ -157,3 +157,27 @@ def test_a_dagger_config_that_names_a_q_floor_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"\[student\] q_floor_margin: the DAgger rounds fly no q floor"):
         train_dagger(cfg, tmp_path / "out", workers=1, progress_bar=False)
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+def test_choose_q_floor_measures_a_student_by_name_and_records_only_in_a_run(tmp_path, monkeypatch):
+    import sys
+
+    from script_modules import load_script
+
+    script = load_script("choose_q_floor")
+    out = tmp_path / "q.json"
+    monkeypatch.setattr(sys, "argv", ["choose_q_floor.py", "dagger-flight", "--write", "--json", str(out)])
+    with pytest.raises(SystemExit, match="'dagger-flight' is not one"):
+        script.main()
+    monkeypatch.setattr(sys, "argv", ["choose_q_floor.py", "lqr", "--margins", "0.08", "--sets", "standard",
+                                      "--episodes", "1", "--json", str(out)])  # fmt: skip
+    with pytest.raises(ValueError, match="imitation student"):
+        script.main()
+    assert not out.exists()
+    monkeypatch.setattr(sys, "argv", ["choose_q_floor.py", "dagger-flight", "--margins", "0.08", "--sets", "wide",
+                                      "--episodes", "2", "--seed", "11", "--json", str(out)])  # fmt: skip
+    script.main()
+    import json
+
+    rec = json.loads(out.read_text())
+    assert rec["run"] == "dagger-flight" and set(rec["success"]) == {"none", "0.08"}
