@@ -80,9 +80,8 @@ class StudentVecEnv(VecEnvWrapper):
         self._f = None
 
     def _measure(self, obs: np.ndarray) -> Measurement:
-        inner = self.venv.venv
         info = self.venv.last_infos
-        return Measurement.of(obs, info["time_s"], inner.state, info["sensed_accel_b"])
+        return Measurement.of(obs, info["time_s"], self.venv.navigation_state, info["sensed_accel_b"])
 
     def reset(self):
         obs = self.venv.reset()
@@ -91,7 +90,7 @@ class StudentVecEnv(VecEnvWrapper):
         return self.scales.inputs(self._f)
 
     def step_async(self, actions: np.ndarray) -> None:
-        state = self.venv.venv.state
+        state = self.venv.navigation_state  # what the law flies by in evaluation, never the truth
         info = self.venv.last_infos
         rates = tracking_rates(self.scales.commands(actions).astype(float), state, self.law.task,
                                self.law.horizon.seconds(state, self.law.radius, self.law.task.dt))  # fmt: skip

@@ -151,7 +151,7 @@ class ResidualVecEnv(VecEnvWrapper):
         return self.guidance.schedule.augment(self._obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self.venv.step_async(self.guidance.actions(self._obs, self.venv.venv.state, actions))
+        self.venv.step_async(self.guidance.actions(self._obs, self.venv.navigation_state, actions))
 
     def step_wait(self):
         obs, reward, dones, infos = self.venv.step_wait()

@@ -57,6 +57,12 @@ class RvEntrySB3VecEnv(VecEnv):
         self.reset_infos = [{} for _ in range(self.num_envs)]
         return obs
 
+    @property
+    def navigation_state(self) -> np.ndarray:
+        """(N, 12): where each vehicle's navigation puts it after the latest reset or step (the truth
+        on sets without navigation errors): the state a guidance law is handed, as in evaluation."""
+        return self.last_infos["navigation_state"]
+
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.asarray(actions)
 

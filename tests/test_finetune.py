@@ -94,3 +94,30 @@ def test_fine_tuning_refuses_a_bad_q_floor_margin_before_writing(tmp_path):
     with pytest.raises(ValueError, match="margin"):
         train_sb3("ppo", cfg, out=tmp_path / "run", progress_bar=False)
     assert not (tmp_path / "run").exists()
+
+
+def test_the_fine_tuning_env_hands_the_law_the_navigation_state_as_evaluation_does():
+    """On `flight` the vehicle's navigation errs; PPO must train on what the law flies by in
+    evaluation (rollout hands it info["navigation_state"]), never on the truth."""
+    from rventry_agents.finetune import StudentScales, StudentVecEnv, load_start
+    from rventry_agents.train import make_task, make_vec_env
+
+    cfg = _small(512, 0)
+    assert cfg["env"]["dispersion"] == "flight"
+    task = make_task(cfg, None)
+    law = load_start(START, task)
+    seen = []
+    observe = law.tracker.estimator.observe
+    law.tracker.estimator.observe = lambda m: (seen.append(m.navigation_state.copy()), observe(m))[1]
+    venv = make_vec_env(cfg, task, student=(law, StudentScales.of(law.network)))
+    student = venv
+    while not isinstance(student, StudentVecEnv):
+        student = student.venv
+    venv.seed(5)
+    venv.reset()
+    for _ in range(30):
+        venv.step(np.zeros((venv.num_envs, 3), np.float32))
+    inner = student.venv
+    np.testing.assert_array_equal(seen[-1], inner.last_infos["navigation_state"])
+    altitude_error = np.abs(seen[-1][:, 0] - inner.venv.state[:, 0])
+    assert np.all(altitude_error > 1.0)  # the navigation is off the truth, and the law saw the navigation
