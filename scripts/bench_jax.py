@@ -93,22 +93,18 @@ def numpy_substeps_speed(n: int, rounds: int = 3, steps: int = 10) -> dict:
 
 
 def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: str = "standard",
-                     parts: bool = False, compiler_options: dict | None = None, keep_state: bool = False,
-                     **env_kwargs) -> dict:  # fmt: skip
+                     parts: bool = False) -> dict:  # fmt: skip
     """Vehicle-steps/s of the functional env: lax.scan over vmap-ed gymnax steps (autoreset), all compiled.
 
     With ``parts``, also the same scan over ``step_env`` alone (no autoreset) and over ``reset_env``
     alone (the reset that gymnax's autoreset draws for every vehicle at every step): where the time goes.
-    ``compiler_options`` go to ``jax.jit`` (XLA debug options); with ``keep_state`` the result holds
-    the timed run's final state (``"state"``) and rewards (``"rewards"``), for comparing variants.
-    ``env_kwargs`` go to :class:`RvEntryFunctional`.
     """
     import jax
     import jax.numpy as jnp
 
     from rventry_env.envs.functional import RvEntryFunctional
 
-    env = RvEntryFunctional(dispersion=dispersion, dtype=dtype, substeps=substeps, **env_kwargs)
+    env = RvEntryFunctional(dispersion=dispersion, dtype=dtype, substeps=substeps)
     p = env.default_params
     obs, st = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(0), n), p)
     a = jnp.tile(jnp.array([0.0, 0.02]), (n, 1))
@@ -126,26 +122,19 @@ def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: 
         # every output summed, so that XLA cannot drop the parts of the reset nothing reads
         return s, sum(jnp.sum(jnp.asarray(x, jnp.float32)) for x in jax.tree.leaves((o, s2)))
 
-    final = {}
-
     def rate(body):
-        roll = jax.jit(lambda s, k: jax.lax.scan(body, s, jax.random.split(k, steps)),
-                       compiler_options=compiler_options or None)  # fmt: skip
+        roll = jax.jit(lambda s, k: jax.lax.scan(body, s, jax.random.split(k, steps)))
         t0 = time.perf_counter()
         _, r = roll(st, jax.random.PRNGKey(1))
         jax.block_until_ready(r)
         first = time.perf_counter() - t0
         t0 = time.perf_counter()
-        s, r = roll(st, jax.random.PRNGKey(2))
+        _, r = roll(st, jax.random.PRNGKey(2))
         jax.block_until_ready(r)
-        final.setdefault("state", s)
-        final.setdefault("rewards", r)
         return n * steps / (time.perf_counter() - t0), first
 
     out = {"dtype": dtype, "dispersion": dispersion, "num_envs": n, "steps": steps}
     out["vehicle_steps_per_s"], out["first_call_s"] = rate(step)
-    if keep_state:
-        out.update(final)
     if parts:
         out["step_env_only_per_s"], _ = rate(step_env)
         out["reset_env_only_per_s"], _ = rate(reset_env)

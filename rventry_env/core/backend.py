@@ -17,11 +17,7 @@ source serves eager NumPy and traced JAX:
   shortcuts that skip work but never change a result;
 * ``when(flag, fn)``: ``fn()`` where the scalar ``flag`` holds, else None (NumPy, floats); JAX:
   ``lax.cond``, whose untaken branch gives ``fn``'s result filled with zeros (under ``vmap`` both
-  run and the zeros are selected where ``flag`` is False);
-* ``stage(values)``: the values unchanged. A stage boundary of the integrator (one right-hand
-  side's derivatives): in the JAX namespace made with ``stage_kernels=True``, a
-  ``lax.optimization_barrier``, which XLA cannot fuse across, so that a step compiles into a
-  kernel per stage rather than one kernel holding the whole step (a GPU's register budget).
+  run and the zeros are selected where ``flag`` is False).
 """
 
 from __future__ import annotations
@@ -50,10 +46,6 @@ def _py_when(flag, fn):
     return fn() if flag else None
 
 
-def _unchanged(values):
-    return values
-
-
 def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNamespace:
     """The namespace of an array library with NumPy's API (NumPy itself, ``jax.numpy``)."""
     return SimpleNamespace(
@@ -78,7 +70,7 @@ def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNam
         any=xp.any,
         all=xp.all,
         logical_not=xp.logical_not,
-        **{"stage": _unchanged, **control},
+        **control,
     )
 
 
@@ -140,7 +132,6 @@ MATH = SimpleNamespace(
     known=bool,
     while_loop=_py_while,
     when=_py_when,
-    stage=_unchanged,
 )
 
 
@@ -174,7 +165,7 @@ def casadi_ns() -> SimpleNamespace:
     return _CASADI
 
 
-def _jax_namespace(dtype, stage_kernels: bool) -> SimpleNamespace:
+def _jax_namespace(dtype) -> SimpleNamespace:
     import jax
     import jax.numpy as jnp
 
@@ -186,9 +177,8 @@ def _jax_namespace(dtype, stage_kernels: bool) -> SimpleNamespace:
     def take_rows(values, i):  # values[n, i[n]] for each row n of an (N, K) table
         return jnp.take_along_axis(values, i[:, None], axis=1)[:, 0]
 
-    stage = jax.lax.optimization_barrier if stage_kernels else _unchanged
     return _array_namespace(jnp, "jax", index_dtype=jnp.int32, float_dtype=dtype, known=lambda flag: False,
-                            while_loop=jax.lax.while_loop, when=when, take_rows=take_rows, stage=stage)  # fmt: skip
+                            while_loop=jax.lax.while_loop, when=when, take_rows=take_rows)  # fmt: skip
 
 
 _JAX: dict = {}
@@ -218,17 +208,15 @@ def prefer_fused_cpu_runtime() -> None:
         os.environ["XLA_FLAGS"] = f"{flags} {_XLA_CPU_FLAG}".strip()
 
 
-def jax_ns(dtype: str = "float64", stage_kernels: bool = False) -> SimpleNamespace:
+def jax_ns(dtype: str = "float64") -> SimpleNamespace:
     """The JAX namespace (imported lazily: JAX is the optional ``[jax]`` extra).
 
     :param dtype: ``"float64"`` (needs ``jax_enable_x64``, which this turns on) or ``"float32"``.
-    :param stage_kernels: ``ns.stage`` is a fusion barrier (see the module docstring).
     :raises ImportError: naming the extra when JAX is not installed.
     """
     if dtype not in ("float64", "float32"):
         raise ValueError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
-    key = (dtype, bool(stage_kernels))
-    if key not in _JAX:
+    if dtype not in _JAX:
         prefer_fused_cpu_runtime()
         try:
             import jax
@@ -238,8 +226,8 @@ def jax_ns(dtype: str = "float64", stage_kernels: bool = False) -> SimpleNamespa
             jax.config.update("jax_enable_x64", True)
         import jax.numpy as jnp
 
-        _JAX[key] = _jax_namespace(jnp.float64 if dtype == "float64" else jnp.float32, bool(stage_kernels))
-    return _JAX[key]
+        _JAX[dtype] = _jax_namespace(jnp.float64 if dtype == "float64" else jnp.float32)
+    return _JAX[dtype]
 
 
 def dot3(a, b):

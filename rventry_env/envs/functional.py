@@ -123,9 +123,6 @@ class EnvState(NamedTuple):
         return self.flight.steps
 
 
-KERNEL_CUTS = {"stages", "reset"}
-
-
 class RvEntryFunctional(environment.Environment):
     """The entry benchmark as pure JAX functions (see the module docstring).
 
@@ -140,24 +137,17 @@ class RvEntryFunctional(environment.Environment):
     :param reward: the :class:`~rventry_env.envs.reward.RewardWeights` (default: the benchmark's).
     :param pool_size: flight-grade environments: how many vehicles' flight-grade errors the params
         hold for the resets to pick from (see the module docstring).
-    :param kernel_cuts: fusion barriers to compile in (the same numbers, other GPU kernels):
-        ``"stages"``, after each right-hand side evaluation, so that XLA makes a kernel per RK4
-        stage rather than one for the whole step; ``"reset"``, on the reset's outputs, so that
-        gymnax's autoreset selection does not take the whole reset into its kernel.
     """
 
     def __init__(self, model=None, task=None, dt=None, substeps=None, dispersion=None,
                  max_episode_steps: int = MAX_EPISODE_STEPS, dtype: str = "float32",
-                 reward: RewardWeights | None = None, pool_size: int = 256, kernel_cuts=()):  # fmt: skip
+                 reward: RewardWeights | None = None, pool_size: int = 256):  # fmt: skip
         super().__init__()
         if dtype not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
         if common.check_max_steps(max_episode_steps) is None:
             raise ValueError("the functional environment needs a time limit (max_episode_steps)")
-        self.kernel_cuts = tuple(sorted(set(kernel_cuts)))
-        if not set(self.kernel_cuts) <= KERNEL_CUTS:
-            raise ValueError(f"kernel_cuts must be drawn from {sorted(KERNEL_CUTS)}, got {kernel_cuts!r}")
-        self.ns = jax_ns(dtype, stage_kernels="stages" in self.kernel_cuts)
+        self.ns = jax_ns(dtype)
         self.dtype = dtype
         self.model = common.make_model(model)
         self.task = common.make_task(task, dt, substeps)
@@ -182,8 +172,7 @@ class RvEntryFunctional(environment.Environment):
 
     # gymnax's step/reset are jitted with ``self`` static: hash and compare by configuration
     def _key(self):
-        return (type(self), self.model, self.task, self.reward, self.dtype, self.flight_grade, self.pool_size,
-                self.kernel_cuts)
+        return (type(self), self.model, self.task, self.reward, self.dtype, self.flight_grade, self.pool_size)
 
     def __hash__(self):
         return hash(self._key())
@@ -259,8 +248,7 @@ class RvEntryFunctional(environment.Environment):
         model = self._model(params, scales, errors)
         flight = start_flight(x0, model, self.prop)
         obs, _, _ = self._observe(key, flight, dcm(*x0[1:5]), model, params, errors, None)
-        out = obs, EnvState(flight, scales, errors)
-        return jax.lax.optimization_barrier(out) if "reset" in self.kernel_cuts else out
+        return obs, EnvState(flight, scales, errors)
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         a = jnp.clip(jnp.asarray(action, dtype=self.ns.float_dtype), -1.0, 1.0)

@@ -185,9 +185,9 @@ class Propagator:
         ns, task = self.ns, self.task
 
         def rhs(_t, y):
-            return ns.stage(entry_rhs(y, u, model, ns))
+            return entry_rhs(y, u, model, ns)
 
-        k1 = ns.stage(entry_rhs(x, u, model, ns, forces=forces))
+        k1 = entry_rhs(x, u, model, ns, forces=forces)
         x_new = _renormalize(rk4_step(rhs, 0.0, x, h, k1=k1), ns)
         tau = h + 0.0 * x[0]
         hit = x_new[0] < radius
@@ -232,7 +232,7 @@ class Propagator:
         tol = impact_tolerance(x0[0], radius, ns)
 
         def rhs(_t, y):
-            return ns.stage(entry_rhs(y, u, model, ns))
+            return entry_rhs(y, u, model, ns)
 
         def state_at(tau):
             return _renormalize(rk4_step(rhs, 0.0, x0, tau, k1=k1), ns)
