@@ -19,18 +19,61 @@ The reward is the environment's, with its success bonus. The critic starts untra
 ``critic_warmup_steps`` phase trains the value function alone, with the actor frozen, before the
 actor moves (a warm-started actor with a random critic takes its first updates from noise), and
 ``target_kl`` stops an update that overshoots the trust region.
+
+With ``[policy] privileged_critic = true`` the critic also sees what the vehicle cannot measure
+(an asymmetric actor-critic): :func:`privileged_features` appends the draw's effect at the true
+state (the navigation error, and the density, dynamic pressure, lift and drag against the
+nominal model's) to PPO's observation, :class:`PrivilegedCriticPolicy` feeds the actor only the
+student's inputs and the critic all of them. Only training sees these features: the trained
+actor flies on the student's inputs alone.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
+from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.torch_layers import MlpExtractor
 from stable_baselines3.common.vec_env import VecEnvWrapper
+from torch import nn
 
 from rventry_agents.imitation import INPUTS, LOG_SCALE_GAIN, LearnedGuidance, tracking_rates
 from rventry_env.guidance.law import Measurement
 
 ACTION_BOUND = 8.0  # standardized commands: the student's outputs lie within a few of their spreads
+PRIVILEGED = ("nav_altitude_error_km", "nav_position_error_km", "nav_speed_error_10mps", "log_density_factor",
+              "log_dynamic_pressure_factor", "log_lift_factor", "log_drag_factor")  # fmt: skip
+LOG_FACTOR_BOUND = 3.0  # the log factors are clipped to +-3 (a factor of 20): beyond, the vehicle is lost anyway
+
+
+def privileged_features(venv) -> np.ndarray:
+    """(N, 7) float32, :data:`PRIVILEGED`: what the draw does at each vehicle's true state.
+
+    The navigation's errors (altitude and position in km, speed in units of 10 m/s) and the log
+    ratios of the true density, dynamic pressure, lift and drag accelerations (the copy's own
+    atmosphere, winds, aerodynamics and mass) to the nominal model's at the same true state.
+
+    :param venv: an :class:`~rventry_agents.sb3_vec.RvEntrySB3VecEnv` (NumPy backend).
+    """
+    from rventry_env.core.backend import NUMPY
+    from rventry_env.core.conversions import cartesian_from_rv_euler
+    from rventry_env.physics.entry import entry_forces
+
+    x, nav = venv.true_state, venv.navigation_state
+    true = venv.venv.true_forces
+    nominal = entry_forces(tuple(x.T), venv.venv.model, NUMPY)
+    r_true, _ = cartesian_from_rv_euler(x)
+    r_nav, _ = cartesian_from_rv_euler(nav)
+
+    def log_ratio(a, b):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = np.log(np.asarray(a, float) / np.asarray(b, float))
+        return np.clip(np.nan_to_num(v, nan=0.0), -LOG_FACTOR_BOUND, LOG_FACTOR_BOUND)
+
+    cols = [(nav[:, 0] - x[:, 0]) / 1000.0, np.linalg.norm(r_nav - r_true, axis=1) / 1000.0, (nav[:, 5] - x[:, 5]) / 10.0,
+            log_ratio(true.density, nominal.density), log_ratio(true.dynamic_pressure, nominal.dynamic_pressure),
+            log_ratio(true.lift_accel, nominal.lift_accel), log_ratio(true.drag_accel, nominal.drag_accel)]  # fmt: skip
+    return np.stack(cols, axis=1).astype(np.float32)
 
 
 class StudentScales:
@@ -69,15 +112,24 @@ class StudentVecEnv(VecEnvWrapper):
         states and the sensors of every copy).
     :param law: the student's law: its tracker horizon and load relief (its network is not used).
     :param scales: the student's standardization.
+    :param privileged: append :func:`privileged_features` to the observation (for a
+        :class:`PrivilegedCriticPolicy`); the first ``len(scales.mean)`` columns stay the student's inputs.
     """
 
-    def __init__(self, venv, law: LearnedGuidance, scales: StudentScales):
-        n = len(scales.mean)
+    def __init__(self, venv, law: LearnedGuidance, scales: StudentScales, privileged: bool = False):
+        n = len(scales.mean) + (len(PRIVILEGED) if privileged else 0)
         obs_space = spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)
         act_space = spaces.Box(-ACTION_BOUND, ACTION_BOUND, shape=(3,), dtype=np.float32)
         super().__init__(venv, observation_space=obs_space, action_space=act_space)
-        self.law, self.scales = law, scales
+        self.law, self.scales, self.privileged = law, scales, bool(privileged)
         self._f = None
+        self._extra = None
+
+    def _observation(self, inputs: np.ndarray) -> np.ndarray:
+        if not self.privileged:
+            return inputs
+        self._extra = privileged_features(self.venv)
+        return np.concatenate([inputs, self._extra], axis=1)
 
     def _measure(self, obs: np.ndarray) -> Measurement:
         info = self.venv.last_infos
@@ -87,7 +139,7 @@ class StudentVecEnv(VecEnvWrapper):
         obs = self.venv.reset()
         self.law.reset(self.num_envs)
         self._f = self.law.tracker(self._measure(obs))
-        return self.scales.inputs(self._f)
+        return self._observation(self.scales.inputs(self._f))
 
     def step_async(self, actions: np.ndarray) -> None:
         state = self.venv.navigation_state  # what the law flies by in evaluation, never the truth
@@ -105,11 +157,52 @@ class StudentVecEnv(VecEnvWrapper):
             final = np.stack([infos[i]["terminal_observation"] for i in ended])
             logs = (LOG_SCALE_GAIN * estimator.log_scales()[ended]).astype(np.float32)
             term = self.scales.inputs(np.concatenate([final.astype(np.float32), logs], axis=1))
+            if self.privileged:  # the true state at the end is gone (reset): the last step's features stand in
+                term = np.concatenate([term, self._extra[ended]], axis=1)
             for j, i in enumerate(ended):
                 infos[i]["terminal_observation"] = term[j]
             estimator.reset_rows(ended)
         self._f = self.law.tracker(self._measure(obs))
-        return self.scales.inputs(self._f), reward, dones, infos
+        return self._observation(self.scales.inputs(self._f)), reward, dones, infos
+
+
+class SplitMlpExtractor(nn.Module):
+    """SB3's actor and critic MLPs on different inputs: the actor the first ``n_actor`` features,
+    the critic all of them."""
+
+    def __init__(self, feature_dim: int, n_actor: int, net_arch: dict, activation_fn, device):
+        super().__init__()
+        self.n_actor = int(n_actor)
+        actor = MlpExtractor(self.n_actor, {"pi": list(net_arch["pi"]), "vf": []}, activation_fn, device)
+        critic = MlpExtractor(feature_dim, {"pi": [], "vf": list(net_arch["vf"])}, activation_fn, device)
+        self.policy_net, self.value_net = actor.policy_net, critic.value_net
+        self.latent_dim_pi, self.latent_dim_vf = actor.latent_dim_pi, critic.latent_dim_vf
+
+    def forward(self, features):
+        return self.forward_actor(features), self.forward_critic(features)
+
+    def forward_actor(self, features):
+        return self.policy_net(features[..., : self.n_actor])
+
+    def forward_critic(self, features):
+        return self.value_net(features)
+
+
+class PrivilegedCriticPolicy(ActorCriticPolicy):
+    """An asymmetric actor-critic: SB3's ``MlpPolicy`` whose actor sees the first
+    ``n_actor_inputs`` observation columns (the student's inputs) and whose critic sees all of
+    them (with :func:`privileged_features`)."""
+
+    def __init__(self, *args, n_actor_inputs: int, **kwargs):
+        self.n_actor_inputs = int(n_actor_inputs)
+        super().__init__(*args, **kwargs)
+
+    def _build_mlp_extractor(self) -> None:
+        self.mlp_extractor = SplitMlpExtractor(self.features_dim, self.n_actor_inputs, self.net_arch,
+                                               self.activation_fn, self.device)  # fmt: skip
+
+    def _get_constructor_parameters(self) -> dict:
+        return {**super()._get_constructor_parameters(), "n_actor_inputs": self.n_actor_inputs}
 
 
 def init_actor_from_student(policy, network) -> None:
@@ -201,5 +294,6 @@ def fine_tuned_law(policy, spec: dict, task) -> LearnedGuidance:
     return LearnedGuidance(ActorCommands(policy, scales), task=task, **student_law(spec, task))
 
 
-__all__ = ["ACTION_BOUND", "ActorCommands", "StudentScales", "StudentVecEnv", "fine_tuned_law", "init_actor_from_student",
-           "load_start", "set_actor_trainable", "student_spec"]  # fmt: skip
+__all__ = ["ACTION_BOUND", "PRIVILEGED", "ActorCommands", "PrivilegedCriticPolicy", "StudentScales", "StudentVecEnv",
+           "fine_tuned_law", "init_actor_from_student", "load_start", "privileged_features", "set_actor_trainable",
+           "student_spec"]  # fmt: skip

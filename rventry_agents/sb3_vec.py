@@ -63,6 +63,12 @@ class RvEntrySB3VecEnv(VecEnv):
         on sets without navigation errors): the state a guidance law is handed, as in evaluation."""
         return self.last_infos["navigation_state"]
 
+    @property
+    def true_state(self) -> np.ndarray:
+        """(N, 12): every vehicle's true state after the latest reset or step (for training-time
+        critics; the guidance law is handed :attr:`navigation_state`)."""
+        return self.venv.state
+
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.asarray(actions)
 

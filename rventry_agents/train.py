@@ -89,6 +89,11 @@ def policy_mode(cfg: dict) -> tuple[str, list[float]]:
     authority = [math.radians(float(pol.get("alpha_authority_deg", 0.0))), math.radians(float(pol.get("sigma_authority_deg", 0.0)))]
     if mode == "residual" and not all(a > 0 for a in authority):
         raise ValueError("[policy] mode = 'residual' needs alpha_authority_deg > 0 and sigma_authority_deg > 0")
+    privileged = pol.get("privileged_critic", False)
+    if not isinstance(privileged, bool):
+        raise ValueError(f"[policy] privileged_critic must be true or false, got {privileged!r}")
+    if privileged and mode != "student":
+        raise ValueError(f"[policy] privileged_critic = true is built for mode = 'student' (PPO from a student), not {mode!r}")
     if mode == "student" and not isinstance(pol.get("start"), str):
         raise ValueError("[policy] mode = 'student' needs start = the student's agent name or DAgger run directory")
     return mode, authority
@@ -118,7 +123,7 @@ def make_vec_env(cfg: dict, task: EntryTask, n_envs: int | None = None, algorith
     elif mode == "student":
         from rventry_agents.finetune import StudentVecEnv
 
-        venv = StudentVecEnv(venv, *student)
+        venv = StudentVecEnv(venv, *student, privileged=bool(cfg["policy"].get("privileged_critic", False)))
     venv = VecMonitor(venv, info_keywords=("miss_km", "is_success"))
     shaping = cfg.get("shaping", {})
     if float(shaping.get("range_weight", 0.0)) > 0:
@@ -381,6 +386,11 @@ def train_sb3(algorithm: str, config: str | Path | dict | None = None, timesteps
 
         policy_cls = ZeroOnReferencePolicy
         kwargs["n_raw_features"] = feature_index("load_factor") + 1  # the raw features come first
+    elif mode == "student" and bool(cfg["policy"].get("privileged_critic", False)):
+        from rventry_agents.finetune import PrivilegedCriticPolicy
+
+        policy_cls = PrivilegedCriticPolicy  # the actor sees the student's inputs, the critic the draw too
+        kwargs["n_actor_inputs"] = len(student[1].mean)
     else:
         policy_cls = "MlpLstmPolicy" if algorithm == "recurrent_ppo" else "MlpPolicy"
     if resumed is not None:

@@ -121,3 +121,64 @@ def test_the_fine_tuning_env_hands_the_law_the_navigation_state_as_evaluation_do
     np.testing.assert_array_equal(seen[-1], inner.last_infos["navigation_state"])
     altitude_error = np.abs(seen[-1][:, 0] - inner.venv.state[:, 0])
     assert np.all(altitude_error > 1.0)  # the navigation is off the truth, and the law saw the navigation
+
+
+def test_the_privileged_features_are_the_draw_itself():
+    """Zero without a draw; on the standard set (constant scale factors, exact navigation) the log
+    factors are the draw's own scales, and on `flight` the navigation error is nav minus truth."""
+    from rventry_agents.finetune import PRIVILEGED, privileged_features
+    from rventry_agents.sb3_vec import RvEntrySB3VecEnv
+    from rventry_env.task import Dispersion
+
+    def flown(n, dispersion, steps):
+        venv = RvEntrySB3VecEnv(n, dispersion=Dispersion.parse(dispersion))
+        venv.seed(3)
+        venv.reset()
+        for _ in range(steps):
+            venv.step(np.tile([0.0, 0.02], (n, 1)))
+        return venv, privileged_features(venv)
+
+    _, f = flown(3, "none", 5)
+    assert f.shape == (3, len(PRIVILEGED)) and f.dtype == np.float32
+    np.testing.assert_allclose(f, 0.0, atol=1e-6)
+    venv, f = flown(6, "standard", 20)
+    inner = venv.venv
+    assert np.ptp(inner._density) > 0  # a real draw
+    np.testing.assert_allclose(f[:, :3], 0.0, atol=1e-6)
+    np.testing.assert_allclose(f[:, 3], np.log(inner._density), atol=1e-6)
+    np.testing.assert_allclose(f[:, 4], np.log(inner._density), atol=1e-6)  # no wind: q scales with density
+    np.testing.assert_allclose(f[:, 5], np.log(inner._density * inner._lift), atol=1e-6)
+    np.testing.assert_allclose(f[:, 6], np.log(inner._density * inner._drag), atol=1e-6)
+    venv, f = flown(4, "flight", 30)
+    nav, true = venv.navigation_state, venv.true_state
+    np.testing.assert_allclose(f[:, 0], (nav[:, 0] - true[:, 0]) / 1000.0, rtol=1e-5)
+    assert np.all(f[:, 1] >= np.abs(f[:, 0]) - 1e-6)  # the position error is at least the altitude's
+    assert np.all(np.abs(f[:, 3]) > 0)  # the flight set's atmosphere is never the nominal one
+
+
+@pytest.mark.slow
+def test_a_privileged_critic_sees_the_draw_and_the_actor_flies_as_the_student(tmp_path):
+    from rventry_agents.finetune import PRIVILEGED
+
+    cfg = _small(512, 512)
+    cfg["policy"]["privileged_critic"] = True
+    out = train_sb3("ppo", cfg, out=tmp_path / "run", progress_bar=False)
+    law = load_agent(str(out / "final_model.zip"))
+    policy = law.model.policy
+    n = policy.n_actor_inputs
+    assert policy.mlp_extractor.policy_net[0].in_features == n
+    assert policy.mlp_extractor.value_net[0].in_features == n + len(PRIVILEGED)
+    student = rollout(load_agent(START), seeds=[11], dispersion="wide")
+    ppo = rollout(law, seeds=[11], dispersion="wide")  # the actor, all warm-up, is the student
+    for key in ("miss_km", "cost", "max_load_factor_g"):
+        np.testing.assert_array_equal(getattr(ppo, key), getattr(student, key))
+
+
+@pytest.mark.parametrize("policy, message", [({"privileged_critic": "yes"}, "must be true or false"),
+                                             ({"mode": "direct", "privileged_critic": True}, "built for mode = 'student'")])  # fmt: skip
+def test_a_bad_privileged_critic_setting_is_refused_before_writing(tmp_path, policy, message):
+    cfg = _small(512, 0)
+    cfg["policy"].update(policy)
+    with pytest.raises(ValueError, match=message):
+        train_sb3("ppo", cfg, out=tmp_path / "run", progress_bar=False)
+    assert not (tmp_path / "run").exists()

@@ -165,6 +165,11 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         self._rows_at = _row_slices((("x", 12), *_INFO_ROWS, ("nav", 12)))
 
     @property
+    def true_forces(self):
+        raise NotImplementedError("true_forces is kept by the NumPy backend only (backend='numpy'): the compiled "
+                                  "step keeps its forces on the device")  # fmt: skip
+
+    @property
     def _step_fn(self):
         """The compiled step of the current model structure (one compilation per structure)."""
         return self._fn.step

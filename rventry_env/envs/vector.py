@@ -128,6 +128,16 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             raise RuntimeError("the environment has no state before reset()")
         return np.stack(self._x, axis=-1)
 
+    @property
+    def true_forces(self):
+        """The :class:`~rventry_env.physics.entry.EntryForces` at every copy's true state, with the
+        copy's own draw (its atmosphere, winds, aerodynamics and mass), after the latest reset or
+        step: arrays (N,). For training-time critics and diagnostics: a guidance law never sees them.
+        """
+        if self._x is None:
+            raise RuntimeError("the environment has no state before reset()")
+        return self._forces
+
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None):
         n = self.num_envs
