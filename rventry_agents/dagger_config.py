@@ -9,6 +9,7 @@ what follows the rounds (the ensemble refit, the distillation, the tracker and l
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,7 +66,9 @@ class ExpertSection(Section):
             known = _replanning_fields()
             for key in self.settings:
                 if key not in known:
-                    raise ConfigError(f"unknown key {key!r}: [expert] takes agent and ReplanningSettings fields")
+                    near = difflib.get_close_matches(key, ("agent", *known), n=1)
+                    raise ConfigError(f"unknown key {key!r}; " + (f"did you mean {near[0]!r}?" if near else
+                                      "it takes agent and the fields of ReplanningSettings"))  # fmt: skip
         try:
             expert_options(self.agent, tuple(sorted(self.settings.items())))
         except (TypeError, ValueError) as exc:

@@ -135,8 +135,12 @@ def _check_auto(value, name: str) -> None:
         raise ValueError(f"a string {name} is 'auto' or 'auto_<initial value>', got {value!r}")
 
 
-ACTIVATIONS = ("tanh", "relu", "elu")
 LSTM_KEYS = ("lstm_hidden_size", "n_lstm_layers", "shared_lstm", "enable_critic_lstm")
+
+
+def _heads(algorithm: str) -> tuple[str, str]:
+    """The networks of ``algorithm``'s policy: the actor and the critic (SAC's is a Q-function)."""
+    return ("pi", "qf") if algorithm == "sac" else ("pi", "vf")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -159,7 +163,7 @@ class PolicySection(Section):
     def _variant(cls, data: dict) -> type:
         if cls is not PolicySection:
             return cls
-        mode = data.get("mode", "direct")
+        mode = data.get("mode", DirectPolicy.MODE)
         variants = {v.MODE: v for v in (DirectPolicy, ResidualPolicy, StudentPolicy)}
         if mode not in variants:
             raise ConfigError(f"mode must be one of {', '.join(map(repr, variants))}, got {mode!r}")
@@ -175,7 +179,7 @@ class PolicySection(Section):
         if algorithm not in self.ALGORITHMS:
             raise ConfigError(f"[policy] mode = {self.mode!r} is built for {', '.join(self.ALGORITHMS)}, not "
                               f"{algorithm}; use mode = 'direct'")  # fmt: skip
-        heads = {"sac": ("pi", "qf")}.get(algorithm, ("pi", "vf"))
+        heads = _heads(algorithm)
         for head in ("vf", "qf"):
             if head not in heads and getattr(self, f"net_arch_{head}") is not None:
                 raise ConfigError(f"[policy] net_arch_{head} is not a network of {algorithm} "
@@ -192,7 +196,7 @@ class PolicySection(Section):
         """The policy network's keyword arguments for ``algorithm``."""
         import torch
 
-        heads = {"sac": ("pi", "qf")}.get(algorithm, ("pi", "vf"))
+        heads = _heads(algorithm)
         kwargs: dict[str, Any] = {}
         if getattr(self, f"net_arch_{heads[0]}") is not None:
             kwargs["net_arch"] = {h: list(getattr(self, f"net_arch_{h}")) for h in heads}

@@ -30,7 +30,7 @@ DAGGER_RECORDS = ("final.json", "distil.json", "flight.json")  # written by some
 def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     """Copy the selected policy of ``run_dir`` to ``dest`` (default: the packaged policy directory).
 
-    :param run_dir: a finished ``rventry train ppo | recurrent-ppo | sac | dagger`` output directory.
+    :param run_dir: a finished ``rventry train`` output directory (any stable-baselines3 command, or ``dagger``).
     :param dest: where to put it.
     """
     from rventry_agents.config import algorithm_class
