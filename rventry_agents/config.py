@@ -274,9 +274,11 @@ def _where(where: str, path: tuple) -> str:
     """``file: [section]`` for messages (``[rounds][1]`` for an item of a list of tables)."""
     if not path:
         return f"{where}: "
-    head = ".".join(str(p) for p in path if not isinstance(p, int))
-    items = "".join(f"[{p}]" for p in path if isinstance(p, int))
-    return f"{where}: [{head}]{items} "
+    text = "".join(f"[{p}]" if isinstance(p, int) else f"{'.' if i else ''}{p}" for i, p in enumerate(path))
+    if isinstance(path[-1], int):  # an item of a list of tables: [rounds][1]
+        cut = text.rindex("[")
+        return f"{where}: [{text[:cut]}]{text[cut:]} "
+    return f"{where}: [{text}] "
 
 
 def _build(cls, data: dict, path: tuple, where: str):
