@@ -291,6 +291,24 @@ def _read_rounds(path: Path) -> list[dict]:
     return done
 
 
+def _round_data(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A round's recorded features and expert labels; an unreadable file is refused naming it."""
+    import zipfile
+
+    try:
+        with np.load(path) as d:
+            data = {k: d[k] for k in d.files}
+    except (OSError, ValueError, EOFError, AttributeError, zipfile.BadZipFile) as exc:  # junk, truncated, a bare array
+        raise ValueError(f"cannot resume: {path} is unreadable ({type(exc).__name__}: {exc})") from None
+    if "angles" not in data:
+        raise ValueError(f"cannot resume: {path} was recorded with another kind of label (the expert's rates, or "
+                         f"none: {sorted(data)}); start a new run")  # fmt: skip
+    x, y = data.get("x", np.zeros((0, 0))), data["angles"]
+    if x.ndim != 2 or y.shape != (len(x), 2):
+        raise ValueError(f"cannot resume: {path} holds features {x.shape} and labels {y.shape}, not one row each")
+    return x, y
+
+
 def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds: Rounds) -> None:
     """Round ``k`` as an earlier run flew it: its data and record."""
     if (record["episodes"], record["beta"]) != (n, beta):
@@ -302,12 +320,9 @@ def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds
     if flown != law["load_relief_margin"]:
         raise ValueError(f"cannot resume {run.out}: its round {k} flew the load-relief margin {flown}, the config "
                          f"says {law['load_relief_margin']}")  # fmt: skip
-    with np.load(run.out / f"data_round_{k}.npz") as d:
-        if "angles" not in d:
-            raise ValueError(f"cannot resume {run.out}: its round {k} was recorded with another kind of label "
-                             "(the expert's rates); start a new run")  # fmt: skip
-        rounds.xs.append(d["x"])
-        rounds.ys.append(d["angles"])
+    x, y = _round_data(run.out / f"data_round_{k}.npz")
+    rounds.xs.append(x)
+    rounds.ys.append(y)
     rounds.records.append(record)
     rounds.laws.append(law)
 
@@ -375,6 +390,14 @@ def _round_network(run: RunSetup, k: int, rounds: Rounds) -> bytes:
     return blob
 
 
+def _round_student(run: RunSetup, k: int, rounds: Rounds):
+    """Round ``k``'s network, to go on from (:func:`_round_network`)."""
+    try:
+        return network_from_bytes(_round_network(run, k, rounds), run.hidden, run.members)
+    except ValueError as exc:
+        raise ValueError(f"cannot resume {run.out}: student_round_{k}.pt: {exc}") from None
+
+
 def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool = True) -> Rounds:
     """The config's DAgger rounds; with ``resume``, the rounds an earlier run finished in ``run.out``
     are taken as they are and the run goes on from the last one's student. The best round on the
@@ -392,7 +415,7 @@ def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool 
                 _take_round(run, k, n, beta, done[k], rounds)
                 bar.console.print(f"round {k}: taken from {run.out}")
                 if k == len(done) - 1:  # the student to go on with, and the best so far
-                    student = network_from_bytes(_round_network(run, k, rounds), run.hidden, run.members)
+                    student = _round_student(run, k, rounds)
                     sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
                     rounds.best = Selected(sel, _round_network(run, sel, rounds), run.members, run.hidden,
                                            rounds.laws[sel])  # fmt: skip

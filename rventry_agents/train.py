@@ -118,8 +118,20 @@ def read_resume_point(out: Path, algorithm: str, cfg: SB3Config) -> dict:
         diff = sorted(k for k in set(mine) | set(recorded) if recorded.get(k) != mine.get(k))
         raise ValueError(f"cannot resume {out}: the config differs from the one it started with (sections {diff})")
     point = read_json(state)
-    history = [r for r in read_json(out / "evaluations.json", list) if r["timesteps"] <= point["timesteps"]]
+    history = [r for r in _read_history(out / "evaluations.json") if r["timesteps"] <= point.get("timesteps", -1)]
+    if not (isinstance(point.get("timesteps"), int) and isinstance(point.get("wall_s"), (int, float)) and history):
+        raise ValueError(f"cannot resume {out}: {state} names no evaluation of evaluations.json ({point})")
     return {**point, "history": history, "dir": out / "resume"}
+
+
+def _read_history(path: Path) -> list[dict]:
+    """A run's ``evaluations.json``, checked: each evaluation's steps and task metric."""
+    history = read_json(path, list)
+    for i, rec in enumerate(history):
+        if not (isinstance(rec, dict) and isinstance(rec.get("timesteps"), int)
+                and all(isinstance(rec.get(k), (int, float)) for k in ("success_rate", "miss_km"))):  # fmt: skip
+            raise ConfigError(f"{path}: evaluation {i} lacks its timesteps, success_rate or miss_km: {rec}", located=True)
+    return history
 
 
 @dataclass(frozen=True)

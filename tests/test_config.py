@@ -456,3 +456,21 @@ def test_each_train_command_says_what_it_trains():
     for alias, name in (("sac", "sac-plain"), ("recurrent-ppo", "recurrent-ppo-plain")):
         args = parser.parse_args(["train", alias])
         assert args.command_name == name and args.mode == "direct"
+
+
+def test_a_corrupt_dagger_run_is_refused_on_resume_naming_the_file(tmp_path):
+    from rventry_agents.dagger import RunClock, prepare_run, run_rounds
+
+    from dagger_configs import SMALL  # noqa: E402
+
+    (tmp_path / "small.toml").write_text(SMALL)
+    run = prepare_run(tmp_path / "small.toml", tmp_path / "run", workers=1, seed=None)
+    rec = {"round": 0, "episodes": 2, "beta": 1.0, "samples": 10, "wall_s": 1.0, "select_success_rate": 0.0,
+           "select_miss_km_mean": 1.0, "load_relief_margin": 0.02}  # fmt: skip
+    for rounds, message in (([{"round": 0}], r"rounds.json: round 0's record is malformed \(missing episodes"),
+                            ({"round": 0}, r"rounds.json must hold a JSON array"),
+                            ([rec], r"cannot resume: .*data_round_0.npz is unreadable")):  # fmt: skip
+        (run.out / "rounds.json").write_text(json.dumps(rounds))
+        (run.out / "data_round_0.npz").write_bytes(b"junk")
+        with pytest.raises(ValueError, match=message):
+            run_rounds(run, RunClock(), resume=True, progress_bar=False)
