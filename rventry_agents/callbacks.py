@@ -8,8 +8,8 @@ writes the evaluation history and a resume point after each evaluation.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback

@@ -15,11 +15,11 @@ from rventry_env.util.args import positive_int, seed
 # trains (None: any), what it trains
 SB3_COMMANDS = (
     ("ppo-residual", (), "ppo", "ppo.toml", "residual",
-     "the PPO residual on TV-LQR: stable-baselines3 PPO learns an angle offset on the classical law "
-     "(ships as the agent ppo-residual)"),
+     ("the PPO residual on TV-LQR: stable-baselines3 PPO learns an angle offset on the classical law "
+      "(ships as the agent ppo-residual)")),
     ("ppo-finetune", (), "ppo", "ppo_finetune.toml", "student",
-     "PPO fine-tuning of an imitation student: the actor starts as the config's student ({start}) "
-     "and commands its angles (ships as the agent ppo)"),
+     ("PPO fine-tuning of an imitation student: the actor starts as the config's student ({start}) "
+      "and commands its angles (ships as the agent ppo)")),
     ("ppo-plain", (), "ppo", "baselines/ppo.toml", "direct",
      "plain stable-baselines3 PPO from scratch: direct rate actions, no guide (ships as the agent ppo-plain)"),
     ("recurrent-ppo-plain", ("recurrent-ppo",), "recurrent_ppo", "baselines/recurrent_ppo.toml", "direct",
@@ -27,8 +27,8 @@ SB3_COMMANDS = (
     ("sac-plain", ("sac",), "sac", "baselines/sac.toml", "direct",
      "plain stable-baselines3 SAC from scratch (ships as the agent sac-plain)"),
     ("ppo", (), "ppo", "ppo.toml", None,
-     "stable-baselines3 PPO in the mode --config names (without --config: the PPO residual, as "
-     "ppo-residual); kept for older scripts, the commands above say what they train"),
+     ("stable-baselines3 PPO in the mode --config names (without --config: the PPO residual, as "
+      "ppo-residual); kept for older scripts, the commands above say what they train")),
 )  # fmt: skip
 COMMAND_OF_MODE = {"residual": "ppo-residual", "student": "ppo-finetune", "direct": "ppo-plain"}
 

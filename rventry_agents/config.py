@@ -499,5 +499,5 @@ def algorithm_class(algorithm: str):
     return getattr(stable_baselines3, algorithm.upper())
 
 
-__all__ = ["ALGORITHMS", "ClassVar", "ConfigError", "Section", "algorithm_class", "check_algorithm", "check_field",
+__all__ = ["ALGORITHMS", "ConfigError", "Section", "algorithm_class", "check_algorithm", "check_field",
            "describe", "read_config", "read_json", "read_toml", "setting"]  # fmt: skip

@@ -59,7 +59,7 @@ from rventry_agents.imitation import (
     network_bytes,
     network_from_bytes,  # fmt: skip
 )
-from rventry_agents.records import RunRecord, StudentFlight, StudentRecord, horizon_keys, read_record  # noqa: F401
+from rventry_agents.records import RunRecord, StudentFlight, StudentRecord, horizon_keys  # noqa: F401
 from rventry_env.task import EntryTask
 from rventry_env.util.files import atomic_write, check_writable, dumps_json, save_figure, write_json
 
@@ -255,7 +255,7 @@ def _started_with(run: RunSetup, identity: dict) -> tuple[dict | None, dict]:
         started = read_json(run.out / RUN_FILE)
         return _identity(started.get("seed"), started), identity
     if (run.out / "metadata.json").is_file():
-        meta = read_record(RunRecord, run.out / "metadata.json")
+        meta = RunRecord.read_json(run.out / "metadata.json")
         config = meta.config or {}
         started = _identity(identity["seed"], {**config, "fit": {**config.get("fit", {}), "seed": meta.seed}})
         return started, {**identity, "fit": {**identity["fit"], "seed": run.fit_seed}}
@@ -697,7 +697,7 @@ def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
         corrupt.
     """
     run_dir = Path(run_dir)
-    meta = read_record(StudentRecord, run_dir / "student.json")
+    meta = StudentRecord.read_json(run_dir / "student.json")
     if task is None:
         task = EntryTask()
     task.check_trained(meta.task or EntryTask().record(), f"the DAgger student in {run_dir}")  # none: the default
@@ -712,7 +712,7 @@ def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
     except (OSError, ValueError) as exc:
         raise ValueError(f"{run_dir / 'student.pt'}: {exc}") from None
     law = LearnedGuidance(network, task=task, **meta.law(task))
-    run = read_record(RunRecord, run_dir / "metadata.json") if (run_dir / "metadata.json").is_file() else RunRecord()
+    run = RunRecord.read_json(run_dir / "metadata.json") if (run_dir / "metadata.json").is_file() else RunRecord()
     where = f"{run_dir / 'metadata.json'} [config]"
     teacher = load_config(run.config, where).expert.agent if run.config is not None else "mpc"
     law.provenance = {"algorithm": f"DAgger (supervised imitation of {teacher})", "start": "scratch",

@@ -115,17 +115,24 @@ class PolicyMode:
         """The model as a guidance law; ``normalize`` maps raw observations to the model's."""
         raise NotImplementedError
 
-    def with_q_floor(self, margin: float | None) -> "PolicyMode":
+    @property
+    def q_floor_margin(self) -> float | None:
+        """The q floor the policy flies (None: none)."""
+        return None
+
+    def with_q_floor(self, margin: float | None) -> PolicyMode:
         raise ValueError(f"a q floor belongs to a policy fine-tuned from a student, not to a {self.name!r} one")
 
+    @classmethod
+    def from_record(cls, record: PolicyRecord) -> PolicyMode:
+        """This mode as a saved run's ``policy.json`` describes it."""
+        return cls()
+
     @staticmethod
-    def of_record(record: PolicyRecord) -> "PolicyMode":
+    def of_record(record: PolicyRecord) -> PolicyMode:
         """The mode a saved run's ``policy.json`` describes."""
-        if record.mode == "residual":
-            return ResidualMode(authority_rad=record.authority_rad)
-        if record.mode == "student":
-            return StudentMode(spec=record.student)
-        return DirectMode()
+        modes = {m.name: m for m in (DirectMode, ResidualMode, StudentMode)}
+        return modes[record.mode].from_record(record)
 
 
 @dataclass(frozen=True)
@@ -176,6 +183,10 @@ class ResidualMode(PolicyMode):
                 model.policy.action_net.bias.zero_()
         return 0
 
+    @classmethod
+    def from_record(cls, record: PolicyRecord) -> ResidualMode:
+        return cls(authority_rad=record.authority_rad)
+
     def record(self) -> dict:
         return {"mode": self.name, "authority_rad": list(self.authority_rad)}
 
@@ -206,6 +217,14 @@ class StudentMode(PolicyMode):
     critic_widths: tuple[int, ...] | None = None
     name: ClassVar[str] = "student"
     origin: ClassVar[str] = "student"
+
+    @classmethod
+    def from_record(cls, record: PolicyRecord) -> StudentMode:
+        return cls(spec=record.student)
+
+    @property
+    def q_floor_margin(self) -> float | None:
+        return self.spec.q_floor_margin
 
     def _scales(self):
         from rventry_agents.finetune import StudentScales
@@ -256,7 +275,7 @@ class StudentMode(PolicyMode):
 
         return fine_tuned_law(model.policy, self.spec, task)
 
-    def with_q_floor(self, margin: float | None) -> "StudentMode":
+    def with_q_floor(self, margin: float | None) -> StudentMode:
         return replace(self, spec=self.spec.replace(q_floor_margin=margin))
 
 

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Literal
 
-from rventry_agents.config import ConfigError, Section, read_json, setting
+from rventry_agents.config import ConfigError, Section, setting
 from rventry_agents.imitation import Horizon
 from rventry_env.task import EntryTask
 
@@ -129,9 +128,6 @@ class FineTunedSpec(StudentFlight):
     q_floor_selection: dict | None = None  # how the q floor was chosen after training, where it was
 
 
-POLICY_MODES = ("direct", "residual", "student")
-
-
 @dataclass(frozen=True, kw_only=True)
 class PolicyRecord(Section):
     """``policy.json``: how to fly the models a stable-baselines3 run saved.
@@ -171,10 +167,5 @@ class RunRecord(Section):
     selected: dict | None = None
 
 
-def read_record(cls, path: str | Path):
-    """The record ``cls`` from the JSON file at ``path``; a malformed one is refused naming it."""
-    return cls.from_dict(read_json(path), str(path))
-
-
-__all__ = ["POLICY_MODES", "FineTunedSpec", "PolicyRecord", "RunRecord", "Scales", "StudentFlight", "StudentRecord",
-           "check_floor_margin", "check_relief_margin", "horizon_keys", "read_record"]  # fmt: skip
+__all__ = ["FineTunedSpec", "PolicyRecord", "RunRecord", "Scales", "StudentFlight", "StudentRecord",
+           "check_floor_margin", "check_relief_margin", "horizon_keys"]  # fmt: skip

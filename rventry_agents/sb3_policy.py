@@ -32,7 +32,7 @@ from rventry_agents.modes import (  # noqa: F401  (where the shipped policies li
     PolicyMode,
     Predictor,
 )
-from rventry_agents.records import PolicyRecord, RunRecord, read_record
+from rventry_agents.records import PolicyRecord, RunRecord
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 
@@ -133,7 +133,7 @@ def _run_record(path: Path, algorithm: str):
     meta = _beside(path, "metadata.json")
     if meta is None:
         return None, None
-    record = read_record(RunRecord, meta)
+    record = RunRecord.read_json(meta)
     if record.config is None:
         return record, None
     return record, load_config(record.config, record.algorithm or algorithm, f"{meta} [config]").env
@@ -157,7 +157,7 @@ class SB3Policy(Law):
             raise FileNotFoundError(f"no saved policy at {path}")
         spec = _beside(path, "policy.json")
         self.from_run = spec is not None
-        self.record = read_record(PolicyRecord, spec) if spec is not None else PolicyRecord()
+        self.record = PolicyRecord.read_json(spec) if spec is not None else PolicyRecord()
         self.mode = PolicyMode.of_record(self.record)
         self.model = _load_sb3(path, self.record.algorithm)  # first: is it a model at all
         self.normalize_path = _normalization_path(path, normalize_path, self.record)
@@ -188,10 +188,10 @@ class SB3Policy(Law):
                           "timesteps": meta and meta.timesteps, "seed": meta and meta.seed}  # fmt: skip
         else:
             return None
-        floor = getattr(self.mode, "spec", None) and self.mode.spec.q_floor_margin
+        floor = self.mode.q_floor_margin
         return provenance if floor is None else {**provenance, "q_floor_margin": floor}
 
-    def with_q_floor(self, margin: float | None) -> "SB3Policy":
+    def with_q_floor(self, margin: float | None) -> SB3Policy:
         """A student-mode policy flies with the q floor ``margin`` (None: none) in place of its own."""
         self.mode = self.mode.with_q_floor(margin)
         self._act = self.mode.law(self.model, self.normalize, self.task)

@@ -19,7 +19,7 @@ import shutil
 from pathlib import Path
 
 from rventry_agents.config import read_json
-from rventry_agents.records import PolicyRecord, read_record
+from rventry_agents.records import PolicyRecord
 from rventry_env.util.files import atomic_write, write_json
 
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
@@ -42,7 +42,7 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     _check_finished(run_dir, ("model.zip", *RUN_FILES), "training run")
     dest = Path(dest) if dest is not None else default_destination(run_dir)
     SB3Policy(run_dir)  # a policy that does not load (or whose records are corrupt) is not shipped
-    algorithm = read_record(PolicyRecord, run_dir / "policy.json").algorithm or "ppo"
+    algorithm = PolicyRecord.read_json(run_dir / "policy.json").algorithm or "ppo"
     dest.mkdir(parents=True, exist_ok=True)
     model = algorithm_class(algorithm).load(run_dir / "model.zip", device="cpu")
     # a fresh optimizer carries no moment buffers; the weights are untouched (SAC: actor and critic each have one)
@@ -70,7 +70,7 @@ def default_destination(run_dir: str | Path) -> Path:
         from rventry_agents.dagger import SHIPPED_DAGGER
 
         return SHIPPED_DAGGER
-    record = read_record(PolicyRecord, run_dir / "policy.json")
+    record = PolicyRecord.read_json(run_dir / "policy.json")
     try:
         return PolicyMode.of_record(record).destination(record.algorithm or "ppo")
     except ValueError as exc:

@@ -100,12 +100,12 @@ def read_resume_point(out: Path, algorithm: str, cfg: SB3Config) -> dict:
     checked against the run's algorithm and config; raises ValueError naming what does not match.
     The config the run started with (``config.json``) is read through the schema, so a run of an
     older version, whose record left defaults out, compares by what it ran with."""
-    from rventry_agents.records import PolicyRecord, read_record
+    from rventry_agents.records import PolicyRecord
 
     state = out / "resume" / "state.json"
     if not state.is_file():
         raise ValueError(f"cannot resume {out}: it has no resume/ point (a run writes one at each evaluation)")
-    started = read_record(PolicyRecord, out / "policy.json").algorithm if (out / "policy.json").is_file() else None
+    started = PolicyRecord.read_json(out / "policy.json").algorithm if (out / "policy.json").is_file() else None
     if started != algorithm:
         raise ValueError(f"cannot resume {out}: it is a {started} run, not {algorithm}")
     recorded = read_json(out / "config.json") if (out / "config.json").is_file() else {}

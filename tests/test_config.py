@@ -53,18 +53,18 @@ def test_every_shipped_toml_loads_through_its_schema_and_round_trips():
 def test_every_shipped_run_folders_records_load_through_their_schemas(run):
     """The configs inside the shipped policies' folders and the result records' runs (older runs
     left defaults out), and the records a loader reads beside them."""
-    from rventry_agents.records import PolicyRecord, RunRecord, StudentRecord, read_record
+    from rventry_agents.records import PolicyRecord, RunRecord, StudentRecord
 
-    meta = read_record(RunRecord, run / "metadata.json")
+    meta = RunRecord.read_json(run / "metadata.json")
     if "rounds" in meta.config:
         assert isinstance(load_dagger_config(meta.config, str(run)), DaggerConfig)
     elif "chunk_timesteps" not in meta.config.get("train", {}):  # a JAX run: its trainer reads its own
         cfg = load_config(meta.config, meta.algorithm or "ppo", str(run))
         assert cfg.to_dict().keys() >= meta.config.keys()
     if (run / "policy.json").is_file():
-        assert read_record(PolicyRecord, run / "policy.json").mode in ("direct", "residual", "student")
+        assert PolicyRecord.read_json(run / "policy.json").mode in ("direct", "residual", "student")
     if (run / "student.json").is_file():
-        assert read_record(StudentRecord, run / "student.json").hidden == (256, 256)
+        assert StudentRecord.read_json(run / "student.json").hidden == (256, 256)
 
 
 def _misspelled(key: str) -> str:
@@ -146,9 +146,9 @@ def test_the_algorithms_defaults_are_the_libraries_own():
 
 
 def test_the_dagger_config_refuses_bad_values_before_anything_is_flown_or_written(tmp_path):
-    from rventry_agents.dagger import train_dagger
+    from dagger_configs import SMALL
 
-    from dagger_configs import SMALL  # noqa: E402  (tests/ is on the path)
+    from rventry_agents.dagger import train_dagger
 
     cases = {
         "learning_rate = 1e-3": ("learning_rate = nan", r"\[fit\] learning_rate must be a finite number > 0, got nan"),
@@ -258,10 +258,10 @@ def test_each_mode_round_trips_through_its_record_and_knows_where_it_ships():
 
 def test_the_shipped_fine_tuned_policy_record_is_what_its_mode_writes_back():
     from rventry_agents.modes import PolicyMode
-    from rventry_agents.records import PolicyRecord, read_record
+    from rventry_agents.records import PolicyRecord
 
     path = DATA / "ppo_finetune" / "policy.json"
-    record = read_record(PolicyRecord, path)
+    record = PolicyRecord.read_json(path)
     mode = PolicyMode.of_record(record)
     written = {"algorithm": record.algorithm, **mode.record()}
     stored = json.loads(path.read_text())
@@ -360,9 +360,9 @@ def test_a_resume_compares_the_config_a_run_started_with_through_the_schema(tmp_
 
 
 def test_a_dagger_resume_reads_an_older_run_json_that_left_defaults_out(tmp_path):
-    from rventry_agents.dagger import check_resumable, prepare_run
+    from dagger_configs import SMALL
 
-    from dagger_configs import SMALL  # noqa: E402
+    from rventry_agents.dagger import check_resumable, prepare_run
 
     (tmp_path / "small.toml").write_text(SMALL)
     run = prepare_run(tmp_path / "small.toml", tmp_path / "run", workers=1, seed=None)
@@ -459,9 +459,9 @@ def test_each_train_command_says_what_it_trains():
 
 
 def test_a_corrupt_dagger_run_is_refused_on_resume_naming_the_file(tmp_path):
-    from rventry_agents.dagger import RunClock, prepare_run, run_rounds
+    from dagger_configs import SMALL
 
-    from dagger_configs import SMALL  # noqa: E402
+    from rventry_agents.dagger import RunClock, prepare_run, run_rounds
 
     (tmp_path / "small.toml").write_text(SMALL)
     run = prepare_run(tmp_path / "small.toml", tmp_path / "run", workers=1, seed=None)
