@@ -87,6 +87,23 @@ def setting(default: Any = dataclasses.MISSING, *, gt=None, ge=None, lt=None, le
     return dataclasses.field(default=default, metadata=meta)
 
 
+def widths(default: Any = dataclasses.MISSING):
+    """A setting of layer widths: a non-empty list of whole numbers >= 1."""
+    return setting(default, ge=1, nonempty=True, what="a list of layer widths (whole numbers >= 1)")
+
+
+def _check_dispersion(value) -> None:
+    from rventry_env.task import Dispersion
+
+    Dispersion.parse(value)
+
+
+def dispersion(default: Any = dataclasses.MISSING):
+    """A setting of vehicle draws: a named set (``"standard"``, ``"flight"``, ...) or a table of
+    :class:`~rventry_env.task.Dispersion` fields, parsed when it is read."""
+    return setting(default, check=_check_dispersion, what="a named set or a table of Dispersion fields")
+
+
 @functools.cache
 def _hints(cls) -> dict[str, Any]:
     return typing.get_type_hints(cls)
@@ -500,4 +517,4 @@ def algorithm_class(algorithm: str):
 
 
 __all__ = ["ALGORITHMS", "ConfigError", "Section", "algorithm_class", "check_algorithm", "check_field",
-           "describe", "read_config", "read_json", "read_toml", "setting"]  # fmt: skip
+           "describe", "dispersion", "read_config", "read_json", "read_toml", "setting", "widths"]  # fmt: skip

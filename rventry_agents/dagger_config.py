@@ -14,28 +14,16 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from rventry_agents.config import ConfigError, Section, setting
+from rventry_agents.config import ConfigError, Section, dispersion, setting, widths
 from rventry_agents.imitation import Horizon
-from rventry_agents.records import StudentFlight, check_relief_margin
-from rventry_env.task import Dispersion
+from rventry_agents.records import StudentNetwork, check_relief_margin
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
-WIDTHS = "a list of layer widths (whole numbers >= 1)"
-DISPERSION = "a named set or a table of Dispersion fields"
-
-
-def check_dispersion(value) -> None:
-    Dispersion.parse(value)
-
-
 @dataclass(frozen=True, kw_only=True)
-class StudentSection(StudentFlight):
+class StudentSection(StudentNetwork):
     """``[student]``: the student's network (``members`` > 1: an ensemble, the mean of theirs), the
     labels' horizon (``lookahead_*``, which the rounds' tracker flies) and its load relief. The
     rounds fly no q floor (``q_floor_margin`` is refused: one is chosen for a trained policy)."""
-
-    hidden: tuple[int, ...] = setting(ge=1, nonempty=True, what=WIDTHS)
-    members: int = setting(1, ge=1)
 
     def __post_init__(self):
         super().__post_init__()
@@ -91,7 +79,7 @@ class ExpertSection(Section):
 class DataSection(Section):
     """``[data]``: the training vehicles, from seed ``train_seed`` on."""
 
-    dispersion: str | dict = setting(check=check_dispersion, what=DISPERSION)
+    dispersion: str | dict = dispersion()
     train_seed: int = setting(ge=0)
 
 
@@ -133,7 +121,7 @@ class DistilSection(Section):
         flying if it does better on the selection set.
     """
 
-    hidden: tuple[int, ...] = setting(ge=1, nonempty=True, what=WIDTHS)
+    hidden: tuple[int, ...] = widths()
     epochs: int | None = setting(None, ge=1)
     emphasis_below_m: float = setting(0.0, ge=0)
     emphasis: int = setting(1, ge=1)
@@ -174,7 +162,7 @@ class SelectSection(Section):
 
     episodes: int = setting(ge=1)
     seed: int = setting(ge=0)
-    dispersion: str | dict = setting(check=check_dispersion, what=DISPERSION)
+    dispersion: str | dict = dispersion()
 
 
 @dataclass(frozen=True, kw_only=True)

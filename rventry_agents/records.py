@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from rventry_agents.config import ConfigError, Section, setting
+from rventry_agents.config import ConfigError, Section, setting, widths
 from rventry_agents.imitation import Horizon
 from rventry_env.task import EntryTask
 
@@ -87,11 +87,16 @@ def horizon_keys(h: Horizon, prefix: str) -> dict:
 
 
 @dataclass(frozen=True, kw_only=True)
-class StudentRecord(StudentFlight):
-    """``student.json``: a DAgger student's shape, the task it was trained on and how it flies."""
+class StudentNetwork(StudentFlight):
+    """A student's network (``members`` > 1: an ensemble, the mean of theirs) and how it flies."""
 
-    hidden: tuple[int, ...] = setting(ge=1, nonempty=True, what="a list of layer widths (whole numbers >= 1)")
+    hidden: tuple[int, ...] = widths()
     members: int = setting(1, ge=1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class StudentRecord(StudentNetwork):
+    """``student.json``: a DAgger student's shape, the task it was trained on and how it flies."""
     inputs: str | None = None
     input_features: tuple[str, ...] | None = None
     task: dict | None = None  # EntryTask.record() of the training task; none: the default task
@@ -167,5 +172,15 @@ class RunRecord(Section):
     selected: dict | None = None
 
 
-__all__ = ["FineTunedSpec", "PolicyRecord", "RunRecord", "Scales", "StudentFlight", "StudentRecord",
-           "check_floor_margin", "check_relief_margin", "horizon_keys"]  # fmt: skip
+__all__ = [
+    "FineTunedSpec",
+    "PolicyRecord",
+    "RunRecord",
+    "Scales",
+    "StudentFlight",
+    "StudentNetwork",
+    "StudentRecord",
+    "check_floor_margin",
+    "check_relief_margin",
+    "horizon_keys",
+]  # fmt: skip

@@ -17,20 +17,20 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
-from rventry_agents.config import ALGORITHMS, ConfigError, Section, check_algorithm, setting
+from rventry_agents.config import (
+    ALGORITHMS,
+    ConfigError,
+    Section,
+    check_algorithm,
+    dispersion,
+    setting,
+    widths,
+)
 from rventry_agents.records import check_floor_margin
 from rventry_env.envs.reward import RewardWeights
-from rventry_env.task import Dispersion, EntryTask
+from rventry_env.task import EntryTask
 
 HERE = Path(__file__).resolve().parent
-DISPERSION = "a named set or a table of Dispersion fields"
-WIDTHS = "a list of layer widths (whole numbers >= 1)"
-
-
-def check_dispersion(value) -> None:
-    Dispersion.parse(value)
-
-
 @dataclass(frozen=True, kw_only=True)
 class EnvSection(Section):
     """``[env]``: the batched training environment.
@@ -46,7 +46,7 @@ class EnvSection(Section):
     substeps: int = setting(ge=1)
     max_episode_steps: int = setting(ge=1)
     time_limit_is_failure: bool
-    dispersion: str | dict = setting("none", check=check_dispersion, what=DISPERSION)
+    dispersion: str | dict = dispersion("none")
 
     def task(self, base: EntryTask | None = None) -> EntryTask:
         """The training task: ``base`` (default :class:`EntryTask`) with this dt and substeps."""
@@ -149,9 +149,9 @@ class PolicySection(Section):
     the algorithm's own default; the LSTM keys are RecurrentPPO's."""
 
     mode: str
-    net_arch_pi: tuple[int, ...] | None = setting(None, ge=1, nonempty=True, what=WIDTHS)
-    net_arch_vf: tuple[int, ...] | None = setting(None, ge=1, nonempty=True, what=WIDTHS)
-    net_arch_qf: tuple[int, ...] | None = setting(None, ge=1, nonempty=True, what=WIDTHS)
+    net_arch_pi: tuple[int, ...] | None = widths(None)
+    net_arch_vf: tuple[int, ...] | None = widths(None)
+    net_arch_qf: tuple[int, ...] | None = widths(None)
     activation: Literal["tanh", "relu", "elu"] | None = None
     log_std_init: float | None = None
     lstm_hidden_size: int | None = setting(None, ge=1)
@@ -296,7 +296,7 @@ class TrainSection(Section):
     eval_every: int = setting(ge=1)
     eval_episodes: int = setting(ge=1)
     eval_seed: int = setting(ge=0)
-    eval_dispersion: str | dict = setting(check=check_dispersion, what=DISPERSION)
+    eval_dispersion: str | dict = dispersion()
 
 
 @dataclass(frozen=True, kw_only=True)
