@@ -550,10 +550,10 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     taken as it is (each phase checks its own), and a run started with another config is refused.
     With ``cluster`` (a Dask scheduler's address) the expert's episodes fly on its workers; every
     episode is seeded, so the run is the same as on local workers."""
+    run = prepare_run(config, out, workers, seed, cluster)  # a bad setting is refused before torch even loads
+    check_resumable(run, resume)
     import torch
 
-    run = prepare_run(config, out, workers, seed, cluster)
-    check_resumable(run, resume)
     torch.set_num_threads(max(1, workers))
     clock = RunClock()
     rounds = run_rounds(run, clock, resume, progress_bar)
