@@ -183,12 +183,13 @@ class PolicySection(Section):
         for head in ("vf", "qf"):
             if head not in heads and getattr(self, f"net_arch_{head}") is not None:
                 raise ConfigError(f"[policy] net_arch_{head} is not a network of {algorithm} "
-                                  f"(its are {', '.join(f'net_arch_{h}' for h in heads)})")  # fmt: skip
+                                  f"(its networks are {' and '.join(f'net_arch_{h}' for h in heads)})")  # fmt: skip
         given = [k for k in LSTM_KEYS if getattr(self, k) is not None]
         if given and algorithm != "recurrent_ppo":
             raise ConfigError(f"[policy] {', '.join(given)} configure RecurrentPPO's LSTM, not {algorithm}")
-        if algorithm == "sac" and self.log_std_init is not None:
-            raise ConfigError("[policy] log_std_init: SAC learns its own exploration noise")
+        self._check_widths(heads)
+
+    def _check_widths(self, heads: tuple[str, str]) -> None:
         if sum(getattr(self, f"net_arch_{h}") is not None for h in heads) == 1:
             raise ConfigError(f"[policy] give both {' and '.join(f'net_arch_{h}' for h in heads)}, or neither")
 
@@ -268,6 +269,9 @@ class StudentPolicy(PolicySection):
     privileged_critic: bool = False
     critic_warmup_steps: int = setting(0, ge=0)
     activation: Literal["tanh"] | None = setting(None, what="'tanh' (the student's)")
+
+    def _check_widths(self, heads: tuple[str, str]) -> None:
+        pass  # the actor's are the student's (checked when it is loaded), the critic's may be given alone
 
     def build(self, task: EntryTask):
         from rventry_agents.finetune import StudentScales, load_start, student_spec
