@@ -11,29 +11,61 @@ import sys
 from rventry_env.util.args import positive_int, seed
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    train = sub.add_parser("train", help="train a learning agent on RvEntry-v0")
-    algos = train.add_subparsers(dest="algo", metavar="ALGO", required=True)
-    from rventry_agents.train import DEFAULT_CONFIGS, FINETUNE_CONFIG
+# the stable-baselines3 commands: name, aliases, algorithm, default config, the [policy] mode it
+# trains (None: any), what it trains
+SB3_COMMANDS = (
+    ("ppo-residual", (), "ppo", "ppo.toml", "residual",
+     ("the PPO residual on TV-LQR: stable-baselines3 PPO learns an angle offset on the classical law "
+      "(ships as the agent ppo-residual)")),
+    ("ppo-finetune", (), "ppo", "ppo_finetune.toml", "student",
+     ("PPO fine-tuning of an imitation student: the actor starts as the config's student ({start}) "
+      "and commands its angles (ships as the agent ppo)")),
+    ("ppo-plain", (), "ppo", "baselines/ppo.toml", "direct",
+     "plain stable-baselines3 PPO from scratch: direct rate actions, no guide (ships as the agent ppo-plain)"),
+    ("recurrent-ppo-plain", ("recurrent-ppo",), "recurrent_ppo", "baselines/recurrent_ppo.toml", "direct",
+     "plain sb3-contrib RecurrentPPO (an LSTM policy) from scratch (ships as the agent recurrent-ppo-plain)"),
+    ("sac-plain", ("sac",), "sac", "baselines/sac.toml", "direct",
+     "plain stable-baselines3 SAC from scratch (ships as the agent sac-plain)"),
+    ("ppo", (), "ppo", "ppo.toml", None,
+     ("stable-baselines3 PPO in the mode --config names (without --config: the PPO residual, as "
+      "ppo-residual); kept for older scripts, the commands above say what they train")),
+)  # fmt: skip
+COMMAND_OF_MODE = {"residual": "ppo-residual", "student": "ppo-finetune", "direct": "ppo-plain"}
 
-    for name, algorithm, config, what in (
-        ("ppo", "ppo", DEFAULT_CONFIGS["ppo"], "stable-baselines3 PPO (default config: the PPO residual on the classical law)"),
-        ("ppo-finetune", "ppo", FINETUNE_CONFIG, "stable-baselines3 PPO starting from the imitation student (dagger)"),
-        ("recurrent-ppo", "recurrent_ppo", DEFAULT_CONFIGS["recurrent_ppo"],
-         "sb3-contrib RecurrentPPO, an LSTM policy (default config: the plain baseline)"),
-        ("sac", "sac", DEFAULT_CONFIGS["sac"], "stable-baselines3 SAC (default config: the plain baseline)"),
-    ):  # fmt: skip
-        default = config.relative_to(DEFAULT_CONFIGS["ppo"].parent.parent)
-        cmd = algos.add_parser(name, help=f"{what}, on the numpy-batched vector env")
+
+def _start_words() -> str:
+    """The student the shipped fine-tuning config starts from, for the help."""
+    from rventry_agents.sb3_config import FINETUNE_CONFIG, load_config
+
+    try:
+        return f"{load_config(FINETUNE_CONFIG).policy.start}, by default"
+    except (OSError, ValueError):
+        return "its [policy] start"
+
+
+def _add_sb3_commands(algos: argparse._SubParsersAction) -> None:
+    from rventry_agents.sb3_config import HERE
+
+    for name, aliases, algorithm, config, mode, what in SB3_COMMANDS:
+        folder = f"runs/{name.replace('-', '_')}"
+        what = what.format(start=_start_words()) if "{start}" in what else what
+        cmd = algos.add_parser(name, aliases=list(aliases), help=what)
         cmd.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
         cmd.add_argument("--seed", type=seed, help="random seed (default: the config's)")
-        cmd.add_argument("--out", default=f"runs/{name.replace('-', '_')}",
-                         help=f"output directory (default runs/{name.replace('-', '_')})")
-        cmd.add_argument("--config", default=str(config), help=f"TOML config (default {default})")
+        cmd.add_argument("--out", default=folder, help=f"output directory (default {folder})")
+        cmd.add_argument("--config", default=str(HERE / config),
+                         help=f"TOML config (default rventry_agents/{config})"
+                         + (f"; its [policy] mode must be {mode!r}" if mode else ""))  # fmt: skip
         cmd.add_argument("--resume", action="store_true",
                          help="go on with the interrupted run in --out from its latest evaluation")
         cmd.add_argument("--no-progress", action="store_true", help="no progress bar")
-        cmd.set_defaults(func=_run_sb3, algorithm=algorithm)
+        cmd.set_defaults(func=_run_sb3, algorithm=algorithm, mode=mode, command_name=name)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    train = sub.add_parser("train", help="train a learning agent on RvEntry-v0")
+    algos = train.add_subparsers(dest="algo", metavar="ALGO", required=True)
+    _add_sb3_commands(algos)
     jx = algos.add_parser("jax-ppo", help="rejax PPO end to end in JAX on the functional env (the [jax] extra)")
     jx.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
     jx.add_argument("--seed", type=seed, help="random seed (default: the config's)")
@@ -52,8 +84,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     dag.add_argument("--no-progress", action="store_true", help="no progress bar")
     dag.set_defaults(func=_run_dagger)
     ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
-    ship.add_argument("run_dir",
-                      help="the --out directory of a finished `rventry train ppo | recurrent-ppo | sac | dagger`")
+    ship.add_argument("run_dir", help="the --out directory of a finished `rventry train` run (ppo-residual, "
+                                      "ppo-finetune, ppo-plain, recurrent-ppo-plain, sac-plain, dagger)")
     ship.add_argument("--dest", help="destination (default, by what the run trained: a DAgger student to "
                                      "rventry_agents/data/dagger, PPO fine-tuning to data/ppo_finetune, the PPO "
                                      "residual to data/ppo, a plain baseline to data/baselines/ALGORITHM)")
@@ -73,9 +105,14 @@ def _run_jax_ppo(args) -> int:
 
 
 def _run_sb3(args) -> int:
+    from rventry_agents.sb3_config import load_config
     from rventry_agents.train import train_sb3
 
-    out = train_sb3(args.algorithm, args.config, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress,
+    cfg = load_config(args.config, args.algorithm)
+    if args.mode is not None and cfg.policy.mode != args.mode:
+        raise ValueError(f"{args.config} trains [policy] mode = {cfg.policy.mode!r}; `rventry train {args.command_name}` "
+                         f"trains mode = {args.mode!r}: use `rventry train {COMMAND_OF_MODE[cfg.policy.mode]}`")  # fmt: skip
+    out = train_sb3(args.algorithm, cfg, args.timesteps, args.seed, args.out, progress_bar=not args.no_progress,
                     resume=args.resume)
     print(f"wrote {out}/model.zip (best on the task metric), learning_curve.png, metadata.json")
     return 0

@@ -210,11 +210,11 @@ def sb3_ppo_speed(timesteps: int) -> dict:
     from rventry_agents.train import BASELINES, algorithm_class, load_config, make_task, make_vec_env, policy_kwargs
 
     cfg = load_config(BASELINES / "ppo.toml", "ppo")
-    torch.set_num_threads(int(cfg["train"].get("torch_threads", 2)))
+    torch.set_num_threads(cfg.train.torch_threads)
     venv = make_vec_env(cfg, make_task(cfg), algorithm="ppo")
     model = algorithm_class("ppo")("MlpPolicy", venv, seed=0, device="cpu", policy_kwargs=policy_kwargs(cfg, "ppo"),
-                                   verbose=0, **dict(cfg["ppo"]))  # fmt: skip
-    model.learn(int(cfg["env"]["num_envs"]) * int(cfg["ppo"]["n_steps"]))  # warm-up: one rollout and update
+                                   verbose=0, **cfg.ppo.kwargs())  # fmt: skip
+    model.learn(cfg.env.num_envs * cfg.ppo.n_steps)  # warm-up: one rollout and update
     t0 = time.perf_counter()
     model.learn(timesteps, reset_num_timesteps=False)
     return {"env_steps_per_s": timesteps / (time.perf_counter() - t0), "timesteps": timesteps}
