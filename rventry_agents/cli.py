@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rventry_env.util.args import positive_int, seed
+from rventry_env.util.args import positive_float, positive_int, seed
 
 
 # the stable-baselines3 commands: name, aliases, algorithm, default config, the [policy] mode it
@@ -73,6 +73,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     jx.add_argument("--config", help="TOML config (default rventry_agents/baselines/jax_ppo.toml)")
     jx.add_argument("--max-wall-s", type=float, help="stop after the chunk that ends past this wall time (s)")
     jx.set_defaults(func=_run_jax_ppo)
+    sc = algos.add_parser("ppo-scratch", help=("PPO from scratch with a reverse curriculum: rejax PPO end to end in "
+                                               "JAX, no teacher (the [jax] extra; ships as the agent ppo-scratch)"))
+    sc.add_argument("--timesteps", type=positive_int, help="total environment steps (default: the config's)")
+    sc.add_argument("--seed", type=seed, help="random seed (default: the config's)")
+    sc.add_argument("--out", default="runs/ppo_scratch", help="output directory (default runs/ppo_scratch)")
+    sc.add_argument("--config", help="TOML config (default rventry_agents/ppo_scratch.toml)")
+    sc.add_argument("--max-wall-s", type=positive_float, help="stop after the chunk that ends past this wall time (s)")
+    sc.add_argument("--resume", action="store_true", help="go on with the interrupted run in --out from its checkpoint")
+    sc.set_defaults(func=_run_scratch)
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
     dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
     dag.add_argument("--workers", type=positive_int, default=2, help="local processes flying the expert (default 2)")
@@ -90,6 +99,21 @@ def register(sub: argparse._SubParsersAction) -> None:
                                      "rventry_agents/data/dagger, PPO fine-tuning to data/ppo_finetune, the PPO "
                                      "residual to data/ppo, a plain baseline to data/baselines/ALGORITHM)")
     ship.set_defaults(func=_ship)
+
+
+def _run_scratch(args) -> int:
+    try:
+        from rventry_agents.scratch import train_scratch
+    except ImportError as exc:
+        print(f"rventry train ppo-scratch needs the [jax] extra (pip install -e '.[jax]'): {exc}", file=sys.stderr)
+        return 2
+    meta = train_scratch(args.config, args.out, seed=args.seed, timesteps=args.timesteps, max_wall_s=args.max_wall_s,
+                         resume=args.resume)  # fmt: skip
+    best = meta["best_evaluation"]["select"] if meta["best_evaluation"] else {}
+    print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s ({meta['env_steps_per_s'] or float('nan'):,.0f} "
+          f"env-steps/s); selected policy: success {best.get('success_rate', float('nan')):.2f} on the selection set; "
+          f"written to {args.out}")  # fmt: skip
+    return 0
 
 
 def _run_jax_ppo(args) -> int:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_agents.commands import ACTIONS, check_actions, command_rates
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 
@@ -22,8 +23,9 @@ ACTIVATIONS = {"tanh": np.tanh, "relu": lambda z: np.maximum(z, 0.0)}
 NORM_EPS = 1e-8  # rejax's observation normalization: (obs - mean) / sqrt(var + 1e-8)
 
 
-def export_actor(path: str | Path, actor_params: dict, obs_mean, obs_var, activation: str) -> Path:
-    """Write the actor of a rejax PPO training state (its ``actor_ts.params``) to ``path`` (.npz), whole or not at all."""
+def export_actor(path: str | Path, actor_params: dict, obs_mean, obs_var, activation: str, actions: str = "rates") -> Path:
+    """Write the actor of a rejax PPO training state (its ``actor_ts.params``) to ``path`` (.npz), whole or
+    not at all; ``actions`` says what its outputs are (:data:`~rventry_agents.commands.ACTIONS`)."""
     from rventry_env.util.files import atomic_write
 
     p = actor_params["params"]
@@ -37,7 +39,8 @@ def export_actor(path: str | Path, actor_params: dict, obs_mean, obs_var, activa
         obs_mean=np.asarray(obs_mean, np.float64), obs_var=np.asarray(obs_var, np.float64),
         mean_kernel=np.asarray(p["action_mean"]["kernel"], np.float64),
         mean_bias=np.asarray(p["action_mean"]["bias"], np.float64),
-        log_std=np.asarray(p["action_log_std"], np.float64), activation=np.array(activation), **layers,
+        log_std=np.asarray(p["action_log_std"], np.float64), activation=np.array(activation),
+        actions=np.array(check_actions(actions)), **layers,
     )  # fmt: skip
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f:  # a file object: np.savez would add .npz to a bare path
@@ -69,6 +72,9 @@ class JaxPolicy(Law):
         except (OSError, ValueError, EOFError) as exc:
             raise ValueError(f"{path} is not an exported policy ({type(exc).__name__}: {exc})") from None
         self.layers, self.obs_mean, self.obs_scale, self.head, self.act = _network(data, path)
+        self.outputs = str(data["actions"]) if "actions" in data else "rates"
+        if self.outputs not in ACTIONS:
+            raise ValueError(f"{path}: unknown actions {self.outputs!r}; known: {ACTIONS}")
         self.task = EntryTask() if task is None else task
         meta = folder / "metadata.json"
         self.metadata = _read_json(meta) if meta.is_file() else {}
@@ -78,14 +84,39 @@ class JaxPolicy(Law):
         self.provenance = self.metadata.get("provenance")
 
     def actions(self, obs: np.ndarray) -> np.ndarray:
-        """Mean actions (N, 2) for observations (N, 26)."""
-        z = (np.asarray(obs, np.float64) - self.obs_mean) / self.obs_scale
+        """The environment's actions (N, 2) for observations (N, 26): the network's mean output,
+        flown as attitude commands where the policy gives them."""
+        obs = np.asarray(obs, np.float64)
+        z = (obs - self.obs_mean) / self.obs_scale
         for kernel, bias in self.layers:
             z = self.act(z @ kernel + bias)
-        return np.clip(z @ self.head[0] + self.head[1], -1.0, 1.0).astype(np.float32)
+        out = np.clip(z @ self.head[0] + self.head[1], -1.0, 1.0)
+        if self.outputs == "commands":
+            out = command_rates(obs, out, self.task, np)
+        return out.astype(np.float32)
 
     def __call__(self, m: Measurement) -> np.ndarray:
         return self.actions(m.observation)
+
+
+SHIPPED = {"ppo-scratch": Path(__file__).resolve().parent / "data" / "ppo_scratch"}  # agent name -> shipped run
+
+
+def load_shipped(name: str = "ppo-scratch", task: EntryTask | None = None) -> JaxPolicy:
+    """A policy trained in JAX and shipped with this package (entry point ``ppo-scratch``)."""
+    if name not in SHIPPED:
+        raise ValueError(f"no shipped JAX-trained policy named {name!r}; shipped: {', '.join(SHIPPED)}")
+    if not (SHIPPED[name] / "policy.npz").is_file():
+        raise FileNotFoundError(f"the shipped policy {name} is missing from {SHIPPED[name]}")
+    return JaxPolicy(SHIPPED[name], task)
+
+
+def load_saved(path: str, task: EntryTask | None = None) -> JaxPolicy:
+    """An exported policy or a ``rventry train ppo-scratch`` run folder (entry point ``rventry.agent_files``)."""
+    p = Path(path)
+    if not (p.suffix == ".npz" or (p / "policy.npz").is_file()):
+        raise ValueError(f"{p} is not a policy trained in JAX (no policy.npz)")
+    return JaxPolicy(p, task)
 
 
 def _network(data: dict, path: Path):
@@ -123,4 +154,4 @@ def _read_json(path: Path) -> dict:
     return value
 
 
-__all__ = ["JaxPolicy", "export_actor"]
+__all__ = ["JaxPolicy", "export_actor", "load_saved", "load_shipped", "SHIPPED"]

@@ -69,7 +69,7 @@ from rventry_env.envs.propagation import Propagator
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import SCALAR_FIELDS, Dispersion, apply_state_dispersion, disperse_state
 from rventry_env.envs.outcome import time_limit_penalty
-from rventry_env.envs.shaping import PotentialShaping, check_shaping, range_to_go
+from rventry_env.envs.shaping import PotentialShaping, check_shaping
 from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
 from rventry_env.task.starts import DRAWS, StartStates, perturbed
 from rventry_env.physics.model import EntryModel, numeric_leaves, scaled_model, with_numeric_leaves
@@ -242,10 +242,12 @@ class RvEntryFunctional(environment.Environment):
                          jnp.asarray([*half, dispersion.mass], f), jnp.asarray(dispersion.shape == "gaussian"),
                          jnp.asarray(dispersion.clip_sigmas, f), jnp.asarray(steps, jnp.int32),
                          self._pool(model, dispersion, seed) if self.flight_grade else None,
-                         self._start_params(model, self.starts if starts is ENV_DEFAULT else starts))  # fmt: skip
+                         self.start_params(self.starts if starts is ENV_DEFAULT else starts, model))  # fmt: skip
 
-    def _start_params(self, model: EntryModel, starts) -> StartParams | None:
-        """The start states as arrays (checked against the model's planet and the task)."""
+    def start_params(self, starts, model: EntryModel | None = None) -> StartParams | None:
+        """Start states as the params' arrays (checked against the model's planet and the task): what a
+        curriculum changes between calls without recompiling (``params._replace(starts=...)``)."""
+        model = self.model if model is None else model
         starts = common.check_starts(starts, model.planet.radius, self.task)
         if starts is None:
             return None
@@ -309,8 +311,7 @@ class RvEntryFunctional(environment.Environment):
         if self.shaping is None:
             return None
         planet = self.model.planet
-        return self.shaping.phi(x, range_to_go(c_ae, self.target, planet.radius, self.ns), planet.mu, planet.radius,
-                                self.ns)  # fmt: skip
+        return self.shaping.phi(x, c_ae, self.target, planet.mu, planet.radius, self.ns)
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         a = jnp.clip(jnp.asarray(action, dtype=self.ns.float_dtype), -1.0, 1.0)

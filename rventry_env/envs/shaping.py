@@ -21,8 +21,8 @@ signal; a guidance law never sees it) and written once for floats, NumPy and JAX
   plunge pays as well as a glide).
 * ``"energy"``: -w * |range to go - R(e)| (km), the range the vehicle is off the profile R(e)
   of range to go against specific energy e = v^2/2 + mu/R - mu/r that a trajectory of the task
-  flies (:meth:`PotentialShaping.energy_range`, built from the shipped reference by
-  :func:`rventry_env.reference.energy_range_shaping`). It is the classical entry-guidance
+  flies (``energies`` and ``ranges``; :func:`rventry_env.reference.shaping.energy_range_profile`
+  gives the shipped reference's). It is the classical entry-guidance
   prediction of the miss: at a given energy, the range the vehicle can still cover is about the
   profile's, so a vehicle short of energy for its range (a plunge) or with energy to spare
   loses potential, and one that keeps range and energy in step keeps it.
@@ -34,6 +34,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from rventry_env.core.targeting import specific_energy, surface_angle, target_in_a
 
 POTENTIALS = ("range", "energy")
 
@@ -77,8 +79,9 @@ class PotentialShaping:
         object.__setattr__(self, "gamma", float(g))
         object.__setattr__(self, "weight", float(w))
 
-    def phi(self, x, range_to_go_m, mu: float, radius: float, ns):
-        """The potential of states ``x`` (components) whose range to go is ``range_to_go_m``."""
+    def phi(self, x, c_ae, target_e, mu: float, radius: float, ns):
+        """The potential of states ``x`` (components; C_AE at them ``c_ae``) flying to ``target_e``."""
+        range_to_go_m = radius * surface_angle(target_in_a(c_ae, target_e), ns)
         if self.potential == "range":
             return -self.weight * range_to_go_m / 1000.0
         e = specific_energy(x, mu, radius)
@@ -96,25 +99,10 @@ class PotentialShaping:
         return out
 
 
-def specific_energy(x, mu: float, radius: float):
-    """Specific mechanical energy relative to standing on the surface, v^2/2 + mu/R - mu/r (J/kg)."""
-    return 0.5 * x[5] * x[5] + mu / radius - mu / x[0]
-
-
-def range_to_go(c_ae, target_e, radius: float, ns):
-    """Great-circle distance (m) from the point under the vehicle (a1 = C_AE's first row) to the target."""
-    a1 = c_ae[0]
-    cos = a1[0] * target_e[0] + a1[1] * target_e[1] + a1[2] * target_e[2]
-    cx = a1[1] * target_e[2] - a1[2] * target_e[1]
-    cy = a1[2] * target_e[0] - a1[0] * target_e[2]
-    cz = a1[0] * target_e[1] - a1[1] * target_e[0]
-    return radius * ns.arctan2(ns.sqrt(cx * cx + cy * cy + cz * cz), cos)
-
-
 def check_shaping(shaping) -> PotentialShaping | None:
     if shaping is None or isinstance(shaping, PotentialShaping):
         return shaping
     raise TypeError(f"shaping must be a PotentialShaping (rventry_env.envs.shaping) or None, got {type(shaping).__name__}")
 
 
-__all__ = ["POTENTIALS", "PotentialShaping", "specific_energy", "range_to_go", "check_shaping"]
+__all__ = ["POTENTIALS", "PotentialShaping", "check_shaping"]
