@@ -97,7 +97,8 @@ class Curriculum:
         # a rung with start states of its own is all start states: its episodes come from the window
         p = 1.0 if self.rung.before_impact_s else self.c.probability
         lo = min(self.c.latest_s, w)
-        return reference_starts((lo, w), p if probability is None else probability, **self.c.perturbations())
+        return reference_starts((lo, w), p if probability is None else probability, far_weight=self.c.far_weight,
+                                **self.c.perturbations())  # fmt: skip
 
     def frontier(self):
         """Start states near the window's far end, every episode from them."""
@@ -116,12 +117,27 @@ class Curriculum:
         return True
 
 
-def _agent(cfg: ScratchConfig, env, params, chunk: int):
-    """rejax PPO for ``env`` (its evaluation replaced: the run evaluates between chunks)."""
+def ppo_class(resets: int):
+    """rejax's PPO, stepping its environments with :func:`~rventry_env.envs.functional.step_batch`'s
+    optimistic autoreset (``resets`` fresh starts a step) where ``resets`` > 0, with gymnax's own else."""
     from rejax import PPO
 
+    if resets <= 0:
+        return PPO
+    from rventry_env.envs.functional import step_batch
+
+    class OptimisticResetPPO(PPO):
+        @property
+        def vmap_step(self):
+            return lambda keys, states, actions, params: step_batch(self.env, keys, states, actions, params, resets)
+
+    return OptimisticResetPPO
+
+
+def _agent(cfg: ScratchConfig, env, params, chunk: int):
+    """rejax PPO for ``env`` (its evaluation replaced: the run evaluates between chunks)."""
     p = cfg.ppo
-    algo = PPO.create(
+    algo = ppo_class(cfg.env.resets).create(
         env=env, env_params=params, num_envs=cfg.env.num_envs, num_steps=p.num_steps, num_epochs=p.num_epochs,
         num_minibatches=p.num_minibatches, learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda,
         clip_eps=p.clip_eps, ent_coef=p.ent_coef, vf_coef=p.vf_coef, max_grad_norm=p.max_grad_norm,
@@ -167,7 +183,9 @@ class Trainer:
             return algo.train(train_state=ts)[0]
 
         self._train = jax.jit(train_chunk)
+        # compiled once each: a new evaluator would be a new program to compile
         self.selection = self.env.evaluator(self.algo, cfg.train.select_episodes)
+        self.frontier_eval = self.env.evaluator(self.algo, cfg.curriculum.frontier_episodes)
         # the rung's own episodes (its start states, or none), the selection pool's seed apart from training's
         self.select_params = base.make_params(dispersion=self.curriculum.rung.dispersion, seed=cfg.train.select_seed,
                                               starts=self.curriculum.rung.starts())  # fmt: skip
@@ -187,7 +205,12 @@ class Trainer:
 
     def frontier(self, ts, key) -> dict:
         params = self.params._replace(starts=self.env.base.start_params(self.curriculum.frontier()))
-        return self.env.evaluator(self.algo, self.cfg.curriculum.frontier_episodes)(ts, params, key)
+        return self.frontier_eval(ts, params, key)
+
+    def probe(self, ts, lo: float, hi: float, key) -> dict:
+        """The deterministic policy from the reference ``lo``-``hi`` s before impact (the frontier's episodes)."""
+        params = self.params._replace(starts=self.env.base.start_params(self.curriculum.starts_between(lo, hi)))
+        return self.frontier_eval(ts, params, key)
 
     def select(self, ts) -> dict:
         import jax
@@ -266,6 +289,7 @@ def _rank(rec: dict) -> tuple:
 def _line(rec: dict) -> str:
     s, c = rec["select"], rec.get("curriculum") or {}
     front = f"  window {c['window_s']:5.0f} s frontier {c['frontier_success']:.2f}" if c else ""
+    front += "  probes " + " ".join(f"{k}:{v:.2f}" for k, v in rec.get("probes", {}).items())
     return (f"{rec['timesteps']:>12,d} steps {rec['wall_s']:7.0f} s  success {s['success_rate']:.2f}  miss p50 "
             f"{s['miss_km_p50']:7.1f} km  vertical p50 {s['vertical_error_deg_p50']:5.1f} deg{front}"
             + ("  *best*" if rec.get("best") else ""))  # fmt: skip

@@ -35,6 +35,9 @@ class EnvSection(Section):
     :param actions: ``"rates"``: the environment's own action; ``"commands"``: attitude commands
         flown by a one-step tracker (:mod:`rventry_agents.commands`).
     :param time_limit_is_failure: charge a time-limit cut like a failure (training only).
+    :param resets: fresh starts drawn per step for the episodes that end (an optimistic autoreset,
+        :func:`~rventry_env.envs.functional.step_batch`); 0: gymnax's autoreset, a full reset per
+        episode per step.
     """
 
     rung: str = setting("standard", check=_rung)
@@ -43,9 +46,12 @@ class EnvSection(Section):
     max_episode_steps: int = setting(2000, ge=1)
     dtype: Literal["float32", "float64"] = "float32"
     time_limit_is_failure: bool = True
+    resets: int = setting(32, ge=0)
 
     def __post_init__(self):
         super().__post_init__()
+        if self.resets > self.num_envs:
+            raise ConfigError(f"[env] resets ({self.resets}) cannot exceed num_envs ({self.num_envs})")
         if self.rung == "footprint":
             raise ConfigError("[env] rung = 'footprint' draws a target per episode, which the JAX environment does "
                               "not fly; train on a fixed-target rung")  # fmt: skip
@@ -60,8 +66,10 @@ class CurriculumSection(Section):
     lands ``advance_at`` of ``frontier_episodes`` started near W (a reverse curriculum, Florensa et
     al. 2017); ``"uniform"`` starts them anywhere up to the rung's earliest start at once (DeepMimic's
     reference-state initialisation); ``"none"``: only the rung's own starts. ``probability`` is the
-    share of training episodes started this way; the others start as the rung does. Selection and
-    evaluation always fly the rung's own starts.
+    share of training episodes started this way; the others start as the rung does. ``far_weight``
+    k makes the start density grow as (s - latest_s)^k toward the window's far end, where the
+    frontier is (:class:`~rventry_env.task.starts.StartStates`). Selection and evaluation always fly
+    the rung's own starts.
     """
 
     kind: Literal["none", "reverse", "uniform"] = "reverse"
@@ -71,6 +79,7 @@ class CurriculumSection(Section):
     growth: float = setting(1.25, gt=1)
     advance_at: float = setting(0.5, gt=0, le=1)
     frontier_episodes: int = setting(128, ge=1)
+    far_weight: float = setting(0.0, ge=0)
     altitude_m: float = setting(300.0, ge=0)
     speed_mps: float = setting(20.0, ge=0)
     flight_path_deg: float = setting(0.2, ge=0)

@@ -12,6 +12,8 @@ from rventry_agents.config import ConfigError
 from rventry_env.util.files import atomic_write, save_figure, write_json
 
 CHECKPOINT = "checkpoint"
+# windows (s before impact) whose success is recorded after each chunk: where along the flight the policy lands from
+PROBES = ((30.0, 60.0), (150.0, 200.0), (450.0, 550.0))
 
 
 def check_out(out: Path, cfg, resume: bool) -> None:
@@ -22,14 +24,21 @@ def check_out(out: Path, cfg, resume: bool) -> None:
     if resume:
         if not (out / CHECKPOINT / "state.json").is_file():
             raise ValueError(f"cannot resume {out}: it has no {CHECKPOINT}/ (a run writes one after each chunk)")
-        recorded = json.loads((out / "config.json").read_text()) if started else None
-        if recorded != json.loads(json.dumps(cfg.to_dict())):
-            diff = sorted(k for k in set(cfg.to_dict()) | set(recorded or {})
-                          if (recorded or {}).get(k) != json.loads(json.dumps(cfg.to_dict().get(k))))  # fmt: skip
-            raise ValueError(f"cannot resume {out}: the config differs from the one it started with (sections {diff})")
+        recorded = _resumable(json.loads((out / "config.json").read_text())) if started else {}
+        now = _resumable(json.loads(json.dumps(cfg.to_dict())))
+        if recorded != now:
+            diff = sorted(k for k in set(now) | set(recorded) if recorded.get(k) != now.get(k))
+            raise ValueError(f"cannot resume {out}: the config differs from the one it started with (sections {diff}); "
+                             "only the budget ([train] total_timesteps, max_wall_s) may change")  # fmt: skip
     elif started:
         raise ValueError(f"{out} already holds a run; give another --out, or --resume to go on with it")
     out.mkdir(parents=True, exist_ok=True)
+
+
+def _resumable(config: dict) -> dict:
+    """What a resumed run must share with the run it resumes: all but the budget."""
+    train = {k: v for k, v in config.get("train", {}).items() if k not in ("total_timesteps", "max_wall_s")}
+    return {**config, "train": train}
 
 
 def record_chunk(trainer, ts, steps: int, wall_s: float, chunk_s: float) -> dict:
@@ -48,6 +57,8 @@ def record_chunk(trainer, ts, steps: int, wall_s: float, chunk_s: float) -> dict
         rec["curriculum"] = {"window_s": window, "frontier_success": front["success_rate"], "frontier": front,
                              "next_window_s": c.window}  # fmt: skip
     rec["select"] = trainer.select(ts)
+    rec["probes"] = {f"{lo:g}-{hi:g}": trainer.probe(ts, lo, hi, jax.random.PRNGKey(steps + 1))["success_rate"]
+                     for lo, hi in PROBES}  # fmt: skip
     return rec
 
 

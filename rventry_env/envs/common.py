@@ -19,10 +19,11 @@ class EntryEnvSetup:
     """Construction shared by :class:`RvEntryEnv` and :class:`RvEntryVectorEnv`."""
 
     def _configure(self, model, task, reward, dt, substeps, dispersion, render_mode, ns,
-                   targets=None, starts=None) -> tuple[spaces.Box, spaces.Box]:  # fmt: skip
+                   targets=None, starts=None, shaping=None) -> tuple[spaces.Box, spaces.Box]:  # fmt: skip
         """Validate and store the arguments; return the single-copy (observation, action) spaces."""
         from rventry_env.envs.observation import observation_box
         from rventry_env.envs.propagation import Propagator
+        from rventry_env.envs.shaping import check_shaping
 
         self.model = make_model(model)
         self.task = make_task(task, dt, substeps, targets)
@@ -42,11 +43,20 @@ class EntryEnvSetup:
         self._obs_low, self._obs_high = observation_box(self.task, self._radius)
         self._prop = Propagator(self.task, ns, self.reward)
         self.starts = check_starts(starts, self._radius, self.task)
+        self.shaping = check_shaping(shaping)
         self._x = None
         return (
             spaces.Box(self._obs_low, self._obs_high, dtype=np.float32),
             spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32),
         )
+
+
+    def _potential(self, x, c_ae, ns):
+        """The shaping potential of the true states ``x`` (C_AE ``c_ae``); None without shaping."""
+        if self.shaping is None:
+            return None
+        planet = self.model.planet
+        return self.shaping.phi(x, c_ae, self._target, planet.mu, planet.radius, ns)
 
 
 def _feature_major(columns, dtype) -> np.ndarray:

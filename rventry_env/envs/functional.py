@@ -71,7 +71,7 @@ from rventry_env.task import SCALAR_FIELDS, Dispersion, apply_state_dispersion, 
 from rventry_env.envs.outcome import time_limit_penalty
 from rventry_env.envs.shaping import PotentialShaping, check_shaping
 from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
-from rventry_env.task.starts import DRAWS, StartStates, perturbed
+from rventry_env.task.starts import DRAWS, StartStates, perturbed, window_time
 from rventry_env.physics.model import EntryModel, numeric_leaves, scaled_model, with_numeric_leaves
 
 DTYPES = ("float32", "float64")
@@ -100,6 +100,7 @@ class StartParams(NamedTuple):
     window: Any  # (2,) the table times an episode may start at: earliest, latest
     probability: Any  # the share of episodes that start from the table
     half_widths: Any  # (6,) the perturbations of PERTURBATIONS
+    far_weight: Any  # the start time's density grows toward the window's far end as (s - earliest)^far_weight
 
 
 class FlightPool(NamedTuple):
@@ -254,7 +255,7 @@ class RvEntryFunctional(environment.Environment):
         f = self.ns.float_dtype
         return StartParams(jnp.asarray(starts.times, f), jnp.asarray(starts.states, f),
                            jnp.asarray(starts.window_times(), f), jnp.asarray(starts.probability, f),
-                           jnp.asarray(starts.half_widths, f))  # fmt: skip
+                           jnp.asarray(starts.half_widths, f), jnp.asarray(starts.far_weight, f))  # fmt: skip
 
     def _pool(self, model: EntryModel, dispersion: Dispersion, seed: int) -> FlightPool:
         """The pool of flight-grade draws (zeros for a set without them)."""
@@ -297,7 +298,7 @@ class RvEntryFunctional(environment.Environment):
         environments' rule: :meth:`~rventry_env.task.starts.StartStates.draw`)."""
         ns = self.ns
         u = uniforms(key, DRAWS, ns.float_dtype, offset=_START_OFFSET)
-        k = jnp.clip(jnp.searchsorted(sp.times, sp.window[0] + u[1] * (sp.window[1] - sp.window[0])), 0,
+        k = jnp.clip(jnp.searchsorted(sp.times, window_time(u[1], sp.window, sp.far_weight, jnp)), 0,
                      sp.times.shape[0] - 1)  # fmt: skip
         row = sp.states[k]
         x = perturbed(tuple(row[i] for i in range(12)), tuple((2.0 * u[2:] - 1.0) * sp.half_widths),
@@ -389,6 +390,37 @@ class RvEntryFunctional(environment.Environment):
         return jnp.clip(raw, self.obs_low, self.obs_high), clipped, errors
 
 
+def step_batch(env, keys, states, actions, params, resets: int):
+    """One step of a batch of episodes of a gymnax environment, with an optimistic autoreset.
+
+    gymnax's ``step`` computes a whole reset for every episode at every step and selects it where
+    the episode ended; under ``vmap`` both branches always run, and on a GPU the reset is half
+    of an ``RvEntry`` step's time. This steps every episode (``vmap`` of ``step_env``), draws only
+    ``resets`` new starts (keys from the first episode's), and gives the k-th episode that ended
+    the start number k modulo ``resets`` (Craftax's optimistic reset). Each start is a fresh draw
+    of the environment's own reset, so the distribution of starts is the plain reset's; only when
+    more than ``resets`` episodes end in one step do some of them share a start.
+
+    :param keys: (N, 2) one key per episode; ``states``, ``actions``: the batch (N leading).
+    :return: as a vmapped ``step``: observations, states, rewards, dones and infos, each (N, ...).
+    """
+    import jax
+
+    n = actions.shape[0]
+    if not 1 <= resets <= n:
+        raise ValueError(f"resets must lie in [1, {n}] (the batch), got {resets}")
+    obs_st, state_st, reward, done, info = jax.vmap(env.step_env, in_axes=(0, 0, 0, None))(keys, states, actions, params)
+    reset_keys = jax.random.split(jax.random.fold_in(keys[0], 0x5EED), resets)
+    obs_re, state_re = jax.vmap(env.reset_env, in_axes=(0, None))(reset_keys, params)
+    pick = (jnp.cumsum(done) - 1) % resets
+
+    def select(fresh, stepped):
+        mask = done.reshape(done.shape + (1,) * (stepped.ndim - 1))
+        return jnp.where(mask, fresh[pick], stepped)
+
+    return select(obs_re, obs_st), jax.tree.map(select, state_re, state_st), reward, done, info
+
+
 def _flight_grade(dispersion: Dispersion) -> bool:
     return dispersion.flight is not None and not dispersion.flight.is_zero
 
@@ -459,5 +491,6 @@ def _structure(obj):
     return obj
 
 
-__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "DTYPES", "uniforms",
+__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "StartParams", "DTYPES", "uniforms",
+           "step_batch",
            "dispersion_draw", "with_mass_factor"]  # fmt: skip

@@ -16,6 +16,7 @@ from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
+from rventry_env.envs.shaping import PotentialShaping
 from rventry_env.envs.uncertainty import FlightState, Sensed
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
 from rventry_env.task.starts import StartStates
@@ -177,9 +178,10 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         targets: str | None = None,
         max_episode_steps: int | None = MAX_EPISODE_STEPS,
         starts: StartStates | None = None,
+        shaping: PotentialShaping | None = None,
     ):
         self.observation_space, self.action_space = self._configure(
-            model, task, reward, dt, substeps, dispersion, render_mode, MATH, targets, starts
+            model, task, reward, dt, substeps, dispersion, render_mode, MATH, targets, starts, shaping
         )
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self._limit = self.max_episode_steps  # this episode's: the own limit or a shorter outer one
@@ -237,6 +239,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         self._max_load = self._forces.aero_accel / self._g0
         self._min_q = self._forces.dynamic_pressure
         self._ended = False
+        self._phi = self._potential(self._x, self._c_ae, MATH)
         self._track = Track() if self.render_mode else None
         self._measure()
         obs, clipped = self._observe()
@@ -269,6 +272,10 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         reward = -(out.cost + out.path_penalty)
         terminated = out.status != FLYING
         truncated = not terminated and self._limit is not None and self._steps >= self._limit
+        if self.shaping is not None:
+            phi = self._potential(self._x, self._c_ae, MATH)
+            reward += self.shaping.reward(self._phi, phi, terminated, MATH)
+            self._phi = phi
         self._measure(out.elapsed)
         info_obs, obs_clipped = self._observe()
         info = self._info(clipped, out.alpha_saturated, obs_clipped)

@@ -16,6 +16,7 @@ from rventry_env.envs.allocator import keep_freed_memory
 from rventry_env.envs.observation import observe
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
+from rventry_env.envs.shaping import PotentialShaping
 from rventry_env.envs.propagation import IDLE, Propagator, StepOutcome
 from rventry_env.envs.transition import Flight, Transition, advance
 from rventry_env.envs.uncertainty import FlightState
@@ -100,6 +101,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         targets: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         starts: StartStates | None = None,
+        shaping: PotentialShaping | None = None,
     ):
         if int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs}")
@@ -110,7 +112,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self.num_envs = int(num_envs)
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self.single_observation_space, self.single_action_space = self._configure(
-            model, task, reward, dt, substeps, dispersion, render_mode, NUMPY, targets, starts
+            model, task, reward, dt, substeps, dispersion, render_mode, NUMPY, targets, starts, shaping
         )
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -184,12 +186,15 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._min_q = np.zeros(n)
         self._prev_done = np.zeros(n, dtype=bool)
         self._frozen = np.zeros(n, dtype=bool)  # DISABLED: copies whose episode ended
+        self._phi = np.zeros(n)  # with shaping: each copy's potential
         self.dispersion_draw = np.zeros((n, 9))
         self._targets = np.tile(self._nominal_target, (n, 1))  # each copy's target, unit vector in E
         self._errors = FlightState(n, self.model)
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
         extras = self._reset_copies(np.arange(n), dispersion)
         self._measure()
+        if self.shaping is not None:
+            self._phi = self._potential_now()
         obs, clipped = self._observe()
         info = self._info(np.zeros(n, bool), np.zeros(n, bool), clipped)
         # the draws, for evaluation only: a guidance law is never given them
@@ -219,6 +224,11 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         ended = terminated | truncated
         infos = self._info_dict(st.info, action_clipped & ~restart, st.alpha_saturated & ~restart, st.obs_clipped)
         reward = st.reward
+        if self.shaping is not None:
+            phi = self._potential_now()
+            stepped = ~restart
+            reward = reward + np.where(stepped, self.shaping.reward(self._phi, phi, terminated, NUMPY), 0.0)
+            self._phi = phi  # a copy restarted this step is at its new start
         if st.outcome is not None:
             self._finish(infos, st.outcome, ended, st.info_max_load, st.info_min_q)
         self._record()
@@ -234,6 +244,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             infos["_final_info"] = ended.copy()
             self._reset_copies(idx)
             self._measure()
+            if self.shaping is not None:
+                self._phi[idx] = self._potential_now()[idx]
             obs_r, _ = self._observe()
             obs[idx] = obs_r[idx]
         return obs, reward.astype(np.float64), terminated, truncated, infos
@@ -281,6 +293,11 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                     self._tracks[i] = Track()
             self._record(only=[i for i in idx if i < len(self._tracks)])
         return extras
+
+    def _potential_now(self) -> np.ndarray:
+        """Every copy's shaping potential at its true state now."""
+        x = tuple(self.state.T)
+        return np.broadcast_to(self._potential(x, dcm(*x[1:5]), NUMPY), (self.num_envs,))
 
     def _measure(self, elapsed=None, active=None) -> None:
         """What the vehicles' sensors and navigation make of the truth (the truth itself where

@@ -48,6 +48,9 @@ class StartStates:
         anywhere along the table.
     :param probability: the share of episodes that start from the table (the others start at the
         task's initial state with the environment's dispersion).
+    :param far_weight: k >= 0: the start time's density within the window grows as
+        (s - earliest)^k with s the seconds before the table's end, so that a reverse curriculum's
+        frontier, the window's far end, gets more episodes (0: uniform).
     :param altitude_m, speed_mps, flight_path_deg, heading_deg, alpha_deg, sigma_deg: uniform
         half-widths of the perturbations of the picked state (alpha is then held in [0, alpha_max]).
     :param label: what the table is, for records and messages.
@@ -57,6 +60,7 @@ class StartStates:
     states: np.ndarray
     before_end_s: tuple[float, float]
     probability: float = 1.0
+    far_weight: float = 0.0
     altitude_m: float = 0.0
     speed_mps: float = 0.0
     flight_path_deg: float = 0.0
@@ -86,7 +90,7 @@ class StartStates:
         p = self.probability
         if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0 < p <= 1:
             raise ValueError(f"start states: probability must lie in (0, 1], got {p!r}")
-        for name in PERTURBATIONS:
+        for name in (*PERTURBATIONS, "far_weight"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"start states: {name} must be a finite half-width >= 0, got {v!r}")
@@ -117,8 +121,8 @@ class StartStates:
 
     def pick(self, u) -> tuple:
         """The table row and time for uniform numbers ``u`` in [0, 1) (arrays or numbers; NumPy)."""
-        lo, hi = self.window_times()
-        k = np.clip(np.searchsorted(self.times, lo + np.asarray(u) * (hi - lo)), 0, self.times.size - 1)
+        k = np.clip(np.searchsorted(self.times, window_time(u, self.window_times(), self.far_weight, np)), 0,
+                    self.times.size - 1)  # fmt: skip
         return k, self.times[k]
 
     def draw(self, rng: np.random.Generator, alpha_max: float):
@@ -134,10 +138,17 @@ class StartStates:
 
     def describe(self) -> dict:
         """A JSON-friendly description (the table by its size and span, not its numbers)."""
-        out = {n: getattr(self, n) for n in ("label", "before_end_s", "probability", *PERTURBATIONS)}
+        out = {n: getattr(self, n) for n in ("label", "before_end_s", "probability", "far_weight", *PERTURBATIONS)}
         out.update(rows=int(self.times.size), span_s=float(self.times[-1] - self.times[0]))
         out["before_end_s"] = list(self.before_end_s)
         return out
+
+
+def window_time(u, window, far_weight, xp):
+    """The table time for a uniform number ``u``: within ``window`` = (earliest, latest) table times,
+    with density growing as (latest - t)^far_weight toward the earliest (the far end). NumPy or JAX."""
+    frac = xp.power(u, 1.0 / (1.0 + far_weight))  # density (frac)^k on [0, 1)
+    return window[1] - frac * (window[1] - window[0])
 
 
 def perturbed(x, d, alpha_max: float, ns) -> tuple:
@@ -164,4 +175,4 @@ def _array(name: str, value, ndim: int) -> np.ndarray:
     return a
 
 
-__all__ = ["StartStates", "PERTURBATIONS", "DRAWS", "perturbed"]
+__all__ = ["StartStates", "PERTURBATIONS", "DRAWS", "perturbed", "window_time"]
