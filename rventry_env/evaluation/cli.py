@@ -144,7 +144,7 @@ def check_memory(episodes: int, history: bool, option: str = "--episodes") -> No
 
 def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
               cluster: str | None = None, progress=None, targets: str = "fixed"):  # fmt: skip
-    """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary).
+    """Evaluate one agent on the episodes of seeds ``seed`` to ``seed + episodes - 1``; returns (batch, summary).
 
     :param targets: the task's targets (``"fixed"`` or ``"footprint"``); a law that cannot
         re-target is refused here, before any episode flies.
