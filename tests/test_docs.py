@@ -2,8 +2,10 @@
 every code block they show, run as a reader would run it.
 
 A ``python`` or ``bash`` block runs in the fast tier unless the line before it says
-``<!-- code: slow (why) -->`` (then in the slow tier) or ``<!-- code: skip (why) -->`` (only
-where it cannot run here: a GPU, a cluster). The blocks of one page run in order in one scratch
+``<!-- code: slow (why) -->`` (then in the slow tier), ``<!-- code: ci (why) -->`` (the README's
+set-up commands, which make a virtual environment: ``.ci/run`` runs each verbatim, and a test
+checks that it does) or ``<!-- code: skip (why) -->`` (only where it cannot run here: a GPU, a
+cluster). The blocks of one page run in order in one scratch
 folder, so a block may use what an earlier one wrote; a page's ``{include}`` of the README is
 read as the included text, as the manual shows it.
 """
@@ -22,7 +24,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 TOOLS = ROOT / "docs" / "tools"
 RUN = ("python", "bash")
-MARK = re.compile(r"^<!-- code: (slow|skip) \((.+)\) -->$")
+MARK = re.compile(r"^<!-- code: (slow|skip|ci) \((.+)\) -->$")
 FENCE = re.compile(r"^```(\w[\w-]*)?\s*$")
 INCLUDE = re.compile(r"^```\{include\} (\S+)\n((?::[\w-]+: .*\n)*)```$", re.M)
 
@@ -81,6 +83,11 @@ def _run_page(page: Path, tier: str, tmp_path: Path) -> None:
     venv_bin = Path(sys.executable).parent
     env = dict(os.environ, PATH=f"{venv_bin}{os.pathsep}{os.environ.get('PATH', '')}", MPLBACKEND="Agg")
     order = ("fast",) if tier == "fast" else ("fast", "slow")
+    # a block runs as from the repository root (it may name docs/tools/tables.py), but writes its
+    # outputs (out/, ...) into the scratch folder
+    for entry in ROOT.iterdir():
+        if entry.name not in ("out", "runs", ".git", ".venv") and not (tmp_path / entry.name).exists():
+            (tmp_path / entry.name).symlink_to(entry)
     for b in blocks(page):
         if b["lang"] not in RUN or b["tier"] not in order:
             continue
@@ -110,6 +117,9 @@ def test_every_block_is_run_or_says_why_not():
             where = f"{page.relative_to(ROOT)}, line {b['line']}"
             if b["tier"] == "skip":
                 assert b["why"] and b["lang"] in RUN, where
+            if b["tier"] == "ci":  # run by CI itself, verbatim
+                ci = (ROOT / ".ci" / "run").read_text().split("\n")
+                assert all(line in ci for line in b["code"].split("\n")), where
             if b["lang"] in ("sh", "shell", "console", "py", "python3"):
                 pytest.fail(f"{where}: say ```bash or ```python so that the block is run, or ```text for a synopsis")
 

@@ -164,11 +164,22 @@ def test_the_cli_reference_lists_every_subcommand_and_option():
     cli_reference = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(cli_reference)
 
+    import argparse
+
     page = cli_reference.markdown(build_parser())
-    for path, parser in cli_reference.walk(build_parser()):
-        assert f"## `{' '.join(path)}`" in page, path
+    sections = {s.split("`", 1)[0]: s for s in page.split("\n## `")[1:]}
+    walked = list(cli_reference.walk(build_parser()))
+    assert len(walked) > 15 and {" ".join(p) for p, _ in walked} == set(sections)
+    for path, parser in walked:
+        section = sections[" ".join(path)]  # each command's own section names each of its arguments
         for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name in action.choices:
+                    assert f"`{' '.join((*path, name))}`" in section, (path, name)
+                continue
             for flag in action.option_strings:
-                assert f"`{flag}" in page, (path, flag)
-            if not action.option_strings and action.dest not in ("help", "command", "subcommand"):
-                assert f"`{action.metavar or action.dest}`" in page, (path, action.dest)
+                assert f"`{flag}`" in section or f"`{flag} " in section, (path, flag)
+            if not action.option_strings:
+                assert f"`{action.metavar or action.dest}`" in section, (path, action.dest)
+            text = cli_reference.help_text(parser, action)
+            assert " ".join(text.split())[:40].replace("|", "\\|") in section, (path, action.dest)

@@ -41,14 +41,20 @@ def _cell(text: str) -> str:
 
 def _argument(action: argparse.Action) -> str:
     if action.option_strings:
-        flags = ", ".join(action.option_strings)
         if action.nargs == 0:
-            return f"`{flags}`"
+            return ", ".join(f"`{f}`" for f in action.option_strings)
         metavar = action.metavar or (action.dest.upper() if not action.choices else "{" + ",".join(map(str, action.choices)) + "}")
         if isinstance(metavar, tuple):
             metavar = " ".join(metavar)
-        return f"`{flags} {metavar}`"
+        return ", ".join(f"`{f} {metavar}`" for f in action.option_strings)
     return f"`{action.metavar or action.dest}`"
+
+
+def help_text(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
+    """An argument's help as ``--help`` prints it (``%%`` and ``%(default)s`` expanded)."""
+    if not action.help or action.help == argparse.SUPPRESS:
+        return ""
+    return parser._get_formatter()._expand_help(action)
 
 
 def _default(action: argparse.Action) -> str:
@@ -89,7 +95,7 @@ def markdown(parser: argparse.ArgumentParser) -> str:
         for action in p._actions:
             if isinstance(action, argparse._SubParsersAction):
                 continue
-            rows.append((_argument(action), _cell(action.help or ""), _default(action)))
+            rows.append((_argument(action), _cell(help_text(p, action)), _default(action)))
         if rows:
             lines += ["| argument | meaning | default |", "|---|---|---|"]
             lines += [f"| {a} | {h} | {d} |" for a, h, d in rows]

@@ -13,7 +13,7 @@ import re
 
 _SEPARATOR = re.compile(r"^\|\s*:?-{2,}:?\s*(\|\s*:?-{2,}:?\s*)*\|$")
 _LITERAL = re.compile(r"(``.+?``)")
-_GLUED = re.compile(r"(``[^`]+``)(?=[^\s.,;:!?)\]}'\"/\\-])")
+_GLUED = re.compile(r"[^\s.,;:!?)\]}'\"/\\-]")  # a character that may not follow a literal's end
 
 
 def _is_row(line: str) -> bool:
@@ -31,8 +31,14 @@ def _escape(text: str) -> str:
     """Escape every ``|`` outside ````literal```` spans, and end a literal that a character such as
     ``^`` follows (``wind_sigma``^2) with an escaped space, as reStructuredText asks."""
     parts = _LITERAL.split(text)
-    text = "".join(p if p.startswith("``") and p.endswith("``") and len(p) > 4 else p.replace("|", "\\|") for p in parts)
-    return _GLUED.sub(r"\1\\ ", text)
+    out = []
+    for i, p in enumerate(parts):
+        if i % 2:  # a literal (split keeps the captured group at the odd places)
+            nxt = parts[i + 1] if i + 1 < len(parts) else ""
+            out.append(p + ("\\ " if nxt and _GLUED.match(nxt) else ""))
+        else:
+            out.append(p.replace("|", "\\|"))
+    return "".join(out)
 
 
 def _table(rows: list[str], indent: str) -> list[str]:

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Callable
 
 ROOT = Path(__file__).resolve().parents[2]
-START = re.compile(r"^<!-- table: ([a-z0-9-]+) -->$", re.M)
+START = re.compile(r"^<!-- table: ([a-z0-9.-]+) -->$", re.M)
 END = "<!-- end table -->"
 
 

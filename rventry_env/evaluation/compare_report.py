@@ -224,7 +224,7 @@ def rich_table(header: list[str], rows: list[list[str]], caption: str = ""):
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> str:
     """The same table in Markdown (a header's line break becomes a space)."""
-    cells = [[h.replace("\n", " ") for h in header], *rows]
+    cells = [[h.replace("-\n", "").replace("\n", " ") for h in header], *rows]
     lines = ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in cells]
     lines.insert(1, "|" + "|".join("---" for _ in header) + "|")
     return "\n".join(lines)

@@ -114,6 +114,7 @@ def plot_trajectories(
     color = {label: colors[k % len(colors)] for k, label in enumerate(batches)}
     # the headline last, so that it is drawn over the others
     order = [k for k in batches if k != headline] + ([headline] if headline is not None else [])
+    banks = {label: unwrapped_bank_deg(batches[label].history_x) for label in batches}
     for label in order:
         b = batches[label]
         c, ls = color[label], styles.get(label, "-")
@@ -130,7 +131,13 @@ def plot_trajectories(
         ax["v"].plot(t, x[..., IDX.v] / 1e3, **kw)
         ax["track"].plot(lon, lat, **kw)
         ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), **kw)
-        ax["sigma"].plot(t, unwrapped_bank_deg(x), **kw)
+        ax["sigma"].plot(t, banks[label], **kw)
+    # the bank panel's range: where nearly all of the drawn bank angles lie, so that a few vehicles
+    # spinning at the end do not squeeze every other line flat
+    every = np.concatenate([v[np.isfinite(v)] for v in banks.values()] or [np.zeros(1)])
+    if every.size:
+        lo, hi = np.percentile(every, [0.5, 99.5])
+        ax["sigma"].set_ylim(min(lo, -185.0) - 10.0, max(hi, 185.0) + 10.0)
     for label in batches:  # the legend in the order of the batches, the headline first where it is
         n = batches[label].history_x.shape[1]
         text = f"{label} ({n} episode{'s' if n > 1 else ''})" + (": drawn on top" if label == headline else "")
