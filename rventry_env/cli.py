@@ -23,7 +23,7 @@ COMMAND_MODULES = (
     "rventry_env.evaluation.cli",
     "rventry_env.evaluation.oracle_cli",
     "rventry_env.validation.cli",
-    "rventry_env.evaluation.glossary",
+    "rventry_env.task.glossary",
 )
 COMMAND_GROUP = "rventry.commands"
 

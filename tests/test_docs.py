@@ -163,6 +163,6 @@ def test_a_table_that_disagrees_with_its_record_is_caught(tmp_path, monkeypatch)
 
 
 def test_the_glossary_page_is_the_glossarys():
-    from rventry_env.evaluation.glossary import glossary_markdown
+    from rventry_env.task.glossary import glossary_markdown
 
     assert (ROOT / "docs" / "reference" / "glossary.md").read_text() == glossary_markdown()

@@ -77,7 +77,7 @@ def test_feature_names_are_on_the_env_in_observation_order():
 
 def test_every_printed_term_has_a_glossary_entry_and_the_page_is_generated_from_them(capsys):
     from rventry_env.evaluation import cli as ev, compare_report
-    from rventry_env.evaluation.glossary import TERMS, glossary_markdown, term, terms_line
+    from rventry_env.task.glossary import TERMS, glossary_markdown, term, terms_line
 
     for name in (*compare_report.TERMS, *ev.EVALUATE_TERMS, "load relief", "navigation", "flyable"):
         t = term(name)
@@ -96,7 +96,7 @@ def test_every_printed_term_has_a_glossary_entry_and_the_page_is_generated_from_
 def test_the_glossarys_thresholds_are_the_tasks():
     from dataclasses import replace
 
-    from rventry_env.evaluation.glossary import term
+    from rventry_env.task.glossary import term
     from rventry_env.task import SuccessThresholds
 
     assert "5 km" in term("success").text and "100 m" in term("precision").text

@@ -11,7 +11,7 @@ import argparse
 import time
 from pathlib import Path
 
-from rventry_env.evaluation.glossary import terms_line
+from rventry_env.task.glossary import terms_line
 from rventry_env.task.definition import TARGETS
 from rventry_env.util.args import agent_spec, positive_int, seed
 from rventry_env.util.files import check_writable, output_set, write_json

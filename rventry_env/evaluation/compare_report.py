@@ -1,7 +1,7 @@
 """What ``rventry compare`` prints, built from its JSON report alone.
 
 The command prints these tables and sentences, and the manual's results tables are rendered
-from a saved report by the same functions (``docs/tables.py``), so the terminal and the README
+from a saved report by the same functions (``docs/tools/tables.py``), so the terminal and the README
 report the same statistics: the benchmark's success with its 95 % interval, the precision
 tier, the miss and the vertical-impact error as p50 / p95, the path-violation rate and the
 mean J/J*. Each table is a header row and rows of strings; :func:`rich_table` and

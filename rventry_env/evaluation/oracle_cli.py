@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _oracle(args) -> int:
     from rventry_env.evaluation.cli import progress_bar
-    from rventry_env.evaluation.glossary import terms_line
+    from rventry_env.task.glossary import terms_line
     from rventry_env.evaluation.oracle import OracleSettings, oracle
     from rventry_env.task import Dispersion, EntryTask
 

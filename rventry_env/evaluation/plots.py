@@ -242,7 +242,9 @@ def outcomes_figure(batches: dict[str, EpisodeBatch], thresholds, title: str = "
     for row, name in enumerate(names):
         b = batches[name]
         n = int(np.size(b.is_success))
-        axes[row, 0].set_ylabel(f"{name}\n{n} ep., success {np.mean(b.is_success):.2f}" if n else name, fontsize=9,
+        share = f"{np.mean(b.is_success):.3f}"
+        share = share[:-1] if share.endswith("0") else share  # 0.995, 1.00, 0.74: as the tables print it
+        axes[row, 0].set_ylabel(f"{name}\n{n} ep., success {share}" if n else name, fontsize=9,
                                 rotation=0, ha="right", va="center")  # fmt: skip
     fig.suptitle((title + "\n" if title else "") + "bar heights: the fraction of each law's own episodes", fontsize=11)
     fig.tight_layout()

@@ -128,6 +128,19 @@ def _terms() -> tuple[Term, ...]:
         Term("learned", "the shipped learned policy that lands most of the flight set",
              "The name of the shipped learned policy that lands most of the flight-grade set; the command that "
              "flies it prints which policy it is.", "learned.md"),
+        Term("J*", "the optimal cost: the collocation reference's J",
+             "The paper's cost (Eq. Ex2-Cost) of the optimal solution of Example 2, as the shipped collocation "
+             "reference solves it; every law's J/J* is measured against it.", "reference.md"),
+        Term("mesh error", "the collocation's largest relative error between nodes",
+             "The largest relative error of the collocation polynomials against the dynamics, measured between "
+             "the nodes of every mesh interval; the hp refinement adds intervals or degree until it is under the "
+             "tolerance (1e-6 by default).", "reference.md"),
+        Term("max violation", "the NLP's largest constraint violation",
+             "The largest violation of any constraint of the scaled nonlinear program at IPOPT's solution "
+             "(dynamics defects, path and endpoint constraints).", "reference.md"),
+        Term("e_r,max", "Example 1's largest position error",
+             "The largest position error over one orbit period against the analytic trajectory, in km: Example 1 "
+             "of the paper compares it in rv-Euler parameters and in spherical coordinates.", "core.md"),
         Term("BIC", "Bayesian information criterion (identification)",
              "The Bayesian information criterion of a fitted model (identification): the fit's misfit plus a "
              "price per parameter. An effect is added only while it lowers the BIC by the threshold.",
@@ -168,7 +181,7 @@ def glossary_markdown() -> str:
         "",
         "The words the `rventry` commands print. Each command ends with a line naming the terms it",
         "printed and their anchors here; `rventry glossary TERM` prints the same entry. This page is",
-        "generated from `rventry_env/evaluation/glossary.py`.",
+        "generated from `rventry_env/task/glossary.py`.",
         "",
     ]
     for t in TERMS:
