@@ -16,7 +16,7 @@ Prints, on the default JAX device (say which in the output: CPU, or a GPU where 
 
 Run: ``python scripts/bench_jax.py [--json PATH] [--quick]``
 
-On a GPU the functional env wants millions of vehicles, and PPO a bigger batch: the README's GPU
+On a GPU the functional env wants millions of vehicles, and PPO a bigger batch: the manual's GPU
 figures come from ``--functional-sizes 65536 1048576 4194304 --functional-steps 100``
 (``--functional-parts`` splits a step's time between the physics and the autoreset) and from
 ``rventry train jax-ppo --config rventry_agents/baselines/jax_ppo_gpu.toml``

@@ -18,6 +18,14 @@ from rventry_env.physics.model import EntryModel
 class EntryEnvSetup:
     """Construction shared by :class:`RvEntryEnv` and :class:`RvEntryVectorEnv`."""
 
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        """The observation's feature names in index order (``obs[..., i]`` is ``feature_names[i]``;
+        :func:`rventry_env.envs.observation.feature_index` gives an index by name)."""
+        from rventry_env.envs.observation import feature_names
+
+        return feature_names()
+
     def _configure(self, model, task, reward, dt, substeps, dispersion, render_mode, ns,
                    targets=None, starts=None, shaping=None) -> tuple[spaces.Box, spaces.Box]:  # fmt: skip
         """Validate and store the arguments; return the single-copy (observation, action) spaces."""

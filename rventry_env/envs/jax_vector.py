@@ -138,7 +138,8 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
     """:class:`RvEntryVectorEnv` with its step compiled by JAX (see the module docstring).
 
     :param dtype: ``"float64"`` (default: agrees with NumPy to rounding) or ``"float32"``
-        (faster; see the README for its error at impact).
+        (faster; see the manual's JAX page for its error at impact).
+
     Other arguments as :class:`RvEntryVectorEnv`; ``render_mode`` is not supported.
     """
 
