@@ -37,7 +37,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from rventry_env.task import FLIGHT_ERRORS, EntryTask, PrecisionThresholds
+from rventry_env.task import FLIGHT_ERRORS, NAMED_SETS, EntryTask, PrecisionThresholds
 from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
 from rventry_env.evaluation.agents import peer_settings
 from rventry_env.evaluation.summary import summarize
@@ -405,7 +405,7 @@ def main(argv=None) -> int:
     mode.add_argument("--navigation", metavar="REPORT",
                       help="what navigation leaves to guidance, from an evaluation report (rventry evaluate --json)")
     ap.add_argument("--episodes", type=positive_int, help="episodes per variant (scan: 40) or per set (evaluate: 200)")
-    ap.add_argument("--dispersion", default="wide", choices=("standard", "wide", "flight", "peer", "peer-0.1"),
+    ap.add_argument("--dispersion", default="wide", choices=NAMED_SETS,
                     help="the scan's set (wide)")
     ap.add_argument("--variants", default="defaults", choices=tuple(VARIANT_SETS),
                     help="defaults: each setting varied alone; flight: the flight-grade remedies; aero: the "

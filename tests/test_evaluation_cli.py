@@ -99,3 +99,38 @@ def test_several_jobs_on_one_pool_fly_what_each_flies_alone():
             np.testing.assert_array_equal(getattr(batch, key), getattr(alone, key))
     with pytest.raises(ValueError, match="no episodes to evaluate"):
         evaluate_many([(jobs[0][0], [])])
+
+
+def test_compare_reads_its_columns_and_episode_counts_from_the_agents_cards(monkeypatch):
+    """The library names no learning agent: the installed package declares its cards, and a law that
+    re-plans in flight says so itself. A card that is not an AgentCard is refused with its entry point."""
+    from rventry_env.evaluation import agents
+    from rventry_env.evaluation.compare_report import _why
+
+    cards = agents.agent_cards()
+    compared = [c.name for c in agents.compared_agents()]
+    assert compared == ["dagger-flight", "dagger", "ppo-plain", "lqr", "lqr-est", "mpc", "reference"]
+    assert set(compared) <= set(agents.agent_names())  # every column is an agent load_agent knows
+    assert [n for n, c in cards.items() if c.replans] == ["mpc", "mpc-flight", "mpc-peer"]
+    assert _why("lqr").startswith("it is the cheapest feedback law") and _why("x.zip") == "it is the policy x.zip"
+
+    class Point:
+        name = "bad"
+
+        def load(self):
+            return ("not a card",)
+
+    monkeypatch.setattr(agents, "entry_points", lambda group: [Point()])
+    with pytest.raises(TypeError, match="entry point bad .* not an AgentCard"):
+        agents.agent_cards()
+
+
+def test_every_command_offers_the_named_dispersion_sets_from_one_table():
+    from rventry_env.evaluation.cli import DISPERSIONS
+    from rventry_env.task import NAMED_SETS, SET_CHOICES, Dispersion
+
+    assert DISPERSIONS == SET_CHOICES == ("none", *NAMED_SETS)
+    assert [Dispersion.named(n).name for n in NAMED_SETS] == list(NAMED_SETS)  # each set knows its own name
+    assert Dispersion.named("peer-0.1") == Dispersion.peer(0.1) and Dispersion.named("none").is_zero
+    with pytest.raises(ValueError, match="no dispersion set 'narrow'; named sets: .*'peer-0.1'"):
+        Dispersion.named("narrow")

@@ -119,19 +119,17 @@ def test_outputs_are_one_set_a_failed_report_replaces_nothing(tmp_path):
 
 
 def test_output_set_puts_every_old_file_back_when_a_move_fails(tmp_path):
-    from rventry_env.util.files import OutputError
-    from rventry_env.validation.report.outputs import OutputSet
+    from rventry_env.util.files import OutputError, atomic_write, output_set
 
     report, model = _old_outputs(tmp_path)
     blocked = tmp_path / "plots" / "residuals.png"
     blocked.parent.mkdir()
-    with OutputSet() as out:
-        out.stage(model).write_text("new model")
-        out.stage(report).write_text("new report")
-        out.stage(blocked).write_text("new plot")
-        blocked.mkdir()  # the last destination turns into a folder: its move fails after the others
-        with pytest.raises(OutputError, match="no output was replaced"):
-            out.commit()
+    with pytest.raises(OutputError, match="no output was replaced"):
+        with output_set():
+            atomic_write(model, "new model")
+            atomic_write(report, "new report")
+            atomic_write(blocked, "new plot")
+            blocked.mkdir()  # the last destination turns into a folder: its move fails after the others
     assert report.read_text() == '{"old": "report"}' and model.read_text() == '{"old": "model"}'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "plots", "r.json"]
     assert [p.name for p in blocked.parent.iterdir()] == ["residuals.png"] and blocked.is_dir()

@@ -6,11 +6,16 @@ so this library never imports them by name:
 * group ``rventry.agents``: ``name = "package.module:loader"``, called as
   ``loader(name, task)``; the learning agents register ``learned``, ``dagger``, ``ppo`` and their baselines there;
 * group ``rventry.agent_files``: loaders tried in turn for an agent given as a
-  path (a saved model), called as ``loader(path, task)``.
+  path (a saved model), called as ``loader(path, task)``;
+* group ``rventry.agent_cards``: ``package = "package.module:CARDS"``, a sequence of
+  :class:`AgentCard`: what each agent says of itself (why a user would pick it, whether and where
+  ``rventry compare`` shows it, whether it re-plans in flight). The module should be light: the
+  commands read the cards without loading any policy.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Callable
@@ -19,6 +24,26 @@ from rventry_env.task import EntryTask
 
 AGENT_GROUP = "rventry.agents"
 FILE_GROUP = "rventry.agent_files"
+CARD_GROUP = "rventry.agent_cards"
+
+
+@dataclass(frozen=True)
+class AgentCard:
+    """What an agent declares about itself to the commands that list and compare laws.
+
+    :param name: the agent's name (as ``--agent`` takes it).
+    :param why: why a user would pick it, in words (``rventry compare``'s verdict); figures come from the run.
+    :param compare_label: its column in ``rventry compare``; None: compared only when named by ``--agent``.
+    :param compare_order: its place among the compared columns (smaller first).
+    :param replans: it re-plans in flight, seconds of CPU per decision: ``rventry compare`` flies it
+        ``--mpc-episodes`` dispersed episodes instead of ``--episodes``.
+    """
+
+    name: str
+    why: str
+    compare_label: str | None = None
+    compare_order: int = 0
+    replans: bool = False
 
 
 def _reference(task, **options):
@@ -89,6 +114,38 @@ BUILTIN: dict[str, tuple[str, Callable]] = {
 }
 
 
+# what the built-in laws declare of themselves
+BUILTIN_CARDS = (
+    AgentCard("lqr", "it is the cheapest feedback law, exact nominally, but it tracks a fixed reference and cannot "
+              "re-plan", "TV-LQR", 40),
+    AgentCard("lqr-est", "it is TV-LQR with the estimated aerodynamic scales fed forward: estimation alone",
+              "TV-LQR + estimation", 50),
+    AgentCard("mpc", "it re-plans the optimum from where the vehicle is every 30 s: the most precise law, at seconds "
+              "of CPU per decision", "re-planning (mpc)", 60, replans=True),
+    AgentCard("mpc-flight", "it is mpc with flight-grade estimation and margins", replans=True),
+    AgentCard("mpc-peer", "it is mpc-flight with its margins sized by the peer set's statistics", replans=True),
+    AgentCard("reference", "it is the optimum flown open loop: the cost floor nominally, no feedback under "
+              "dispersions", "reference (open loop)", 70),
+)  # fmt: skip
+
+
+def agent_cards() -> dict[str, AgentCard]:
+    """Every agent's card by name: the built-in laws' and those installed packages declare
+    (entry-point group ``rventry.agent_cards``)."""
+    cards = {c.name: c for c in BUILTIN_CARDS}
+    for ep in sorted(entry_points(group=CARD_GROUP), key=lambda e: e.name):
+        for card in ep.load():
+            if not isinstance(card, AgentCard):
+                raise TypeError(f"entry point {ep.name} ({CARD_GROUP}) holds {card!r}, not an AgentCard")
+            cards.setdefault(card.name, card)
+    return cards
+
+
+def compared_agents() -> list[AgentCard]:
+    """The cards of the agents ``rventry compare`` shows by default, in their order."""
+    return sorted((c for c in agent_cards().values() if c.compare_label is not None), key=lambda c: c.compare_order)
+
+
 def plugin_agents() -> dict:
     """Agent names registered by installed packages (entry-point group ``rventry.agents``)."""
     return {ep.name: ep for ep in entry_points(group=AGENT_GROUP)}
@@ -132,4 +189,5 @@ def load_agent(spec: str, task: EntryTask | None = None, **options):
     raise ValueError(f"cannot load a policy from {path}: " + "; ".join(errors))
 
 
-__all__ = ["AGENT_GROUP", "FILE_GROUP", "BUILTIN", "agent_names", "load_agent", "plugin_agents"]
+__all__ = ["AGENT_GROUP", "FILE_GROUP", "CARD_GROUP", "AgentCard", "BUILTIN", "BUILTIN_CARDS", "agent_cards", "agent_names",
+           "compared_agents", "load_agent", "plugin_agents"]

@@ -12,17 +12,13 @@ import time
 from pathlib import Path
 
 from rventry_env.task.glossary import terms_line
+from rventry_env.task.benchmark import DISPERSED_SUCCESS_TARGETS, MARGIN_OVER_LQR, NOMINAL_TARGETS, target_checks
 from rventry_env.task.definition import TARGETS
+from rventry_env.task.dispersion import SET_CHOICES
 from rventry_env.util.args import agent_spec, positive_int, seed
 from rventry_env.util.files import check_writable, output_set, write_json
 
-# the RvEntry-v0 benchmark's targets for a guidance law, printed beside the measured values
-NOMINAL_TARGETS = {"miss_km": 1.0, "vertical_error_deg": 1.0, "abs_speed_error_mps": 50.0, "cost_ratio": 1.3}
-# success under dispersions, per set (the nominal set is held to the standard set's), and the margin in
-# success over TV-LQR without estimation, on the same episodes
-DISPERSED_SUCCESS_TARGETS = {"standard": 0.95, "wide": 0.90}
-MARGIN_OVER_LQR = 0.10
-DISPERSIONS = ("none", "standard", "wide", "flight", "peer", "peer-0.1")
+DISPERSIONS = SET_CHOICES
 # mpc's dispersed episodes in `rventry compare`: about 17 s each on two cores (a re-plan every 30 s,
 # 0.3 s each), which keeps the README's main command, installation included, under 5 minutes
 MPC_EPISODES = 10
@@ -55,8 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     cmp_.add_argument("--episodes", type=positive_int, default=200, help="dispersed episodes per agent (default 200)")
     cmp_.add_argument("--mpc-episodes", type=positive_int, default=MPC_EPISODES,
-                      help=f"dispersed episodes for mpc, which re-plans in flight (default {MPC_EPISODES}: "
-                           "about 17 s each on two cores)")  # fmt: skip
+                      help=f"dispersed episodes for the laws that re-plan in flight, such as mpc (default "
+                           f"{MPC_EPISODES}: about 17 s each on two cores)")  # fmt: skip
     cmp_.add_argument("--seed", type=seed, default=0, help="dispersed episode i uses seed SEED + i (default 0)")
     cmp_.add_argument("--agent", default="learned", type=agent_spec,
                       help="the learned agent to compare (default: the shipped learned policy)")  # fmt: skip
@@ -236,14 +232,6 @@ def _evaluate(args) -> int:
     return 0
 
 
-# the columns of `rventry compare`: (agent, label); the first is the learned agent given by --agent
-# (the learning agents' columns appear when their package is installed: the library never imports it).
-# `learned` is the best learned policy on the flight set (PPO fine-tuning of `dagger-flight`, the
-# flight-set student, shown beside it); `dagger`, the student of `mpc` built for the standard and wide sets
-COMPARED = (("dagger-flight", "DAgger of mpc-flight"), ("dagger", "DAgger of mpc"), ("ppo-plain", "plain PPO"), ("lqr", "TV-LQR"),
-            ("lqr-est", "TV-LQR + estimation"), ("mpc", "re-planning (mpc)"), ("reference", "reference (open loop)"))  # fmt: skip
-
-
 def _compare(args) -> int:
     from rich.console import Console
 
@@ -257,12 +245,14 @@ def _compare(args) -> int:
     dispersion = dispersion_name(args)
     check_writable(args.json, folders=(args.plots,))
     t0 = time.time()
-    from rventry_env.evaluation.agents import agent_names
+    from rventry_env.evaluation.agents import agent_cards, compared_agents
 
+    # the columns: the agent given by --agent first, then every law whose card asks to be compared
     label = _label(args.agent)
-    known = set(agent_names())
-    agents = ((args.agent, label), *((a, n) for a, n in COMPARED if a in known and a != args.agent))
-    episodes = {name: (args.mpc_episodes if agent == "mpc" else args.episodes) for agent, name in agents}
+    agents = ((args.agent, label), *((c.name, c.compare_label) for c in compared_agents() if c.name != args.agent))
+    cards = agent_cards()
+    episodes = {name: (args.mpc_episodes if agent in cards and cards[agent].replans else args.episodes)
+                for agent, name in agents}  # fmt: skip
     check_memory(sum(episodes.values()) + len(agents), history=True)  # every law's histories, for the plots
     plan = [(case, agent, name, 1 if case == "nominal" else episodes[name], "none" if case == "nominal" else dispersion)
             for case in ("nominal", "dispersed") for agent, name in agents]  # fmt: skip
@@ -339,22 +329,9 @@ def print_compare(doc: dict, console) -> None:
 def _target_checks(runs: dict, label: str, dispersion: str) -> dict:
     """The benchmark's targets for a learned policy, checked on the agent given by ``--agent``: kept in the
     JSON report as a record; the console shows the laws against the success definition instead."""
-    nominal, dispersed = runs[("nominal", label)][1], runs[("dispersed", label)][1]
-    checks = {
-        f"nominal_{k}": {"target": v, "measured": nominal[k], "met": nominal[k] is not None and abs(nominal[k]) <= v}
-        for k, v in NOMINAL_TARGETS.items()
-    }
-    # the dispersed-success target exists for the sets a learned policy was first built for; the
-    # flight-grade sets are read against the oracle's ceiling instead (`rventry oracle`)
-    success_target = DISPERSED_SUCCESS_TARGETS.get(dispersion)
-    if success_target is not None:
-        checks["dispersed_success_rate"] = {"target": success_target, "measured": dispersed["success_rate"],
-                                            "met": dispersed["success_rate"] >= success_target}  # fmt: skip
-        if ("dispersed", "TV-LQR") in runs and label != "TV-LQR":
-            gain = dispersed["success_rate"] - runs[("dispersed", "TV-LQR")][1]["success_rate"]
-            checks["success_over_lqr"] = {"target": MARGIN_OVER_LQR, "measured": gain,
-                                          "met": gain >= MARGIN_OVER_LQR - 1e-9}  # fmt: skip
-    return checks
+    lqr = runs.get(("dispersed", "TV-LQR")) if label != "TV-LQR" else None
+    return target_checks(runs[("nominal", label)][1], runs[("dispersed", label)][1], dispersion,
+                         None if lqr is None else lqr[1])  # fmt: skip
 
 
 # the terms `rventry evaluate` prints, besides the load relief and navigation where they appear

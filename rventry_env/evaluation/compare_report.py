@@ -12,23 +12,6 @@ from __future__ import annotations
 
 import math
 
-# why a user would pick each compared law (or not): what it is for, in words; the figures come from the run.
-# Keys are agent names; a law not listed (a saved policy given by path) is described by its name.
-WHY = {
-    "learned": "it is the learned policy built for flight-grade uncertainty, and keeps its teacher's margins (load "
-               "relief, q floor), which cost nominal precision and cost",
-    "ppo": "it is PPO fine-tuning of the flight-set student, flown with its q floor",
-    "dagger-flight": "it flies mpc-flight's flight-grade margins at a network's cost per decision",
-    "dagger": "it lands like mpc on the standard and wide sets, at a network's cost per decision",
-    "ppo-plain": "it is what off-the-shelf RL learns from scratch on the raw reward: a baseline, not a law to fly",
-    "lqr": "it is the cheapest feedback law, exact nominally, but it tracks a fixed reference and cannot re-plan",
-    "lqr-est": "it is TV-LQR with the estimated aerodynamic scales fed forward: estimation alone",
-    "mpc": "it re-plans the optimum from where the vehicle is every 30 s: the most precise law, at seconds of CPU "
-           "per decision",
-    "mpc-flight": "it is mpc with flight-grade estimation and margins",
-    "reference": "it is the optimum flown open loop: the cost floor nominally, no feedback under dispersions",
-}  # fmt: skip
-
 # the terms the command prints (each has a glossary entry)
 TERMS = ("success", "95 % CI", "precision", "miss", "vertical-impact error", "speed error", "alpha(t_f)", "J/J*",
          "peak load factor", "min dynamic pressure", "path violation", "p5 / p50 / p95", "load relief",
@@ -147,7 +130,12 @@ def verdict(doc: dict) -> list[str]:
 
 
 def _why(name: str) -> str:
-    return WHY.get(name, f"it is the policy {name}")
+    """Why a user would pick the law, as its card declares it (:mod:`rventry_env.evaluation.agents`); a
+    law without one (a saved policy given by path) is described by its name."""
+    from rventry_env.evaluation.agents import agent_cards
+
+    card = agent_cards().get(name)
+    return card.why if card else f"it is the policy {name}"
 
 
 def _trade(doc: dict, first: str, best: str) -> str:
@@ -230,5 +218,5 @@ def markdown_table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["WHY", "TERMS", "rate", "runs", "display_name", "nominal_table", "dispersed_table", "ranking", "verdict",
+__all__ = ["TERMS", "rate", "runs", "display_name", "nominal_table", "dispersed_table", "ranking", "verdict",
            "limiter_lines", "title", "success_note", "rich_table", "markdown_table"]

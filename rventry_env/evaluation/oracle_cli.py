@@ -10,11 +10,12 @@ from rventry_env.util.files import check_writable, write_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from rventry_env.evaluation.cli import DISPERSIONS, _parallel_arguments
+    from rventry_env.evaluation.cli import _parallel_arguments
+    from rventry_env.task.dispersion import SET_CHOICES
 
     p = sub.add_parser("oracle", help="solve each draw of a dispersion set with perfect knowledge and fly it: "
                                       "the flyable fraction a guidance law is read against")  # fmt: skip
-    p.add_argument("--dispersion", choices=DISPERSIONS, required=True, help="the dispersion set (docs/uncertainty.md)")
+    p.add_argument("--dispersion", choices=SET_CHOICES, required=True, help="the dispersion set (docs/uncertainty.md)")
     p.add_argument("--episodes", type=positive_int, default=50, help="draws, seeds SEED .. SEED + N - 1 (default 50)")
     p.add_argument("--seed", type=seed, default=0, help="draw i uses seed SEED + i, as `rventry evaluate` (default 0)")
     p.add_argument("--json", required=True, metavar="PATH", help="write the summary and the per-draw records here")

@@ -120,6 +120,7 @@ from rventry_env.guidance.estimation import EstimatorSettings, FlightEstimatorSe
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.guidance.terminal import alpha_rate_bound, dive_entry_speed
 from rventry_env.guidance.tvlqr import StepLinearization, lqr_gains, sample_plan, tracking_weights
+from rventry_env.physics.checks import check_flag, check_number, check_numbers, check_sequence
 from rventry_env.physics.model import EntryModel
 from rventry_env.physics.uncertainty import MachVaryingAerodynamics, mach_spread
 
@@ -165,65 +166,30 @@ class ReplanningSettings:
             from rventry_env.task.flight import parse_bands
 
             object.__setattr__(self, "density_bands", parse_bands(self.density_bands, "density_bands"))
-        if not (isinstance(self.density_sigmas, (int, float)) and math.isfinite(self.density_sigmas)
-                and self.density_sigmas >= 0):  # fmt: skip
-            raise ValueError(f"density_sigmas must be a finite number >= 0, got {self.density_sigmas!r}")
-        if self.aero_mach_rms is not None and not (
-                isinstance(self.aero_mach_rms, (int, float)) and math.isfinite(self.aero_mach_rms) and self.aero_mach_rms >= 0):  # fmt: skip
-            raise ValueError(f"aero_mach_rms must be None (off) or a finite number >= 0, got {self.aero_mach_rms!r}")
-        if not (isinstance(self.aero_sigmas, (int, float)) and math.isfinite(self.aero_sigmas) and self.aero_sigmas >= 0):
-            raise ValueError(f"aero_sigmas must be a finite number >= 0, got {self.aero_sigmas!r}")
+        check_numbers(self, ("replan_s", "soft_penalty", "nlp_tolerance", "r_weight"), low=0.0, low_open=True)
+        check_numbers(self, ("mesh_intervals", "mesh_degree", "end_intervals", "end_degree", "max_iterations"), low=1,
+                      integer=True)  # fmt: skip
+        check_numbers(self, ("end_fraction", "q_margin", "load_margin"), low=0.0, high=0.5, high_open=True)
+        check_numbers(self, ("freeze_s", "q_weight", "final_window_s", "terminal_alpha_deg", "density_sigmas",
+                             "aero_sigmas", "split_sigmas", "load_relief_sigmas"), low=0.0)  # fmt: skip
+        check_number(self, "vertical_dive_m", low=0.0, high=20_000.0)  # m; 0: vertical at the ground
+        check_number(self, "max_wall_s", low=0.0, low_open=True, optional=True)  # None: no cap
+        check_number(self, "final_replan_s", low=0.0, low_open=True, high=self.replan_s, optional=True)
+        check_number(self, "load_relief_margin", low=0.0, high=1.0, high_open=True, optional=True)
+        check_numbers(self, ("q_floor_margin", "drag_rms", "aero_mach_rms"), low=0.0, optional=True)
+        check_flag(self, "terminal_alpha")
+        check_flag(self, "track_estimate")
+        check_sequence(self, "aero_mach_range")
         r = tuple(self.aero_mach_range)
-        if not (len(r) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in r) and 0 < r[0] < r[1]):
-            raise ValueError(f"aero_mach_range must be (low, high) Mach numbers with 0 < low < high, got {self.aero_mach_range!r}")
-        if self.max_wall_s is not None and not (
-                isinstance(self.max_wall_s, (int, float)) and math.isfinite(self.max_wall_s) and self.max_wall_s > 0):  # fmt: skip
-            raise ValueError(f"max_wall_s must be None (no cap) or positive seconds, got {self.max_wall_s!r}")
-        positive = ("replan_s", "soft_penalty", "nlp_tolerance", "r_weight")
-        for name in positive:
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive and finite, got {v!r}")
-        for name in ("mesh_intervals", "mesh_degree", "end_intervals", "end_degree", "max_iterations"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 1):
-                raise ValueError(f"{name} must be a positive integer, got {v!r}")
-        if self.load_relief_margin is not None and not (0.0 <= self.load_relief_margin < 1.0):
-            raise ValueError(f"load_relief_margin must be None (off) or in [0, 1), got {self.load_relief_margin!r}")
-        if self.q_floor_margin is not None and not (isinstance(self.q_floor_margin, (int, float))
-                                                    and math.isfinite(self.q_floor_margin) and self.q_floor_margin >= 0):  # fmt: skip
-            raise ValueError(f"q_floor_margin must be None (off) or a finite fraction >= 0, got {self.q_floor_margin!r}")
-        if self.drag_rms is not None and not (isinstance(self.drag_rms, (int, float)) and math.isfinite(self.drag_rms)
-                                              and self.drag_rms >= 0 and self.density_bands is not None):  # fmt: skip
-            raise ValueError(f"drag_rms must be None (off) or a finite rms >= 0, with density_bands to split the drag "
-                             f"scale against, got {self.drag_rms!r}")
-        if not (isinstance(self.split_sigmas, (int, float)) and math.isfinite(self.split_sigmas) and self.split_sigmas >= 0):
-            raise ValueError(f"split_sigmas must be a finite number >= 0, got {self.split_sigmas!r}")
-        if not (isinstance(self.load_relief_sigmas, (int, float)) and math.isfinite(self.load_relief_sigmas)
-                and self.load_relief_sigmas >= 0):  # fmt: skip
-            raise ValueError(f"load_relief_sigmas must be a finite number >= 0, got {self.load_relief_sigmas!r}")
+        if not (len(r) == 2 and 0 < r[0] < r[1]):
+            raise ValueError(f"ReplanningSettings.aero_mach_range must be (low, high) Mach numbers with 0 < low < high, "
+                             f"got {self.aero_mach_range!r}")  # fmt: skip
+        if self.drag_rms is not None and self.density_bands is None:
+            raise ValueError("ReplanningSettings.drag_rms needs density_bands to split the drag scale against")
         if self.load_relief_sigmas > 0 and (self.load_relief_margin is None or
                                             (self.density_bands is None and self.aero_mach_rms is None)):  # fmt: skip
-            raise ValueError("load_relief_sigmas needs load relief (load_relief_margin) and the uncertainty it counts "
-                             "(density_bands and/or aero_mach_rms)")
-        if not isinstance(self.track_estimate, bool):
-            raise ValueError(f"track_estimate must be True or False, got {self.track_estimate!r}")
-        if not (isinstance(self.vertical_dive_m, (int, float)) and math.isfinite(self.vertical_dive_m)
-                and 0 <= self.vertical_dive_m <= 20_000):  # fmt: skip
-            raise ValueError(f"vertical_dive_m must be metres in [0, 20000] (0: vertical at the ground), "
-                             f"got {self.vertical_dive_m!r}")
-        for name, hi in (("end_fraction", 0.5), ("q_margin", 0.5), ("load_margin", 0.5)):
-            v = getattr(self, name)
-            if not (0.0 <= v < hi):
-                raise ValueError(f"{name} must lie in [0, {hi}), got {v!r}")
-        if not (self.freeze_s >= 0 and self.q_weight >= 0):
-            raise ValueError("freeze_s and q_weight must be >= 0")
-        if self.final_replan_s is not None and not (
-                isinstance(self.final_replan_s, (int, float)) and math.isfinite(self.final_replan_s)
-                and 0 < self.final_replan_s <= self.replan_s):  # fmt: skip
-            raise ValueError(f"final_replan_s must be None or in (0, replan_s = {self.replan_s}], got {self.final_replan_s!r}")
-        if not (isinstance(self.final_window_s, (int, float)) and math.isfinite(self.final_window_s) and self.final_window_s >= 0):
-            raise ValueError(f"final_window_s must be a finite number of seconds >= 0, got {self.final_window_s!r}")
+            raise ValueError("ReplanningSettings.load_relief_sigmas needs load relief (load_relief_margin) and the "
+                             "uncertainty it counts (density_bands and/or aero_mach_rms)")
 
     @classmethod
     def flight_grade(cls, **changes) -> "ReplanningSettings":

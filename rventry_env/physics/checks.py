@@ -24,33 +24,51 @@ def _symbolic(value) -> bool:
 
 
 def check_number(part, name: str, *, low: float | None = None, high: float | None = None,
-                 low_open: bool = False) -> None:  # fmt: skip
+                 low_open: bool = False, high_open: bool = False, optional: bool = False,
+                 integer: bool = False) -> None:  # fmt: skip
     """Raise ValueError unless ``part.<name>`` is a finite number (or array of them) in the range.
 
-    :param low: the smallest value allowed (exclusive when ``low_open``); ``high`` the largest.
+    :param low: the smallest value allowed (exclusive when ``low_open``); ``high`` the largest
+        (exclusive when ``high_open``).
+    :param optional: None is allowed too (a setting that is off).
+    :param integer: the value must be an ``int`` (not a bool).
     """
     value = getattr(part, name)
     where = f"{type(part).__name__}.{name}"
+    if optional and value is None:
+        return
     if _symbolic(value):
         return
-    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf":
+    none = "None (off) or " if optional else ""
+    if integer:
+        if not isinstance(value, numbers.Integral) or isinstance(value, bool):
+            raise ValueError(f"{where} must be {none}an integer, got {value!r} ({type(value).__name__})")
+        values = np.asarray(int(value))
+    elif isinstance(value, np.ndarray) and value.dtype.kind in "iuf":
         values = value
     elif isinstance(value, numbers.Real) and not isinstance(value, bool):
         values = np.asarray(float(value))
     else:
-        raise ValueError(f"{where} must be a number, got {value!r} ({type(value).__name__})")
+        raise ValueError(f"{where} must be {none}a number, got {value!r} ({type(value).__name__})")
     if not np.all(np.isfinite(values)):
-        raise ValueError(f"{where} must be finite, got {value!r}")
+        raise ValueError(f"{where} must be {none}finite, got {value!r}")
     bad = np.zeros(values.shape, bool)
     if low is not None:
         bad |= values <= low if low_open else values < low
     if high is not None:
-        bad |= values > high
+        bad |= values >= high if high_open else values > high
     if np.any(bad):
         lo = "" if low is None else f"{'>' if low_open else '>='} {low:g}"
-        hi = "" if high is None else f"<= {high:g}"
+        hi = "" if high is None else f"{'<' if high_open else '<='} {high:g}"
         worst = values[bad].flat[0]
-        raise ValueError(f"{where} must be {' and '.join(p for p in (lo, hi) if p)}, got {worst:g}")
+        raise ValueError(f"{where} must be {none}{' and '.join(p for p in (lo, hi) if p)}, got {worst:g}")
+
+
+def check_flag(part, name: str) -> None:
+    """Raise ValueError unless ``part.<name>`` is True or False."""
+    value = getattr(part, name)
+    if not isinstance(value, bool):
+        raise ValueError(f"{type(part).__name__}.{name} must be True or False, got {value!r}")
 
 
 def check_numbers(part, names, **limits) -> None:
@@ -89,4 +107,4 @@ def check_part(owner, name: str, *methods: str, optional: bool = False) -> None:
         )
 
 
-__all__ = ["check_number", "check_numbers", "check_sequence", "check_part"]
+__all__ = ["check_number", "check_numbers", "check_flag", "check_sequence", "check_part"]

@@ -14,6 +14,7 @@ from rventry_env.task.definition import TARGETS, EntryTask, Footprint, Precision
 from rventry_env.task.dispersion import (
     FLIGHT_ERRORS,
     NAMED_SETS,
+    SET_CHOICES,
     SCALAR_FIELDS,
     Dispersion,
     apply_state_dispersion,
@@ -33,6 +34,7 @@ __all__ = [
     "SuccessThresholds",
     "PrecisionThresholds",
     "NAMED_SETS",
+    "SET_CHOICES",
     "SCALAR_FIELDS",
     "FLIGHT_ERRORS",
     "FlightErrors",

@@ -17,7 +17,6 @@ from rventry_env.core import euler_parameters as ep
 from rventry_env.core.euler_parameters import dcm_column, rates_from_omega
 from rventry_env.task.flight import FlightErrors
 
-NAMED_SETS = ("standard", "wide", "flight", "peer", "peer-0.1")
 # the nine numbers every reset draws, in this order (always nine, whatever the set)
 SCALAR_FIELDS = ("density", "lift", "drag", "altitude_m", "speed_mps", "flight_path_deg", "heading_deg", "alpha_deg",
                  "sigma_deg")  # fmt: skip
@@ -89,12 +88,12 @@ class Dispersion:
 
     @classmethod
     def named(cls, name: str) -> "Dispersion":
-        """A named set: ``"none"``, ``"standard"``, ``"wide"``, ``"flight"``, ``"peer"``, ``"peer-0.1"``."""
-        makers = {"none": cls, "standard": cls.standard, "wide": cls.wide, "flight": cls.flight_set,
-                  "peer": cls.peer, "peer-0.1": lambda: cls.peer(0.1)}  # fmt: skip
-        if name not in makers:
-            raise ValueError(f"no dispersion set {name!r}; named sets: {sorted(makers)}")
-        return makers[name]()
+        """A named set: ``"none"`` or one of :data:`NAMED_SETS`."""
+        if name == "none":
+            return cls()
+        if name not in _MAKERS:
+            raise ValueError(f"no dispersion set {name!r}; named sets: {sorted(['none', *_MAKERS])}")
+        return _MAKERS[name](cls)
 
     @classmethod
     def parse(cls, value) -> "Dispersion":
@@ -257,6 +256,14 @@ def _turn(q: tuple, axis: tuple, angle, ns) -> tuple:
 
 
 # The flight set's flight-grade magnitudes (1 sigma; sources in docs/uncertainty.md)
+# every named set, written once: name -> maker (``Dispersion.named``, ``parse``, the commands' choices)
+_MAKERS = {"standard": Dispersion.standard.__func__, "wide": Dispersion.wide.__func__,
+           "flight": Dispersion.flight_set.__func__, "peer": Dispersion.peer.__func__,
+           "peer-0.1": lambda cls: cls.peer(0.1)}  # fmt: skip
+NAMED_SETS = tuple(_MAKERS)
+# what a command's --dispersion accepts: no dispersion, or a named set
+SET_CHOICES = ("none", *NAMED_SETS)
+
 FLIGHT_ERRORS = FlightErrors(
     climatology=True,
     # ln-density Gauss-Markov: (band top m, rms, correlation length m)
@@ -273,5 +280,5 @@ FLIGHT_ERRORS = FlightErrors(
     nav_velocity_mps=0.5,
 )
 
-__all__ = ["NAMED_SETS", "SCALAR_FIELDS", "FLIGHT_ERRORS", "Dispersion", "draw_dispersion", "draw_extras",
+__all__ = ["NAMED_SETS", "SET_CHOICES", "SCALAR_FIELDS", "FLIGHT_ERRORS", "Dispersion", "draw_dispersion", "draw_extras",
            "apply_state_dispersion", "disperse_state"]  # fmt: skip

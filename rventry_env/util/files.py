@@ -35,10 +35,11 @@ def output_set() -> Iterator[None]:
 
     Inside the block every :func:`atomic_write` (so :func:`write_json` and :func:`save_figure`)
     writes its whole content to a temporary file beside its destination and leaves the
-    destination alone. When the block ends normally every staged file is renamed over its
-    destination (renames in one folder cannot fail for want of space); when it raises (a full
-    disk, a plot that fails, an interrupt) every staged file is removed and every previous
-    output stays as it was. A block inside another joins the outer set.
+    destination alone. When the block raises (a full disk, a plot that fails, an interrupt)
+    every staged file is removed and every previous output stays as it was. When it ends
+    normally every staged file is moved into place, the old files kept aside until the last one
+    is in; if a move fails (a destination turned into a folder, say) every old file is put back
+    and :class:`OutputError` is raised. A block inside another joins the outer set.
     """
     if _STAGED.get() is not None:
         yield
@@ -48,15 +49,51 @@ def output_set() -> Iterator[None]:
     try:
         yield
     except BaseException:
-        for tmp, _ in staged:
-            with contextlib.suppress(OSError):
-                tmp.unlink()
+        _discard(staged)
         raise
     else:
-        for tmp, dest in staged:
-            os.replace(tmp, dest)
+        _commit(staged)
     finally:
         _STAGED.reset(token)
+
+
+def _discard(staged: list[tuple[Path, Path]]) -> None:
+    for tmp, _ in staged:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def _commit(staged: list[tuple[Path, Path]]) -> None:
+    """Move every staged file over its destination; on any failure put every old file back and raise."""
+    moved: list[tuple[Path | None, Path]] = []  # (backup of the old file or None, destination)
+    dest = None
+    try:
+        for tmp, dest in staged:
+            backup = None
+            if dest.exists():
+                fd, name = tempfile.mkstemp(prefix=f".{dest.name}.old.", dir=dest.parent)
+                os.close(fd)
+                backup = Path(name)
+                try:
+                    os.replace(dest, backup)
+                except OSError:
+                    backup.unlink(missing_ok=True)
+                    raise
+            moved.append((backup, dest))
+            os.replace(tmp, dest)
+    except OSError as exc:
+        for backup, old in reversed(moved):
+            with contextlib.suppress(OSError):
+                if backup is not None:
+                    os.replace(backup, old)
+                else:
+                    old.unlink(missing_ok=True)
+        _discard(staged)
+        raise OutputError(f"could not write {dest}: {exc.strerror or exc}; no output was replaced") from None
+    for backup, _ in moved:
+        if backup is not None:
+            with contextlib.suppress(OSError):
+                backup.unlink()
 
 
 @contextlib.contextmanager

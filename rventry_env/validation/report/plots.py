@@ -185,18 +185,16 @@ def plot_trace(ident, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def write_plots(ident, folder: str | Path, stage=None) -> list[Path]:
-    """Write every plot of an identification into ``folder`` (each file whole or not at all).
+def write_plots(ident, folder: str | Path) -> list[Path]:
+    """Write every plot of an identification into ``folder`` (each file whole or not at all; inside an
+    :func:`~rventry_env.util.files.output_set`, with the set's other files).
 
-    :param stage: ``stage(destination) -> path`` where to render a plot instead (an
-        :meth:`~rventry_env.validation.report.outputs.OutputSet.stage`); default: the destination.
     :return: the destinations.
     """
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"--plots {folder}: exists and is not a folder")
     folder.mkdir(parents=True, exist_ok=True)
-    stage = stage or (lambda dest: dest)
     plots = [("residuals.png", plot_residuals), ("ranking.png", plot_ranking)]
     if ident.report.get("density_check"):
         plots.append(("density.png", plot_density))
@@ -205,7 +203,7 @@ def write_plots(ident, folder: str | Path, stage=None) -> list[Path]:
     out = []
     for name, plot in plots:
         dest = folder / name
-        plot(ident, stage(dest))
+        plot(ident, dest)
         out.append(dest)
     return out
 

@@ -1,0 +1,22 @@
+"""What the learning agents declare of themselves to ``rventry compare`` and the agent listings
+(entry-point group ``rventry.agent_cards``). Light on purpose: reading the cards loads no policy."""
+
+from __future__ import annotations
+
+from rventry_env.evaluation.agents import AgentCard
+
+# `learned` is the best learned policy on the flight set (PPO fine-tuning of `dagger-flight`, the flight-set
+# student, shown beside it); `dagger`, the student of `mpc` built for the standard and wide sets
+CARDS = (
+    AgentCard("learned", "it is the learned policy built for flight-grade uncertainty, and keeps its teacher's "
+              "margins (load relief, q floor), which cost nominal precision and cost"),
+    AgentCard("ppo", "it is PPO fine-tuning of the flight-set student, flown with its q floor"),
+    AgentCard("dagger-flight", "it flies mpc-flight's flight-grade margins at a network's cost per decision",
+              "DAgger of mpc-flight", 10),
+    AgentCard("dagger", "it lands like mpc on the standard and wide sets, at a network's cost per decision",
+              "DAgger of mpc", 20),
+    AgentCard("ppo-plain", "it is what off-the-shelf RL learns from scratch on the raw reward: a baseline, not a law "
+              "to fly", "plain PPO", 30),
+)  # fmt: skip
+
+__all__ = ["CARDS"]
