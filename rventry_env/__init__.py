@@ -22,51 +22,57 @@ load without it. ``RvEntry-v0`` is registered the moment Gymnasium is imported
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
 import sys
 
 __version__ = "0.2.0"
 
 
+class _RegisteringLoader(importlib.abc.Loader):
+    """Gymnasium's own loader, which registers ``RvEntry-v0`` once Gymnasium's module has executed."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def create_module(self, spec):
+        return self.inner.create_module(spec)
+
+    def exec_module(self, module):
+        self.inner.exec_module(module)
+        from rventry_env.envs import register_envs
+
+        register_envs()
+
+
+class _GymnasiumFinder(importlib.abc.MetaPathFinder):
+    """Finds Gymnasium once, wraps its loader in :class:`_RegisteringLoader`, and removes itself."""
+
+    def find_spec(self, fullname, path, target=None):
+        if fullname != "gymnasium":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.machinery.PathFinder.find_spec(fullname, path)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _RegisteringLoader(spec.loader)
+        return spec
+
+
 def _register_on_gymnasium_import() -> None:
     """Register ``RvEntry-v0`` now if Gymnasium is loaded, else as soon as it is.
 
-    A finder on ``sys.meta_path`` wraps Gymnasium's own loader; once Gymnasium's
-    module has executed, the environment is registered and the finder removes
-    itself. Nothing else is imported or changed.
+    This is the one thing importing the package does beyond defining names, and it is
+    deliberate: the physics and the solvers load without Gymnasium, yet ``gym.make("RvEntry-v0")``
+    works in either import order, as a Gymnasium environment package's users expect. The finder
+    on ``sys.meta_path`` acts on the import of ``gymnasium`` alone, once, and then removes itself.
     """
     if "gymnasium" in sys.modules:
         from rventry_env.envs import register_envs
 
         register_envs()
         return
-    import importlib.abc
-    import importlib.machinery
-
-    class _Loader(importlib.abc.Loader):
-        def __init__(self, inner):
-            self.inner = inner
-
-        def create_module(self, spec):
-            return self.inner.create_module(spec)
-
-        def exec_module(self, module):
-            self.inner.exec_module(module)
-            from rventry_env.envs import register_envs
-
-            register_envs()
-
-    class _Finder(importlib.abc.MetaPathFinder):
-        def find_spec(self, fullname, path, target=None):
-            if fullname != "gymnasium":
-                return None
-            sys.meta_path.remove(self)
-            spec = importlib.machinery.PathFinder.find_spec(fullname, path)
-            if spec is not None and spec.loader is not None:
-                spec.loader = _Loader(spec.loader)
-            return spec
-
-    if not any(type(f).__name__ == "_Finder" and type(f).__module__ == __name__ for f in sys.meta_path):
-        sys.meta_path.insert(0, _Finder())
+    if not any(isinstance(f, _GymnasiumFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _GymnasiumFinder())
 
 
 _register_on_gymnasium_import()

@@ -6,6 +6,13 @@ agents' ``rventry train``) arrive through the ``rventry.commands`` entry-point
 group, so this library never imports them by name. Modules keep heavy imports
 (CasADi, torch) inside the functions that run a command, so ``rventry --help``
 stays fast.
+
+The library changes no process-wide setting when imported. The command's process sets the two
+it wants, here and before any command runs (:func:`command_process_settings`): XLA's fused CPU
+runtime, which must be asked for before JAX loads
+(:func:`~rventry_env.core.backend.prefer_fused_cpu_runtime`), and glibc keeping freed heap for
+the batched env's large temporaries (:func:`~rventry_env.envs.allocator.keep_freed_memory`). A
+program of your own that runs thousands of vehicles or the JAX envs on a CPU calls them itself.
 """
 
 from __future__ import annotations
@@ -28,8 +35,32 @@ COMMAND_MODULES = (
 COMMAND_GROUP = "rventry.commands"
 
 
+# argparse takes "-1e9" for an option (its own pattern knows "-1" and "-1.5" only) and answers
+# "expected one argument"; with this one a negative number in any notation reaches the option's
+# type, which names what is wrong with it
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
+
+
+class CommandParser(argparse.ArgumentParser):
+    """The parser of ``rventry`` and of every subcommand (``add_parser`` makes its children of the
+    parent's class): a negative number in any notation is a value, not an option."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+
+def command_process_settings() -> None:
+    """The process-wide settings of the ``rventry`` command (see the module docstring)."""
+    from rventry_env.core.backend import prefer_fused_cpu_runtime
+    from rventry_env.envs.allocator import keep_freed_memory
+
+    prefer_fused_cpu_runtime()
+    keep_freed_memory()
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="rventry",
         description="Entry guidance research on the rv-Euler parameterization (Miller & Rao).",
         epilog="The words the commands print are explained by `rventry glossary`.",
@@ -40,7 +71,6 @@ def build_parser() -> argparse.ArgumentParser:
         importlib.import_module(name).register(sub)
     for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         ep.load()(sub)
-    _negative_numbers_are_values(parser)
     return parser
 
 
@@ -56,21 +86,8 @@ def _version() -> str:
         return __version__
 
 
-# argparse takes "-1e9" for an option (its own pattern knows "-1" and "-1.5" only) and answers
-# "expected one argument"; with this one a negative number in any notation reaches the option's
-# type, which names what is wrong with it
-_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
-
-
-def _negative_numbers_are_values(parser: argparse.ArgumentParser) -> None:
-    parser._negative_number_matcher = _NEGATIVE_NUMBER
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            for child in action.choices.values():
-                _negative_numbers_are_values(child)
-
-
 def main(argv: list[str] | None = None) -> int:
+    command_process_settings()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -9,6 +9,11 @@ NUMPY_LOADED_BEFORE_CONFTEST = "numpy" in sys.modules
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", os.environ["OMP_NUM_THREADS"])
 
+# the JAX envs' CPU runtime, asked for as the `rventry` command asks for it, before anything loads JAX
+from rventry_env.core.backend import prefer_fused_cpu_runtime  # noqa: E402
+
+prefer_fused_cpu_runtime()
+
 import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")

@@ -9,6 +9,8 @@ reads every ``import`` statement, including those inside functions.
 from __future__ import annotations
 
 import ast
+import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -145,3 +147,44 @@ def test_the_thread_limit_is_set_before_numpy_loads():
     import conftest
 
     assert not conftest.NUMPY_LOADED_BEFORE_CONFTEST
+
+
+def test_importing_the_package_changes_no_process_setting():
+    """XLA's flags, JAX's x64 switch and glibc's allocator are left alone by every import and by building
+    a large vector env; the `rventry` command sets what it wants when it starts."""
+    pytest.importorskip("jax")
+    code = """
+import os, sys
+before = os.environ.get("XLA_FLAGS")
+import rventry_env, rventry_env.envs.jax_vector, rventry_env.envs.functional, rventry_env.cli
+import jax
+from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.envs import allocator
+RvEntryVectorEnv(2048)
+assert os.environ.get("XLA_FLAGS") == before, os.environ.get("XLA_FLAGS")
+assert not jax.config.jax_enable_x64
+assert not allocator._done
+print("ok")
+"""
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_ENABLE_X64")}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "ok"
+
+
+NAME_COMPARISON = re.compile(r"\bns\.name\s*[!=]=|[!=]=\s*ns\.name\b")
+
+
+def test_no_caller_chooses_a_path_by_the_namespace_name(tmp_path, monkeypatch):
+    """Callers test the backend's capabilities (array, concrete, symbolic), never its name; the check
+    itself fails on a planted comparison."""
+
+    def offenders(root):
+        return [str(p.relative_to(root)) for p in sorted((root / "rventry_env").rglob("*.py"))
+                if NAME_COMPARISON.search(p.read_text())]  # fmt: skip
+
+    assert offenders(ROOT) == []
+    planted = tmp_path / "rventry_env" / "physics"
+    planted.mkdir(parents=True)
+    (planted / "bad.py").write_text('def f(x, ns):\n    return x if ns.name == "numpy" else -x\n')
+    assert offenders(tmp_path) == ["rventry_env/physics/bad.py"]

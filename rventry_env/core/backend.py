@@ -18,12 +18,24 @@ source serves eager NumPy and traced JAX:
 * ``when(flag, fn)``: ``fn()`` where the scalar ``flag`` holds, else None (NumPy, floats); JAX:
   ``lax.cond``, whose untaken branch gives ``fn``'s result filled with zeros (under ``vmap`` both
   run and the zeros are selected where ``flag`` is False).
+
+A namespace is typed (:class:`MathBackend`, and :class:`StepBackend` for the ones the
+environment step runs on) and says what it can do in three flags, which callers test instead
+of its name: ``array`` (elementwise on arrays, not one float or one symbol), ``concrete``
+(values are known when the call runs: NumPy and floats, not JAX under tracing nor CasADi
+symbols) and ``symbolic`` (CasADi expressions). ``name`` is for messages only.
+
+Nothing here changes a process-wide setting when it is imported. :func:`jax_ns` with
+``"float64"`` needs JAX's ``jax_enable_x64``; it turns it on when first called for that dtype
+(an explicit request for 64-bit JAX arrays), and :func:`prefer_fused_cpu_runtime` sets
+``XLA_FLAGS`` only when an entry point calls it (see docs/env.md).
 """
 
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
+from dataclasses import dataclass
+from typing import Any, Callable
 
 import numpy as np
 
@@ -46,10 +58,55 @@ def _py_when(flag, fn):
     return fn() if flag else None
 
 
-def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNamespace:
+@dataclass(frozen=True, eq=False, slots=True)
+class MathBackend:
+    """The operations every physics function takes from its namespace: the transcendental functions,
+    and the capabilities its callers test (see the module docstring)."""
+
+    name: str  # for messages; never compared to choose a path
+    array: bool  # elementwise on arrays (NumPy, JAX), not one float or one symbol
+    concrete: bool  # values known when the call runs (NumPy, floats), not traced (JAX) or symbolic (CasADi)
+    symbolic: bool  # CasADi expressions
+    sqrt: Callable
+    exp: Callable
+    log: Callable
+    sin: Callable
+    cos: Callable
+    tanh: Callable
+    arctan2: Callable
+    fabs: Callable
+    fmax: Callable
+    fmin: Callable
+    where: Callable  # where(cond, a, b)
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class StepBackend(MathBackend):
+    """A namespace the environment step runs on (NumPy, floats, JAX): :class:`MathBackend` and the
+    step's array and control-flow operations."""
+
+    isfinite: Callable
+    interp: Callable
+    any: Callable
+    all: Callable
+    logical_not: Callable
+    known: Callable  # known(flag): True only where flag is a concrete True
+    while_loop: Callable  # while_loop(cond, body, carry)
+    when: Callable  # when(flag, fn): fn() where flag holds
+    int8: Callable | None = None  # arrays: x as int8
+    index: Callable | None = None  # arrays: the integer part of x >= 0, for indexing
+    zeros_int8: Callable | None = None  # arrays: int8 zeros shaped like ``like``
+    take_rows: Callable | None = None  # traced arrays: values[n, i[n]] for each row n of an (N, K) table
+    float_dtype: Any = None  # arrays: the float type of the state
+
+
+def _array_namespace(xp, name: str, concrete: bool, index_dtype=np.intp, **control) -> StepBackend:
     """The namespace of an array library with NumPy's API (NumPy itself, ``jax.numpy``)."""
-    return SimpleNamespace(
+    return StepBackend(
         name=name,
+        array=True,
+        concrete=concrete,
+        symbolic=False,
         sqrt=xp.sqrt,
         exp=xp.exp,
         log=xp.log,
@@ -63,7 +120,6 @@ def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNam
         where=xp.where,
         isfinite=xp.isfinite,
         interp=xp.interp,
-        array=True,
         int8=lambda x: xp.asarray(x).astype(xp.int8),
         index=lambda x: xp.asarray(x).astype(index_dtype),  # integer part of x >= 0, for indexing
         zeros_int8=lambda like: xp.zeros(xp.shape(like), dtype=xp.int8),
@@ -74,7 +130,7 @@ def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNam
     )
 
 
-NUMPY = _array_namespace(np, "numpy", float_dtype=np.float64, known=bool, while_loop=_py_while, when=_py_when)
+NUMPY = _array_namespace(np, "numpy", True, float_dtype=np.float64, known=bool, while_loop=_py_while, when=_py_when)
 
 
 # Plain Python floats: one vehicle stepped without NumPy's per-call overhead. The transcendental
@@ -111,8 +167,11 @@ def _atan2(y, x):
     return float(_np_atan2(y, x))
 
 
-MATH = SimpleNamespace(
+MATH = StepBackend(
     name="math",
+    array=False,
+    concrete=True,
+    symbolic=False,
     sqrt=math.sqrt,  # correctly rounded in both
     exp=_exp,
     log=_log,
@@ -126,7 +185,6 @@ MATH = SimpleNamespace(
     where=lambda cond, a, b: a if cond else b,
     isfinite=math.isfinite,
     interp=lambda x, xp, fp: float(np.interp(x, xp, fp)),
-    array=False,
     any=bool,
     all=bool,
     logical_not=lambda b: not b,
@@ -136,11 +194,14 @@ MATH = SimpleNamespace(
 )
 
 
-def _casadi_namespace() -> SimpleNamespace:
+def _casadi_namespace() -> MathBackend:
     import casadi as ca
 
-    return SimpleNamespace(
+    return MathBackend(
         name="casadi",
+        array=False,
+        concrete=False,
+        symbolic=True,
         sqrt=ca.sqrt,
         exp=ca.exp,
         log=ca.log,
@@ -155,10 +216,10 @@ def _casadi_namespace() -> SimpleNamespace:
     )
 
 
-_CASADI: SimpleNamespace | None = None
+_CASADI: MathBackend | None = None
 
 
-def casadi_ns() -> SimpleNamespace:
+def casadi_ns() -> MathBackend:
     """The CasADi namespace (imported lazily so NumPy users never load CasADi)."""
     global _CASADI
     if _CASADI is None:
@@ -166,7 +227,7 @@ def casadi_ns() -> SimpleNamespace:
     return _CASADI
 
 
-def _jax_namespace(dtype) -> SimpleNamespace:
+def _jax_namespace(dtype) -> StepBackend:
     import jax
     import jax.numpy as jnp
 
@@ -178,7 +239,7 @@ def _jax_namespace(dtype) -> SimpleNamespace:
     def take_rows(values, i):  # values[n, i[n]] for each row n of an (N, K) table
         return jnp.take_along_axis(values, i[:, None], axis=1)[:, 0]
 
-    return _array_namespace(jnp, "jax", index_dtype=jnp.int32, float_dtype=dtype, known=lambda flag: False,
+    return _array_namespace(jnp, "jax", False, index_dtype=jnp.int32, float_dtype=dtype, known=lambda flag: False,
                             while_loop=jax.lax.while_loop, when=when, take_rows=take_rows)  # fmt: skip
 
 
@@ -209,7 +270,7 @@ def prefer_fused_cpu_runtime() -> None:
         os.environ["XLA_FLAGS"] = f"{flags} {_XLA_CPU_FLAG}".strip()
 
 
-def jax_ns(dtype: str = "float64") -> SimpleNamespace:
+def jax_ns(dtype: str = "float64") -> StepBackend:
     """The JAX namespace (imported lazily: JAX is the optional ``[jax]`` extra).
 
     :param dtype: ``"float64"`` (needs ``jax_enable_x64``, which this turns on) or ``"float32"``.
@@ -257,4 +318,4 @@ def sparse_dot(a, nz: tuple):
     return out
 
 
-__all__ = ["NUMPY", "MATH", "casadi_ns", "jax_ns", "dot3", "sparse", "sparse_dot", "is_zero"]
+__all__ = ["MathBackend", "StepBackend", "NUMPY", "MATH", "casadi_ns", "jax_ns", "dot3", "sparse", "sparse_dot", "is_zero"]

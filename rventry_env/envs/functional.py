@@ -52,12 +52,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, NamedTuple
 
-from rventry_env.core.backend import prefer_fused_cpu_runtime
-
-prefer_fused_cpu_runtime()  # before JAX loads (see core/backend.py)
-
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
+import jax
+import jax.numpy as jnp
 import numpy as np
 from gymnax.environments import environment, spaces
 

@@ -23,12 +23,8 @@ host and sent in.
 
 from __future__ import annotations
 
-from rventry_env.core.backend import prefer_fused_cpu_runtime
-
-prefer_fused_cpu_runtime()  # before JAX loads (see core/backend.py)
-
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
+import jax
+import jax.numpy as jnp
 import numpy as np
 from gymnasium.vector import AutoresetMode
 

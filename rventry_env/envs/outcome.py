@@ -113,7 +113,7 @@ def episode_outcome(x: tuple, c_ae, status, terminated, max_load_g, min_q, task:
     terms = ns.where(ns.isfinite(terms), terms, 0.0)
     penalty = ns.where(terminated, ns.where(impact, terms - w.success_bonus * success, terms + w.failure), 0.0)
     # names are strings, which compiled code cannot carry: JAX's callers name the status codes on the host
-    failure = None if ns.name == "jax" else failure_name(status, terminated, ns)
+    failure = failure_name(status, terminated, ns) if ns.concrete else None
     return Outcome(m, violation, success, penalty, failure)
 
 

@@ -193,7 +193,7 @@ class Propagator:
         hit = x_new[0] < radius
         if ns.array:
             hit = hit & (status == FLYING)
-        if ns.name == "numpy":
+        if ns.array and ns.concrete:
             if hit.any():  # root-find only for the vehicles that hit, on their sub-arrays
                 idx = np.nonzero(hit)[0]
                 x_hit, tau_hit = self._locate_impact(

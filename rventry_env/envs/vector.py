@@ -12,7 +12,6 @@ from gymnasium.vector.utils import batch_space
 from rventry_env.core.backend import MATH, NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
-from rventry_env.envs.allocator import keep_freed_memory
 from rventry_env.envs.observation import observe
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
@@ -116,8 +115,6 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         )
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        if self.num_envs >= 2048:
-            keep_freed_memory()  # 3-6x faster array temporaries at large N (see allocator.py)
         self._rngs: list[np.random.Generator] | None = None
         # a few copies (an evaluation's episode per task): each stepped on Python floats, see _advance_few
         few = self.num_envs <= FLOAT_STEP_MAX_COPIES and _evaluates_on_floats(self.model, self._nominal)

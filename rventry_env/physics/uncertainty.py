@@ -46,10 +46,10 @@ def uniform_table(x, start: float, step: float, values, ns):
         shape (N,)).
     """
     k_max = np.shape(values)[-1] - 1
-    if ns.name == "casadi":
+    if ns.symbolic:
         # held at the end values beyond the grid (a B-spline itself falls to zero out there)
         return _casadi_table(start, step, values)(ns.fmin(ns.fmax(x, start), start + step * k_max))
-    if ns.name == "math":  # the array path's arithmetic, operation for operation: the same bits
+    if not ns.array:  # one float: the array path's arithmetic, operation for operation: the same bits
         u = min(max((x - start) * (1.0 / step), 0.0), float(k_max))
         i = min(int(u), k_max - 1)
         lo = float(values[i])
@@ -75,7 +75,7 @@ def table_gather(values, i, w, ns=NUMPY):
 
 def _gather_pair(values, i, ns):
     """values[.., i] and values[.., i + 1]: one profile, or each vehicle's row of a table."""
-    if ns.name != "numpy":
+    if not ns.concrete:  # traced
         if np.ndim(values) == 1:
             return values[i], values[i + 1]
         return ns.take_rows(values, i), ns.take_rows(values, i + 1)
