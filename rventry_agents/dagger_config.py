@@ -29,7 +29,7 @@ class StudentSection(StudentNetwork):
         super().__post_init__()
         if self.q_floor_margin is not None:
             raise ConfigError("q_floor_margin: the DAgger rounds fly no q floor; choose one for a trained policy "
-                              "with scripts/choose_q_floor.py")  # fmt: skip
+                              "with studies/choose_q_floor.py")  # fmt: skip
 
 
 def _replanning_fields() -> tuple[str, ...]:

@@ -1,4 +1,4 @@
-"""scripts/compare_episodes.py: two policies on the same episodes, paired."""
+"""studies/compare_episodes.py: two policies on the same episodes, paired."""
 
 import json
 import math
@@ -11,7 +11,7 @@ THRESHOLDS = {"miss_km": 5.0, "vertical_error_deg": 5.0, "speed_error_mps": 100.
 
 @pytest.fixture(scope="module")
 def ce():
-    return load_script("compare_episodes")
+    return load_script("studies/compare_episodes")
 
 
 def _report(successes, seeds=None, agent="a"):

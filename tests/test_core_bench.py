@@ -1,4 +1,4 @@
-"""scripts/bench_rhs.py: the op counts behind the README's no-trigonometry discussion."""
+"""benchmarks/rhs_forms.py: the op counts behind the README's no-trigonometry discussion."""
 
 
 import numpy as np
@@ -8,7 +8,7 @@ from script_modules import load_script  # (tests/ is on the path)
 
 @pytest.fixture(scope="module")
 def bench():
-    return load_script("bench_rhs")
+    return load_script("benchmarks/rhs_forms")
 
 
 def test_op_counts_separate_trigonometry(bench):

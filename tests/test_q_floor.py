@@ -164,7 +164,7 @@ def test_choose_q_floor_measures_a_student_by_name_and_records_only_in_a_run(tmp
 
     from script_modules import load_script
 
-    script = load_script("choose_q_floor")
+    script = load_script("studies/choose_q_floor")
     out = tmp_path / "q.json"
     monkeypatch.setattr(sys, "argv", ["choose_q_floor.py", "dagger-flight", "--write", "--json", str(out)])
     with pytest.raises(SystemExit, match="'dagger-flight' is not one"):

@@ -1,6 +1,6 @@
 """Re-planning guidance (mpc): lands, survives failed solves, sees only what a vehicle measures, runs anywhere.
 
-A coarse mesh and rare re-plans keep these short; the benchmark (scripts/bench_mpc.py) flies the defaults.
+A coarse mesh and rare re-plans keep these short; the benchmark (studies/mpc_settings.py) flies the defaults.
 """
 
 from __future__ import annotations

@@ -106,7 +106,7 @@ class EntryTask:
     :param dt: control step (s); the action is held over it.
     :param substeps: RK4 substeps per control step. In an aggressive S-turn (bank reversals of
         +-90 deg every 20 s at alpha 20 deg) the position error against a tight DOP853 replay of
-        the same controls is 22 m at 1 substep and 1.3 m at 2 (``python scripts/bench_env.py``).
+        the same controls is 22 m at 1 substep and 1.3 m at 2 (``python benchmarks/env_speed.py``).
     :param ceiling_altitude: skip-out: an episode ends (failure) above this altitude (m).
     :param min_speed: stall: an episode ends (failure) below this speed (m/s); the
         equations are singular at v = 0.

@@ -7,7 +7,7 @@ machine may be shared; CPU time is what the solve itself costs), IPOPT iteration
 per mesh pass, peak resident memory (ru_maxrss, the whole process), J*, tf and
 the final mesh error. Then the two Betts cases against the published optimum.
 
-    python scripts/bench_reference.py [--repeat 3] [--json bench.json] [--skip-betts]
+    python benchmarks/reference_solve.py [--repeat 3] [--json bench.json] [--skip-betts]
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ import statistics
 import subprocess
 import sys
 import time
+
+from rventry_env.util.provenance import start_run, write_record
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -92,6 +94,7 @@ def main(argv=None) -> int:
         return 0
     if args.repeat < 1:
         parser.error("--repeat must be >= 1")
+    start_run(None if argv is None else ["python", __file__, *argv])
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     omp = os.environ["OMP_NUM_THREADS"]
@@ -120,8 +123,7 @@ def main(argv=None) -> int:
                   f"{b['latitude_deg']:11.5f} [{p['latitude_deg']:9.4f}] {b['latitude_rel_error']:8.1e} "
                   f"{b['mesh_error']:9.2e} {b['n_nodes']:5d} {b['wall_s']:7.2f}")  # fmt: skip
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump({"load_average": load, "entry": runs, "betts": betts}, fh, indent=2)
+        write_record(args.json, {"load_average": load, "entry": runs, "betts": betts}, indent=2)
         print(f"\nwrote {args.json}")
     return 0
 

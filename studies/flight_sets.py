@@ -15,7 +15,7 @@ dispersions alone, the climatology alone, the density perturbation alone, the wi
 Mach-dependent aerodynamics alone, the sensors and navigation alone), and on the whole set with
 perfect sensors and navigation: which effect breaks which law (``--effect NAME ...``: those rows only).
 
-Run: ``python scripts/bench_sets.py [--sets flight peer peer-0.1] [--laws ...] [--episodes 200]
+Run: ``python studies/flight_sets.py [--sets flight peer peer-0.1] [--laws ...] [--episodes 200]
 [--mpc-episodes 20] [--workers 2] [--targets footprint] [--effects] --json out/bench_sets.json``
 """
 
@@ -25,6 +25,8 @@ import argparse
 import json
 import time
 from pathlib import Path
+
+from rventry_env.util.provenance import start_run, write_record
 
 LAWS = ("reference", "lqr", "lqr-est", "mpc", "mpc-flight", "learned")
 
@@ -41,11 +43,11 @@ def main():
     ap.add_argument("--effect", nargs="+", metavar="NAME", help="with --effects: only these rows (default: every one)")
     ap.add_argument("--json", required=True)
     args = ap.parse_args()
+    start_run()
     if args.effects:
         return effects(args)
 
     from rventry_env.evaluation.cli import run_agent
-    from rventry_env.util.files import write_json
 
     out: dict = {"episodes": args.episodes, "mpc_episodes": args.mpc_episodes, "targets": args.targets, "sets": {}}
     for s in args.sets:
@@ -72,7 +74,7 @@ def main():
         if path.exists() and args.targets == "fixed":
             ceiling = json.loads(path.read_text())["summary"]
         out["sets"][s] = {"laws": rows, "oracle": ceiling}
-        write_json(args.json, out)
+        write_record(args.json, out)
         print(table(s if args.targets == "fixed" else f"{s}, footprint", rows, ceiling))
 
 
@@ -100,7 +102,6 @@ def effect_sets() -> dict:
 
 def effects(args) -> None:
     from rventry_env.evaluation.cli import run_agent
-    from rventry_env.util.files import write_json
 
     out: dict = {"episodes": args.episodes, "effects": {}}
     lines = ["| effect alone | " + " | ".join(f"`{law}`" for law in args.laws) + " |",
@@ -122,7 +123,7 @@ def effects(args) -> None:
             cells.append(f"{summary['success_rate']:.2f} [{c[0]:.2f}, {c[1]:.2f}]")
             print(f"{name:28s} {law:10s} {n:4d} ep: success {summary['success_rate']:.2f}", flush=True)
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-        write_json(args.json, out)
+        write_record(args.json, out)
     print("\n".join(lines))
 
 

@@ -6,7 +6,7 @@ at 50 Hz in at most 60 s, and the Apollo 4 loop (the shipped record, drag-only s
 loop runs on each (the residual trace included, where the residual is not noise) and the script
 prints the wall and CPU time, the replays, what was found and where the trace points.
 
-    OMP_NUM_THREADS=1 python scripts/bench_identify.py [--cases drag_coefficient=1.1 none ...]
+    OMP_NUM_THREADS=1 python benchmarks/identify_speed.py [--cases drag_coefficient=1.1 none ...]
         [--duration 300] [--rate 10] [--no-apollo] [--target S] [--json out.json]
 
 A case is effect specs joined by '+' (or ``none``), optionally followed by ``@POS_M,VEL_MPS``
@@ -79,7 +79,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", type=Path, help="write the figures here")
     args = p.parse_args(argv)
 
-    from rventry_env.util.files import check_writable, write_json
+    from rventry_env.util.files import check_writable
+    from rventry_env.util.provenance import start_run, write_record
+
+    start_run(None if argv is None else ["python", __file__, *argv])
     from rventry_env.validation import apollo4, identify_record
     from rventry_env.validation.synthetic.simulate import parse_effects, simulate_record
 
@@ -133,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"Apollo 4 loop: {apollo['wall_s']:.1f} s wall (target {APOLLO_TARGET_S:g} s): "
               f"{'PASS' if apollo['wall_s'] <= APOLLO_TARGET_S else 'FAIL'}")  # fmt: skip
     if args.json:
-        write_json(args.json, {"record_target_s": target, "apollo_target_s": APOLLO_TARGET_S,
+        write_record(args.json, {"record_target_s": target, "apollo_target_s": APOLLO_TARGET_S,
                                 "cases": rows, "apollo4": apollo}, indent=2)  # fmt: skip
     return 0
 

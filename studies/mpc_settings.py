@@ -19,10 +19,10 @@ value (deg; 0 = off): alpha(t_f), the vertical-impact error, the miss and J/J*; 
 navigation's errors at the end, the share of episodes whose horizontal error alone is within the
 precision tier's miss, and success by the size of the vertical (altitude) error.
 
-    python scripts/bench_mpc.py --evaluate --workers 2 --json out/bench_mpc.json
-    python scripts/bench_mpc.py --scan --episodes 40 --workers 2 --json out/scan_mpc.json
-    python scripts/bench_mpc.py --scan --variants flight --dispersion flight --episodes 12 --workers 2 --json out/scan_mpc_flight.json
-    python scripts/bench_mpc.py --scan --variants aero --dispersion flight --episodes 20 --seed 1000 --workers 2 --json out/scan_mpc_aero.json
+    python studies/mpc_settings.py --evaluate --workers 2 --json out/bench_mpc.json
+    python studies/mpc_settings.py --scan --episodes 40 --workers 2 --json out/scan_mpc.json
+    python studies/mpc_settings.py --scan --variants flight --dispersion flight --episodes 12 --workers 2 --json out/scan_mpc_flight.json
+    python studies/mpc_settings.py --scan --variants aero --dispersion flight --episodes 20 --seed 1000 --workers 2 --json out/scan_mpc_aero.json
 
 Timings depend on the machine: the manual's results quote this 2-core machine's (``--workers 2``).
 Success rates do not: the solver's budget is an iteration count.
@@ -44,7 +44,7 @@ from rventry_env.evaluation.summary import summarize
 from rventry_env.guidance.estimation import FlightEstimatorSettings
 from rventry_env.guidance.replanning import ReplanningSettings
 from rventry_env.util.args import non_negative_int, positive_int
-from rventry_env.util.files import write_json
+from rventry_env.util.provenance import start_run, write_record
 
 TARGETS = {"standard_success": 0.99, "wide_success": 0.95, "nominal_cost_ratio": 1.10, "resolve_p50_s": 0.5,
            "resolve_p99_s": 2.0, "wall_200_standard_s": 1800.0}  # fmt: skip
@@ -421,6 +421,7 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=positive_int, default=2)
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args(argv)
+    start_run(None if argv is None else ["python", __file__, *argv])
     dispersed = args.episodes  # --terminal-alpha flies dispersed episodes only when asked
     if args.episodes is None:
         args.episodes = 40 if args.scan else 200
@@ -431,9 +432,9 @@ def main(argv=None) -> int:
     else:
         out = scan(args) if args.scan else evaluate(args) if args.evaluate else terminal_alpha(
             args.terminal_alpha, dispersed, args.dispersion, args.seed, args.workers)
-    out["command"] = " ".join(["python scripts/bench_mpc.py", *(argv if argv is not None else sys.argv[1:])])
+    out["command"] = " ".join(["python studies/mpc_settings.py", *(argv if argv is not None else sys.argv[1:])])
     if args.json:
-        print(f"wrote {write_json(args.json, out)}")
+        print(f"wrote {write_record(args.json, out)}")
     return 0
 
 

@@ -7,7 +7,7 @@ best guess a spherical solver could get) and the simulated guidance-law flight
 (the cold start the rv-Euler solve uses). Prints one row per case and writes the
 rows as JSON.
 
-    python scripts/solve_spherical_singularity.py [--out results.json] [--gammas -90 -89.9 -89 -85]
+    python studies/spherical_singularity.py [--out results.json] [--gammas -90 -89.9 -89 -85]
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ import json
 import os
 import sys
 from pathlib import Path
+
+from rventry_env.util.provenance import start_run, write_record
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -32,6 +34,7 @@ def main(argv=None) -> int:
     parser.add_argument("--rv-euler", action="store_true",
                         help="also solve the rv-Euler problem with the same relaxed terminal angles")  # fmt: skip
     args = parser.parse_args(argv)
+    start_run(None if argv is None else ["python", __file__, *argv])
 
     from rventry_env.reference import load_reference
     from rventry_env.reference.collocation.progress import RichMeshTable
@@ -95,9 +98,8 @@ def main(argv=None) -> int:
               f"{r.get('mesh_error', float('nan')):9.2e} {r.get('n_nodes', 0):6d} {r.get('passes', 0):6d} "
               f"{r['time_s']:7.1f}")  # fmt: skip
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         rv = [{"final_gamma_deg": g, **r} for g, r in sorted(rv_rows.items())]
-        args.out.write_text(json.dumps({"rv_euler": rv, "spherical": rows}, indent=2))
+        write_record(args.out, {"rv_euler": rv, "spherical": rows}, indent=2)
     return 0
 
 

@@ -2,7 +2,7 @@
 
 Prints, on the default JAX device (say which in the output: CPU, or a GPU where one is found):
 
-* the default step's accuracy in an aggressive S-turn (``bench_env.py``'s scenario) against
+* the default step's accuracy in an aggressive S-turn (``env_speed.py``'s scenario) against
   DOP853 at rtol 1e-12, at 1, 2 and 4 RK4 substeps;
 * vehicle-steps/s at N = 8192 (``--num-envs``) of the NumPy vector env and of the JAX face
   (``backend="jax"``, float64 and float32), timed in interleaved rounds in the same run, and of
@@ -14,7 +14,7 @@ Prints, on the default JAX device (say which in the output: CPU, or a GPU where 
 * PPO env-steps/s during training: rejax PPO on the functional env (``baselines/jax_ppo.toml``),
   its compile time, and stable-baselines3 PPO (``baselines/ppo.toml``) on the same machine.
 
-Run: ``python scripts/bench_jax.py [--json PATH] [--quick]``
+Run: ``python benchmarks/jax_backend.py [--json PATH] [--quick]``
 
 On a GPU the functional env wants millions of vehicles, and PPO a bigger batch: the manual's GPU
 figures come from ``--functional-sizes 65536 1048576 4194304 --functional-steps 100``
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from rventry_env.util.provenance import start_run, write_record
 
 
 def _actions(n: int, seed: int):
@@ -238,16 +238,17 @@ def main():
     ap.add_argument("--skip", nargs="*", default=[],
                     choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo", "sb3"])  # fmt: skip
     args = ap.parse_args()
+    start_run()
 
     def save():  # after each part, so that a run stopped midway keeps what it measured
         if args.json:
-            from rventry_env.util.files import write_json
-
-            write_json(args.json, res)
+            write_record(args.json, res)
 
     from rventry_env.core.backend import prefer_fused_cpu_runtime
+    from rventry_env.envs.allocator import keep_freed_memory
 
-    prefer_fused_cpu_runtime()  # what the package's JAX envs ask for, before JAX loads
+    prefer_fused_cpu_runtime()  # what the rventry command asks for, before JAX loads
+    keep_freed_memory()  # and for the NumPy vector env's large batches
     import jax
 
     from rventry_env.task import EntryTask
@@ -262,9 +263,9 @@ def main():
     print(f"JAX {jax.__version__} on {jax.devices()[0]} ({jax.devices()[0].device_kind}); {os.cpu_count()} CPUs, "
           f"load {os.getloadavg()[0]:.1f}; dt {task.dt} s, {task.substeps} RK4 substeps (task default {EntryTask().substeps})")  # fmt: skip
     if "accuracy" not in args.skip:
-        from bench_env import accuracy
+        from rventry_env.evaluation.accuracy import step_accuracy
 
-        res["accuracy"] = accuracy((1, 2, 4), ("s-turn",))
+        res["accuracy"] = step_accuracy((1, 2, 4), ("s-turn",))
         save()
         for r in res["accuracy"]:
             print(f"S-turn (peak {r['peak_load_g']:.1f} g), {r['substeps']} RK4 substeps: impact position error "

@@ -6,7 +6,7 @@ model on the evaluation's seeds (never the selection's): the nominal flight, 200
 200 wide-set episodes from seed 0, and prints the table the manual's learned-policies results quote. It also draws every
 run's selection-set learning curve in one figure.
 
-    python scripts/bench_baselines.py --json out/bench_baselines.json --plot out/baselines_learning_curves.png
+    python studies/baselines.py --json out/bench_baselines.json --plot out/baselines_learning_curves.png
 
 Defaults: the runs shipped in ``rventry_agents/data/baselines/``.
 """
@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from rventry_env.util.args import positive_int
-from rventry_env.util.files import check_writable, save_figure, write_json
+from rventry_env.util.files import check_writable, save_figure
+from rventry_env.util.provenance import start_run, write_record
 
 SHIPPED = Path(__file__).resolve().parent.parent / "rventry_agents" / "data" / "baselines"
 NAMES = {"ppo": "PPO", "recurrent_ppo": "RecurrentPPO", "sac": "SAC"}
@@ -105,6 +106,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", required=True, metavar="PATH")
     ap.add_argument("--plot", metavar="PNG", help="the learning curves of every run in one figure")
     args = ap.parse_args(argv)
+    start_run()
     runs = _runs(args.runs)
     check_writable(args.json, args.plot)
     results = {}
@@ -118,7 +120,7 @@ def main(argv=None) -> int:
             "evaluations": json.loads((run / "evaluations.json").read_text()),
             **evaluate_run(run, args.episodes, args.seed, args.workers),
         }
-    write_json(args.json, {"seed": args.seed, "episodes": args.episodes, "runs": results})
+    write_record(args.json, {"seed": args.seed, "episodes": args.episodes, "runs": results})
     if args.plot:
         plot(results, args.plot)
     print(table(results))

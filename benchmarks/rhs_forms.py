@@ -20,14 +20,13 @@ The paper (Section ``sect:Discussion``) argues rv-Euler needs fewer floating-poi
 operations because it has no trigonometry, pricing sin x at 14 flops (Eq.
 ``sin(x)``). The table prints raw counts and that weighted total.
 
-Run:  python scripts/bench_rhs.py            (about a minute on a quiet machine)
-      python scripts/bench_rhs.py --quick    (smaller batches, shorter timing)
+Run:  python benchmarks/rhs_forms.py            (about a minute on a quiet machine)
+      python benchmarks/rhs_forms.py --quick    (smaller batches, shorter timing)
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -44,6 +43,8 @@ from rventry_env.core.conversions import rv_euler_from_cartesian, spherical_from
 from rventry_env.core.eom import two_body_rhs  # noqa: E402
 from rventry_env.core.spherical import two_body_spherical_rhs  # noqa: E402
 from rventry_env.physics import EntryModel, entry_rhs  # noqa: E402
+
+from rventry_env.util.provenance import start_run, write_record
 
 MU = 3.986004418e14
 BATCHES = (1, 10, 100, 1_000, 10_000, 100_000)
@@ -194,6 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     min_time = args.min_time if args.min_time is not None else (0.15 if args.quick else 0.6)
     if min_time <= 0:
         p.error("--min-time must be positive")
+    start_run(None if argv is None else ["python", __file__, *argv])
 
     print(f"numpy {np.__version__}, python {sys.version.split()[0]}, OMP_NUM_THREADS={os.environ['OMP_NUM_THREADS']}")
     print("\nRight-hand-side throughput, states per second (best of 3)")
@@ -224,8 +226,7 @@ def main(argv: list[str] | None = None) -> int:
             "op_counts": counts,
             "numpy": np.__version__,
         }
-        with open(args.json, "w") as fh:
-            json.dump(data, fh, indent=2)
+        write_record(args.json, data, indent=2)
         print(f"\nwrote {args.json}")
     return 0
 

@@ -13,7 +13,7 @@ B decisions. The figures are per decision:
 with batch 1 only (``--mpc-episodes`` episodes, one at a time) and its batched cost is that
 figure, not a measurement.
 
-    OMP_NUM_THREADS=1 python scripts/bench_decision.py --json out/bench_decision.json
+    OMP_NUM_THREADS=1 python benchmarks/decision_cost.py --json out/bench_decision.json
 
 Timings depend on the machine: run it on a quiet one.
 """
@@ -30,7 +30,8 @@ from rventry_env.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 from rventry_env.util.args import positive_int
-from rventry_env.util.files import check_writable, write_json
+from rventry_env.util.files import check_writable
+from rventry_env.util.provenance import start_run, write_record
 
 LAWS = ("learned", "dagger-flight", "dagger", "ppo-residual", "lqr", "lqr-est", "mpc")  # `learned`: today `ppo`
 
@@ -87,6 +88,7 @@ def main(argv=None) -> int:
     ap.add_argument("--laws", nargs="+", choices=LAWS, default=list(LAWS), help="laws to time (all)")
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args(argv)
+    start_run()
     if args.json:
         check_writable(args.json)
     task = EntryTask()
@@ -116,9 +118,9 @@ def main(argv=None) -> int:
         if mpc and batched:
             r["mpc_over_batched"] = mpc / batched["per_decision_mean_s"]
     if args.json:
-        write_json(args.json, {"laws": rows, "batch": args.batch, "seed": args.seed, "dispersion": "standard",
+        write_record(args.json, {"laws": rows, "batch": args.batch, "seed": args.seed, "dispersion": "standard",
                                "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
-                               "command": "OMP_NUM_THREADS=1 python scripts/bench_decision.py --json " + args.json})  # fmt: skip
+                               "command": "OMP_NUM_THREADS=1 python benchmarks/decision_cost.py --json " + args.json})  # fmt: skip
         print(f"wrote {args.json}")
     return 0
 

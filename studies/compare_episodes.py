@@ -7,7 +7,7 @@ episode coloured by which of the two succeeded. Prints the paired counts (both, 
 neither), a two-sided sign test on the discordant episodes, and each policy's failures by
 criterion.
 
-Run: ``python scripts/compare_episodes.py out/ppo_flight.json out/student_flight.json
+Run: ``python studies/compare_episodes.py out/ppo_flight.json out/student_flight.json
 --labels ppo dagger-flight --png out/ppo_vs_student.png [--json out/ppo_vs_student.json]``
 """
 
@@ -18,6 +18,8 @@ import json
 from pathlib import Path
 
 import numpy as np
+
+from rventry_env.util.provenance import start_run, write_record
 
 # what each panel shows: (episode key, axis label, log axis, the success rule's bound in those units)
 PANELS = (("miss_km", "miss (km)", True, 5.0), ("vertical_error_deg", "vertical-impact error (deg)", True, 5.0),
@@ -107,7 +109,8 @@ def main(argv=None) -> int:
     ap.add_argument("--png", required=True)
     ap.add_argument("--json", help="write the counts here")
     args = ap.parse_args(argv)
-    from rventry_env.util.files import check_writable, output_set, write_json
+    start_run(None if argv is None else ["python", __file__, *argv])
+    from rventry_env.util.files import check_writable, output_set
 
     check_writable(args.png, args.json)
     a, b = load_report(args.a), load_report(args.b)
@@ -117,7 +120,7 @@ def main(argv=None) -> int:
     with output_set():
         plot(a, b, labels, args.png)
         if args.json:
-            write_json(args.json, out)
+            write_record(args.json, out)
     print(f"{pair['episodes']} episodes: both land {pair['both']}, only {labels[0]} {pair['only_a']}, "
           f"only {labels[1]} {pair['only_b']}, neither {pair['neither']}; sign test on the discordant "
           f"ones p = {pair['sign_test_p']:.3f}")  # fmt: skip

@@ -8,9 +8,9 @@ mean success over the sets is chosen (a tie goes to no floor, then to the smalle
 ``--write`` the choice and every candidate's figures go into the run's ``policy.json``, which the
 policy then flies by (``student.q_floor_margin``, ``student.q_floor_selection``).
 
-Run: ``python scripts/choose_q_floor.py rventry_agents/data/ppo_finetune [--margins 0.02 0.05 0.08]
+Run: ``python studies/choose_q_floor.py rventry_agents/data/ppo_finetune [--margins 0.02 0.05 0.08]
 [--sets flight wide] [--episodes 200] [--seed 100000] [--write] --json out/q_floor.json``, or
-``python scripts/choose_q_floor.py RUN --record out/q_floor.json`` to record an earlier run's choice.
+``python studies/choose_q_floor.py RUN --record out/q_floor.json`` to record an earlier run's choice.
 In place of a run, a student's agent name (``dagger-flight``) flies that student with each floor: the
 start a fine-tuned policy is measured against with its limiters equal (nothing is written to it).
 """
@@ -21,6 +21,8 @@ import argparse
 import json
 import time
 from pathlib import Path
+
+from rventry_env.util.provenance import start_run, write_record
 
 
 def main():
@@ -36,6 +38,7 @@ def main():
                                                      "in the run's policy.json, without flying again")
     ap.add_argument("--json", help="write the candidates' figures here")
     args = ap.parse_args()
+    start_run()
     if (args.write or args.record) and not Path(args.run).is_dir():
         raise SystemExit(f"--write and --record record a choice in a run directory's policy.json; {args.run!r} is not one")
     if args.record:
@@ -48,7 +51,7 @@ def main():
     from rventry_agents.sb3_policy import SB3Policy
     from rventry_env.evaluation.rollout import rollout
     from rventry_env.guidance.q_floor import QFloor
-    from rventry_env.util.files import check_writable, write_json
+    from rventry_env.util.files import check_writable
 
     run = Path(args.run)
     if run.is_dir():
@@ -89,11 +92,11 @@ def main():
     chosen = max(score, key=lambda k: (score[k], -candidates.index(None if k == "none" else float(k))))
     margin = None if chosen == "none" else float(chosen)
     record = {"chosen": margin, "sets": args.sets, "seeds": [seeds[0], seeds[-1]], "episodes": args.episodes,
-              "success": table, "command": "python scripts/choose_q_floor.py " + " ".join(
+              "success": table, "command": "python studies/choose_q_floor.py " + " ".join(
                   [str(run), "--margins", *map(str, args.margins), "--sets", *args.sets, "--episodes",
                    str(args.episodes), "--seed", str(args.seed)])}  # fmt: skip
     out = {"run": str(run), **record, "wall_s": time.time() - t0}
-    write_json(args.json, out)
+    write_record(args.json, out)
     print(f"chosen: {chosen} (mean success {score[chosen]:.3f} over {', '.join(args.sets)})")
     if args.write:
         record_choice(run, out)

@@ -20,8 +20,8 @@ Two more sweeps try what a user can hand the environment besides actions:
   quaternions, alpha -60 to 60 deg, sigma -1000 to 1000 deg). Each must either be refused at
   ``reset``, naming the component, or fly random actions to a clean end in the vector env.
 
-    python scripts/bench_random_actions.py                    # 100,000 episodes
-    python scripts/bench_random_actions.py --episodes 5000 --json out/sweep.json
+    python studies/random_actions.py                    # 100,000 episodes
+    python studies/random_actions.py --episodes 5000 --json out/sweep.json
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ import numpy as np
 from rventry_env.envs.rv_entry import RvEntryEnv
 from rventry_env.envs.vector import TERMINAL_KEYS, RvEntryVectorEnv
 from rventry_env.util.args import positive_int, seed
-from rventry_env.util.files import write_json
+from rventry_env.util.provenance import start_run, write_record
 
 CASES = ((1.0, "standard"), (1.0, "wide"), (10.0, "standard"), (50.0, "wide"))
 
@@ -225,6 +225,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=seed, default=0)
     ap.add_argument("--json", help="write the counts here")
     args = ap.parse_args(argv)
+    start_run(None if argv is None else ["python", __file__, *argv])
     import warnings
 
     from rich.progress import Progress
@@ -277,7 +278,7 @@ def main(argv=None) -> int:
     print(f"  {'ended without an end key':28s} {missing}")
     print(f"  endings: {report['totals']['endings']}")
     if args.json:
-        print(f"wrote {write_json(args.json, report)}")
+        print(f"wrote {write_record(args.json, report)}")
     bad = sum(total[k] for k in checks) + missing
     return 0 if bad == 0 else 1
 

@@ -12,7 +12,7 @@ interquartile mean and the mean over runs and sets with rliable's stratified-boo
 intervals; a PNG of the performance profiles (the fraction of (run, set) success rates above each
 threshold).
 
-Run: ``python scripts/bench_seeds.py --method ppo runs/ft_flight_s0 runs/ft_flight_s1
+Run: ``python studies/seeds.py --method ppo runs/ft_flight_s0 runs/ft_flight_s1
 runs/ft_flight_s2 --method dagger dagger --sets flight standard wide peer-0.1 --episodes 200
 --json out/bench_seeds.json --plot out/bench_seeds.png``
 """
@@ -23,6 +23,8 @@ import argparse
 import time
 
 import numpy as np
+
+from rventry_env.util.provenance import start_run, write_record
 
 TIERS = {"basic": "success_rate", "precision": "precision_success_rate"}
 
@@ -38,6 +40,7 @@ def main():
     ap.add_argument("--json", required=True)
     ap.add_argument("--plot", required=True, help="the performance profiles (PNG)")
     args = ap.parse_args()
+    start_run()
     methods = {}
     for m in args.method:
         if len(m) < 2:
@@ -48,7 +51,7 @@ def main():
 
     from rventry_env.evaluation.cli import run_agent
     from rventry_env.evaluation.seeds import performance_profiles, plot_performance_profiles, seed_statistics
-    from rventry_env.util.files import check_writable, output_set, write_json
+    from rventry_env.util.files import check_writable, output_set
 
     check_writable(args.json, args.plot)
     runs: dict = {}
@@ -79,7 +82,7 @@ def main():
            "scores": {t: {k: v.tolist() for k, v in scores[t].items()} for t in TIERS},
            "aggregate": stats, "performance_profiles": profiles}  # fmt: skip
     with output_set():
-        write_json(args.json, out)
+        write_record(args.json, out)
         plot_performance_profiles(profiles, args.plot, xlabel="basic success rate tau",
                                   title=f"sets {', '.join(args.sets)}; {args.episodes} episodes each, seed 0")
     print(table(stats, args.sets))

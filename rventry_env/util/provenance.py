@@ -1,0 +1,129 @@
+"""Where a benchmark's or a study's record was made: the commit, the machine, the packages, the command.
+
+A figure without its machine and its code means little: a timing on a loaded 2-core machine is not
+one on a quiet workstation, and a success rate belongs to the commit that flew it. Every script
+under ``benchmarks/`` and ``studies/`` starts a :class:`RunRecord` before its work and writes its
+JSON through :meth:`RunRecord.write`, which adds a ``"provenance"`` entry:
+
+* ``commit``: the source tree's ``git`` commit and whether it had uncommitted changes (None
+  outside a checkout);
+* ``machine``: the CPU model, the cores the process may use and those the machine has, and the
+  load average at the start and at the end (a shared machine's timings are read against it);
+* ``versions``: Python and the packages the figures depend on (None where one is not installed);
+* ``command``: the command line, and the start and end times (UTC).
+
+The record is written whole or not at all (:func:`~rventry_env.util.files.write_json`).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import shlex
+import subprocess
+import sys
+import time
+from datetime import datetime, timezone
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+from rventry_env.util.files import write_json
+
+PACKAGES = ("rventry", "numpy", "scipy", "casadi", "gymnasium", "stable-baselines3", "torch", "jax", "jaxlib")
+SOURCE = Path(__file__).resolve().parents[2]  # the source tree's root, where this package is a checkout
+
+
+def source_commit(root: Path = SOURCE) -> dict | None:
+    """``{"sha", "dirty"}`` of the git checkout at ``root``; None where it is not one (an installed wheel)."""
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
+        if sha.returncode != 0:
+            return None
+        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                                capture_output=True, text=True, timeout=30)  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return {"sha": sha.stdout.strip(), "dirty": bool(status.stdout.strip())}
+
+
+def cpu_model() -> str:
+    """The CPU's model name (Linux's /proc/cpuinfo; elsewhere what the platform says)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def load_average() -> list[float] | None:
+    """The 1-, 5- and 15-minute load averages (None where the system has none)."""
+    try:
+        return [round(v, 2) for v in os.getloadavg()]
+    except (OSError, AttributeError):
+        return None
+
+
+def package_versions(names=PACKAGES) -> dict:
+    out = {"python": platform.python_version()}
+    for name in names:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+class RunRecord:
+    """The provenance of one run of a script: started when built, closed by :meth:`provenance`."""
+
+    def __init__(self, argv: list[str] | None = None):
+        """:param argv: the command line (default: this process's, as ``python SCRIPT ARGS``)."""
+        self.command = shlex.join(["python", *sys.argv] if argv is None else argv)
+        self.started = datetime.now(timezone.utc)
+        self._t0 = time.perf_counter()
+        self.load_start = load_average()
+        self.commit = source_commit()
+
+    def provenance(self) -> dict[str, Any]:
+        """The ``"provenance"`` entry, with the load average now as the end's."""
+        try:
+            usable = len(os.sched_getaffinity(0))
+        except AttributeError:
+            usable = os.cpu_count()
+        return {
+            "commit": self.commit,
+            "machine": {"cpu": cpu_model(), "cores_usable": usable, "cores": os.cpu_count(), "system": platform.system(),
+                        "load_average_start": self.load_start, "load_average_end": load_average()},
+            "versions": package_versions(),
+            "command": self.command,
+            "started_utc": self.started.isoformat(timespec="seconds"),
+            "wall_time_s": round(time.perf_counter() - self._t0, 3),
+        }  # fmt: skip
+
+    def write(self, path: str | Path, data: dict, indent: int | None = 1) -> Path:
+        """Write ``data`` with its ``"provenance"`` to ``path`` as strict JSON, whole or not at all."""
+        if not isinstance(data, dict):
+            raise TypeError(f"a record is a JSON object (dict), got {type(data).__name__}")
+        return write_json(path, {**data, "provenance": self.provenance()}, indent=indent)
+
+
+_CURRENT: RunRecord | None = None
+
+
+def start_run(argv: list[str] | None = None) -> RunRecord:
+    """Start this script's :class:`RunRecord` (call first thing in its ``main``: the load at the start,
+    the wall time and the commit are taken now)."""
+    global _CURRENT
+    _CURRENT = RunRecord(argv)
+    return _CURRENT
+
+
+def write_record(path: str | Path, data: dict, indent: int | None = 1) -> Path:
+    """Write ``data`` with the provenance of the run :func:`start_run` started (started now if none was)."""
+    return (_CURRENT or start_run()).write(path, data, indent=indent)
+
+
+__all__ = ["RunRecord", "start_run", "write_record", "source_commit", "cpu_model", "load_average", "package_versions", "PACKAGES"]
