@@ -29,6 +29,7 @@ COMMAND_MODULES = (
     "rventry_env.reference.cli",
     "rventry_env.evaluation.cli",
     "rventry_env.evaluation.oracle_cli",
+    "rventry_env.evaluation.manifest",
     "rventry_env.validation.cli",
     "rventry_env.task.glossary",
 )
