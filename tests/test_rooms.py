@@ -77,6 +77,78 @@ def _violations() -> list[str]:
     return bad
 
 
+def _module_graph() -> dict[str, set[str]]:
+    """Module -> the package modules it imports, anywhere in its body (a function-level import counts)."""
+    paths = {}
+    for path in (ROOT / "rventry_env").rglob("*.py"):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        paths[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+
+    def resolve(name: str) -> str | None:
+        while name and name not in paths:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    graph = {}
+    for module, path in paths.items():
+        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+        targets = {resolve(t) for _, t in _imports(path, package) if t.startswith("rventry_env")}
+        graph[module] = {t for t in targets if t and t != module}
+    return graph
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import circles: each strongly connected set of two or more modules (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_module_imports_itself_back_through_others_within_or_across_rooms():
+    assert _circles(_module_graph()) == []
+
+
+def test_the_circle_check_catches_a_planted_circle_within_a_room(tmp_path, monkeypatch):
+    """The check itself can fail: two env modules importing each other (one inside a function) are found."""
+    envs = tmp_path / "rventry_env" / "envs"
+    envs.mkdir(parents=True)
+    (tmp_path / "rventry_env" / "__init__.py").write_text("")
+    (envs / "__init__.py").write_text("")
+    (envs / "a.py").write_text("from rventry_env.envs.b import g\n")
+    (envs / "b.py").write_text("def g():\n    from rventry_env.envs import a\n")
+    (envs / "c.py").write_text("from rventry_env.envs import a\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    assert _circles(_module_graph()) == [["rventry_env.envs.a", "rventry_env.envs.b"]]
+
+
 def test_rooms_import_one_way():
     assert _violations() == []
 

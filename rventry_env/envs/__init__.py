@@ -25,7 +25,7 @@ def register_envs() -> None:
     register(
         id=ENV_ID,
         entry_point="rventry_env.envs.rv_entry:RvEntryEnv",
-        vector_entry_point="rventry_env.envs.vector:make_vector_env",
+        vector_entry_point="rventry_env.envs.vector_entry:make_vector_env",
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 

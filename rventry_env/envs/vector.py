@@ -488,19 +488,3 @@ def _standing(flight: Flight) -> Transition:
     zero = 0.0 * flight.t
     out = StepOutcome(flight.x, flight.forces, zero, IDLE, zero, zero, flight.max_load, flight.min_q, False)
     return Transition(flight, dcm(*flight.x[1:5]), out, -(zero + zero), False, False, None)
-
-
-def make_vector_env(num_envs: int = 1, backend: str = "numpy", dtype: str = "float64", **kwargs) -> RvEntryVectorEnv:
-    """``RvEntry-v0``'s vector entry point: ``backend="numpy"`` (default) or ``"jax"`` (the ``[jax]`` extra).
-
-    ``dtype`` (``"float64"`` or ``"float32"``) applies to the JAX backend; NumPy computes in float64.
-    """
-    if backend == "numpy":
-        if dtype != "float64":
-            raise ValueError(f"backend='numpy' computes in float64; dtype={dtype!r} needs backend='jax'")
-        return RvEntryVectorEnv(num_envs, **kwargs)
-    if backend == "jax":
-        from rventry_env.envs.jax_vector import RvEntryJaxVectorEnv
-
-        return RvEntryJaxVectorEnv(num_envs, dtype=dtype, **kwargs)
-    raise ValueError(f"backend must be 'numpy' or 'jax', got {backend!r}")
