@@ -238,7 +238,6 @@ def _compare(args) -> int:
     from rventry_env.task import EntryTask
     from rventry_env.evaluation import compare_report as cr
     from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
-    from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.evaluation.summary import summarize
     from rventry_env.reference import load_reference
 
@@ -285,30 +284,40 @@ def _compare(args) -> int:
         "workers": None if args.cluster else args.workers,
     }
     doc["verdict"] = cr.verdict(doc)
-    ref = load_reference()
     plots = Path(args.plots)
-    shown = {name: cr.display_name(runs[("dispersed", name)][2]) for _, name in agents}
-    counts = sorted(set(episodes.values()), reverse=True)
-    n_text = f"{counts[0]} episodes per law" + (f" (mpc: {counts[-1]})" if len(counts) > 1 else "")
     doc["wall_time_s"] = time.time() - t0
     with output_set():  # the report and its plots: all replaced, or none
         write_json(args.json, doc)
-        plot_trajectories({shown[name]: runs[("nominal", name)][0] for _, name in agents},
-                          plots / "nominal_trajectories.png", reference=ref,
-                          title="Nominal flight (no dispersion): every law against the optimal reference",
-                          headline=shown[label])  # fmt: skip
-        plot_trajectories({shown[name]: runs[("dispersed", name)][0] for _, name in agents},
-                          plots / "dispersed_trajectories.png", reference=ref,
-                          title=f"{dispersion.capitalize()} set, seeds {args.seed}-{args.seed + counts[0] - 1}: "
-                                f"{n_text}", headline=shown[label])  # fmt: skip
-        plot_outcomes({shown[name]: runs[("dispersed", name)][0] for _, name in agents},
-                      plots / "dispersed_outcomes.png", EntryTask().success,
-                      title=f"Outcomes on the {dispersion} set: {n_text}")  # fmt: skip
+        _compare_plots(runs, agents, label, dispersion, args.seed, episodes, plots)
     print_compare(doc, Console(width=100))
     print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)"
           f" in {time.time() - t0:.0f} s")  # fmt: skip
     print(terms_line(cr.TERMS))
     return 0
+
+
+def _compare_plots(runs: dict, agents, label: str, dispersion: str, seed: int, episodes: dict, plots: Path) -> None:
+    """``rventry compare``'s three figures: the nominal and the dispersed trajectories, and the outcomes."""
+    from rventry_env.evaluation import compare_report as cr
+    from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
+    from rventry_env.reference import load_reference
+    from rventry_env.task import EntryTask
+
+    ref = load_reference()
+    shown = {name: cr.display_name(runs[("dispersed", name)][2]) for _, name in agents}
+    counts = sorted(set(episodes.values()), reverse=True)
+    n_text = f"{counts[0]} episodes per law" + (f" (mpc: {counts[-1]})" if len(counts) > 1 else "")
+    plot_trajectories({shown[name]: runs[("nominal", name)][0] for _, name in agents},
+                      plots / "nominal_trajectories.png", reference=ref,
+                      title="Nominal flight (no dispersion): every law against the optimal reference",
+                      headline=shown[label])  # fmt: skip
+    plot_trajectories({shown[name]: runs[("dispersed", name)][0] for _, name in agents},
+                      plots / "dispersed_trajectories.png", reference=ref,
+                      title=f"{dispersion.capitalize()} set, seeds {seed}-{seed + counts[0] - 1}: "
+                            f"{n_text}", headline=shown[label])  # fmt: skip
+    plot_outcomes({shown[name]: runs[("dispersed", name)][0] for _, name in agents},
+                  plots / "dispersed_outcomes.png", EntryTask().success,
+                  title=f"Outcomes on the {dispersion} set: {n_text}")  # fmt: skip
 
 
 def print_compare(doc: dict, console) -> None:

@@ -82,6 +82,44 @@ def _words(names: list[str]) -> str:
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
+def _draw_reference(ax: dict, reference) -> None:
+    """The collocation reference in black, dashed, on every panel of :func:`plot_trajectories`."""
+    tr = np.linspace(0, reference.tf, 2000)
+    xr = reference.state(tr)
+    lat, lon = _ground_track(xr)
+    kw = dict(color="k", lw=1.2, ls="--", zorder=4)
+    ax["h"].plot(tr, (xr[:, IDX.r] - R_E) / 1e3, **kw)
+    ax["v"].plot(tr, xr[:, IDX.v] / 1e3, **kw)
+    ax["track"].plot(lon, lat, **kw)
+    ax["alpha"].plot(tr, np.degrees(xr[:, IDX.alpha]), **kw)
+    ax["sigma"].plot(tr, unwrapped_bank_deg(xr), **kw)
+    ax["legend"].plot([], [], label="collocation reference (optimal)", **kw)
+
+
+def _finish_trajectory_axes(ax: dict, axes, groups, target_deg) -> None:
+    """The target, the axes' labels, the legend and the note on overlapping flights of :func:`plot_trajectories`."""
+    import matplotlib
+
+    ax["track"].plot([target_deg[1]], [target_deg[0]], "rx", ms=10, mew=2, zorder=5)
+    ax["legend"].plot([], [], "rx", ms=10, mew=2, label="target")
+    ax["h"].set(xlabel="t (s)", ylabel="altitude (km)")
+    ax["v"].set(xlabel="t (s)", ylabel="speed (km/s)")
+    ax["track"].set(xlabel="longitude (deg)", ylabel="latitude (deg)", title="ground track")
+    ax["alpha"].set(xlabel="t (s)", ylabel="angle of attack (deg)")
+    ax["sigma"].set(xlabel="t (s)", ylabel="bank angle (deg, 0 = lift up, + right)",
+                    title="bank angle, unwrapped (a roll through 180 deg continues)")  # fmt: skip
+    ax["sigma"].yaxis.set_major_locator(matplotlib.ticker.MultipleLocator(90))
+    ax["legend"].axis("off")
+    ax["legend"].legend(loc="center", fontsize=10, frameon=False)
+    notes = [f"{_words(g)} fly within 100 m of altitude\nand 1 deg of bank of one another: their lines overlap"
+             for g in groups]  # fmt: skip
+    if notes:
+        ax["legend"].text(0.5, 0.0, "\n".join(notes), ha="center", va="bottom", fontsize=9, style="italic",
+                          wrap=True, transform=ax["legend"].transAxes)  # fmt: skip
+    for a in axes.ravel()[:5]:
+        a.grid(alpha=0.3)
+
+
 def plot_trajectories(
     batches: dict[str, EpisodeBatch], path: str | Path, reference=None, target_deg=(0.0, 25.15), title: str = "",
     headline: str | None = None,
@@ -144,34 +182,8 @@ def plot_trajectories(
         ax["legend"].plot([], [], color=color[label], lw=3 if label == headline else 2, ls=styles.get(label, "-"),
                           label=text)  # fmt: skip
     if reference is not None:
-        tr = np.linspace(0, reference.tf, 2000)
-        xr = reference.state(tr)
-        lat, lon = _ground_track(xr)
-        kw = dict(color="k", lw=1.2, ls="--", zorder=4)
-        ax["h"].plot(tr, (xr[:, IDX.r] - R_E) / 1e3, **kw)
-        ax["v"].plot(tr, xr[:, IDX.v] / 1e3, **kw)
-        ax["track"].plot(lon, lat, **kw)
-        ax["alpha"].plot(tr, np.degrees(xr[:, IDX.alpha]), **kw)
-        ax["sigma"].plot(tr, unwrapped_bank_deg(xr), **kw)
-        ax["legend"].plot([], [], label="collocation reference (optimal)", **kw)
-    ax["track"].plot([target_deg[1]], [target_deg[0]], "rx", ms=10, mew=2, zorder=5)
-    ax["legend"].plot([], [], "rx", ms=10, mew=2, label="target")
-    ax["h"].set(xlabel="t (s)", ylabel="altitude (km)")
-    ax["v"].set(xlabel="t (s)", ylabel="speed (km/s)")
-    ax["track"].set(xlabel="longitude (deg)", ylabel="latitude (deg)", title="ground track")
-    ax["alpha"].set(xlabel="t (s)", ylabel="angle of attack (deg)")
-    ax["sigma"].set(xlabel="t (s)", ylabel="bank angle (deg, 0 = lift up, + right)",
-                    title="bank angle, unwrapped (a roll through 180 deg continues)")  # fmt: skip
-    ax["sigma"].yaxis.set_major_locator(matplotlib.ticker.MultipleLocator(90))
-    ax["legend"].axis("off")
-    ax["legend"].legend(loc="center", fontsize=10, frameon=False)
-    notes = [f"{_words(g)} fly within 100 m of altitude\nand 1 deg of bank of one another: their lines overlap"
-             for g in groups]  # fmt: skip
-    if notes:
-        ax["legend"].text(0.5, 0.0, "\n".join(notes), ha="center", va="bottom", fontsize=9, style="italic",
-                          wrap=True, transform=ax["legend"].transAxes)  # fmt: skip
-    for a in axes.ravel()[:5]:
-        a.grid(alpha=0.3)
+        _draw_reference(ax, reference)
+    _finish_trajectory_axes(ax, axes, groups, target_deg)
     if title:
         fig.suptitle(title)
     return save_figure(fig, path)

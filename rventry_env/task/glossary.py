@@ -48,6 +48,8 @@ class Term(NamedTuple):
 
 
 def _terms() -> tuple[Term, ...]:
+    """Every entry, in the page's order: the outcome's terms, then the limiters', the solvers' and the
+    identification's (:func:`_limiter_and_solver_terms`)."""
     s, p, problem = SuccessThresholds(), PrecisionThresholds(), EntryProblem()
     margin = f"{100 * s.constraint_tolerance:g} %"
     return (
@@ -97,6 +99,12 @@ def _terms() -> tuple[Term, ...]:
         Term("endings", "how the episodes ended (impact, skip-out, ...)",
              "How the episodes ended: impact, skip-out (above the ceiling), stall, a non-finite state, or the "
              "time limit.", "env.md"),
+        *_limiter_and_solver_terms(problem),
+    )
+
+
+def _limiter_and_solver_terms(problem: EntryProblem) -> tuple[Term, ...]:
+    return (
         Term("load relief", "a limiter that keeps the load factor under its bound",
              f"A limiter between a law and the vehicle: where the load factor predicted one step ahead "
              f"(the model's own dynamics, calibrated on the accelerometer) would pass {problem.a_max_g:g} g less a "

@@ -179,6 +179,48 @@ _REASONS = {
 }
 
 
+def _member_parameters(sub, coef, c_ref: float, rho_names: list, values: dict, level: float) -> tuple[dict, list]:
+    """The parameters of the alias member ``sub`` with coefficients ``coef`` (in ln k_D, ln k_L / c_ref),
+    and its effects (the density profile's shape carried where the answer has one)."""
+    params = {}
+    for e, a in zip(sub, coef):
+        if e == "mass":  # its direction is already (-1, -1): the mass factor is exp(+a)
+            params["mass_scale"] = math.exp(a)
+        elif e == "drag_coefficient":
+            params["cd_scale"] = math.exp(a)
+        elif e == "lift_coefficient":
+            params["cl_scale"] = c_ref * math.exp(a)
+        elif e == "density_profile":
+            params["density_level_factor"] = math.exp(a)
+    member_effects = list(sub)
+    if rho_names:
+        # the density profile's shape stays; only its level moves
+        if "density_profile" not in sub:
+            member_effects.append("density_profile")
+            a_rho = 0.0
+        else:
+            a_rho = coef[list(sub).index("density_profile")]
+        for nme in rho_names:
+            params[nme] = values[nme] - level + a_rho
+        params.pop("density_level_factor", None)
+    return params, member_effects
+
+
+def _alias_reason(lift: bool, r_answer: int, answer: np.ndarray) -> str:
+    """Why the members fit alike: which direction of (ln k_D, ln k_L) the answer's uniform part spans."""
+    if not lift:
+        return _REASONS["no_lift"]
+    if r_answer == 2:
+        return _REASONS["both"]
+    if np.allclose(answer[:, 0] / np.linalg.norm(answer[:, 0]), np.array([1, 1]) / math.sqrt(2)) or np.allclose(
+        answer[:, 0] / np.linalg.norm(answer[:, 0]), -np.array([1, 1]) / math.sqrt(2)
+    ):
+        return _REASONS["level"]
+    if abs(answer[0, 0]) < 1e-12:
+        return _REASONS["lift"]
+    return _REASONS["drag"]
+
+
 def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: float) -> list[dict]:
     """Every explanation that fits exactly as well as ``effects`` with ``values``.
 
@@ -231,27 +273,7 @@ def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: 
                 continue  # one of the pair unchanged: it is the single member again
             if not np.allclose(v @ coef, target[:dims], atol=1e-9):
                 continue
-            params = {}
-            for e, a in zip(sub, coef):
-                if e == "mass":  # its direction is already (-1, -1): the mass factor is exp(+a)
-                    params["mass_scale"] = math.exp(a)
-                elif e == "drag_coefficient":
-                    params["cd_scale"] = math.exp(a)
-                elif e == "lift_coefficient":
-                    params["cl_scale"] = c_ref * math.exp(a)
-                elif e == "density_profile":
-                    params["density_level_factor"] = math.exp(a)
-            member_effects = list(sub)
-            if rho_names:
-                # the density profile's shape stays; only its level moves
-                if "density_profile" not in sub:
-                    member_effects.append("density_profile")
-                    a_rho = 0.0
-                else:
-                    a_rho = coef[list(sub).index("density_profile")]
-                for nme in rho_names:
-                    params[nme] = values[nme] - level + a_rho
-                params.pop("density_level_factor", None)
+            params, member_effects = _member_parameters(sub, coef, c_ref, rho_names, values, level)
             members.append({
                 "effects": [e for e in EFFECT_NAMES if e in member_effects + carried],
                 "parameters": {k: float(v) for k, v in params.items()},
@@ -259,18 +281,7 @@ def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: 
             })  # fmt: skip
     if len(members) <= 1:
         return []
-    if not lift:
-        reason = _REASONS["no_lift"]
-    elif r_answer == 2:
-        reason = _REASONS["both"]
-    elif np.allclose(answer[:, 0] / np.linalg.norm(answer[:, 0]), np.array([1, 1]) / math.sqrt(2)) or np.allclose(
-        answer[:, 0] / np.linalg.norm(answer[:, 0]), -np.array([1, 1]) / math.sqrt(2)
-    ):
-        reason = _REASONS["level"]
-    elif abs(answer[0, 0]) < 1e-12:
-        reason = _REASONS["lift"]
-    else:
-        reason = _REASONS["drag"]
+    reason = _alias_reason(lift, r_answer, answer)
     names = sorted({e for m in members for e in m["effects"] if e in LEVEL_CAUSES}, key=EFFECT_NAMES.index)
     ident = identifiable(values, effects, start_lift_scale, structure.density_knots, structure.mach_knots)
     return [{

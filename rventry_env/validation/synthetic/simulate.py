@@ -177,6 +177,80 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
     return w
 
 
+def _sample_times(rate: float, duration: float, noise) -> np.ndarray:
+    """The record's sample times, after checking the rate, the duration and the noise."""
+    if rate <= 0 or duration <= 0:
+        raise ValueError("rate and duration must be positive")
+    if not (math.isfinite(rate) and math.isfinite(duration)):
+        raise ValueError("rate and duration must be finite")
+    if len(noise) != 2 or not all(math.isfinite(x) and x >= 0 for x in noise):
+        raise ValueError(f"--noise: two finite numbers >= 0 (position m, velocity m/s), got {noise!r}")
+    t = np.arange(0.0, duration + 1e-9, 1.0 / rate)
+    if len(t) < 5:
+        raise ValueError(f"--duration {duration:g} s at --rate {rate:g} Hz gives {len(t)} sample(s); at least 5")
+    if len(t) > 200_000:
+        raise ValueError(f"--duration {duration:g} s at --rate {rate:g} Hz gives {len(t)} samples; at most 200000")
+    return t
+
+
+def _fly_truth(world, sc: "Scenario", t: np.ndarray, dt_tag: float) -> tuple:
+    """(r, v, altitude) of the truth flight at the record's times, a time-tag offset applied."""
+    r0, v0 = truth.ecef_from_spherical(
+        world.radius + sc.altitude, math.radians(sc.longitude_deg), math.radians(sc.latitude_deg),
+        sc.speed, math.radians(sc.flight_path_deg), math.radians(sc.azimuth_deg),
+    )  # fmt: skip
+    # a time-tag offset: the row of time t holds the state at t + dt_tag (started that much later)
+    t_true = t + dt_tag
+    if dt_tag:
+        t_fly = np.concatenate([[0.0], t_true]) if t_true[0] > 0 else t_true
+        r, v = truth.fly(world, r0, v0, sc.controls, t_fly)
+        if t_true[0] > 0:
+            r, v = r[1:], v[1:]
+    else:
+        r, v = truth.fly(world, r0, v0, sc.controls, t)
+    h = np.linalg.norm(r, axis=1) - world.radius
+    if np.any(h < 0):
+        t_ground = t[np.argmax(h < 0)]
+        raise ValueError(f"the truth flight reaches the ground at t = {t_ground:.0f} s; shorten it")
+    return r, v, h
+
+
+def _reduced_sidecar(sc: "Scenario", world) -> dict:
+    """The sidecar of a reduced record: the declared vehicle and the entry state."""
+    return {
+        "generated_by": GENERATED_BY,
+        # the declared vehicle: a mass effect stays undeclared
+        "vehicle": {"name": "CAV-H", "mass_kg": truth.TruthWorld().mass, "reference_area_m2": world.area,
+                    "aerodynamics": {"type": "cav-h"}},
+        "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude, "speed_rel_mps": sc.speed,
+                        "flight_path_angle_deg": sc.flight_path_deg, "longitude_deg": sc.longitude_deg,
+                        "latitude_deg": sc.latitude_deg, "azimuth_deg": sc.azimuth_deg},
+    }  # fmt: skip
+
+
+def _truth_meta(effects, noise, observe: str, noise_tails: str, start_scatter, seed: int, sc, world) -> dict:
+    """What the record was made from, for checking an identification against it (``.truth.json``)."""
+    return {
+        "effects": effects,
+        "noise": {"position_m" if observe == "ecef" else "altitude_m": noise[0],
+                  "velocity_mps" if observe == "ecef" else "speed_mps": noise[1]},
+        "noise_tails": noise_tails,
+        "start_scatter": None if start_scatter is None else {"seconds": start_scatter[0], "metres": start_scatter[1]},
+        "seed": seed,
+        "scenario": asdict(sc),
+        "truth_world": asdict(world),
+        "note": "for checking only: rventry identify never reads this file",
+    }  # fmt: skip
+
+
+def _check_noise_shape(noise_tails: str, start_scatter) -> None:
+    if noise_tails not in ("normal", "student-t3"):
+        raise ValueError(f"noise_tails must be 'normal' or 'student-t3', got {noise_tails!r}")
+    if start_scatter is not None and not (len(start_scatter) == 2 and all(math.isfinite(x) and x >= 0
+                                                                         for x in start_scatter)):  # fmt: skip
+        raise ValueError(f"start_scatter: two finite numbers >= 0 (seconds, metres), got {start_scatter!r}")
+
+
 def simulate_record(
     out: str | Path,
     effects: dict[str, str] | None = None,
@@ -211,40 +285,10 @@ def simulate_record(
     effects = effects or {}
     sc = scenario or Scenario()
     world = truth_world(effects)
-    if rate <= 0 or duration <= 0:
-        raise ValueError("rate and duration must be positive")
-    if not (math.isfinite(rate) and math.isfinite(duration)):
-        raise ValueError("rate and duration must be finite")
-    if len(noise) != 2 or not all(math.isfinite(x) and x >= 0 for x in noise):
-        raise ValueError(f"--noise: two finite numbers >= 0 (position m, velocity m/s), got {noise!r}")
-    t = np.arange(0.0, duration + 1e-9, 1.0 / rate)
-    if len(t) < 5:
-        raise ValueError(f"--duration {duration:g} s at --rate {rate:g} Hz gives {len(t)} sample(s); at least 5")
-    if len(t) > 200_000:
-        raise ValueError(f"--duration {duration:g} s at --rate {rate:g} Hz gives {len(t)} samples; at most 200000")
+    t = _sample_times(rate, duration, noise)
     dt_tag = float(effects.get("time_offset", "0") or 0.0) if "time_offset" in effects else 0.0
-    r0, v0 = truth.ecef_from_spherical(
-        world.radius + sc.altitude, math.radians(sc.longitude_deg), math.radians(sc.latitude_deg),
-        sc.speed, math.radians(sc.flight_path_deg), math.radians(sc.azimuth_deg),
-    )  # fmt: skip
-    # a time-tag offset: the row of time t holds the state at t + dt_tag (started that much later)
-    t_true = t + dt_tag
-    if dt_tag:
-        t_fly = np.concatenate([[0.0], t_true]) if t_true[0] > 0 else t_true
-        r, v = truth.fly(world, r0, v0, sc.controls, t_fly)
-        if t_true[0] > 0:
-            r, v = r[1:], v[1:]
-    else:
-        r, v = truth.fly(world, r0, v0, sc.controls, t)
-    h = np.linalg.norm(r, axis=1) - world.radius
-    if np.any(h < 0):
-        t_ground = t[np.argmax(h < 0)]
-        raise ValueError(f"the truth flight reaches the ground at t = {t_ground:.0f} s; shorten it")
-    if noise_tails not in ("normal", "student-t3"):
-        raise ValueError(f"noise_tails must be 'normal' or 'student-t3', got {noise_tails!r}")
-    if start_scatter is not None and not (len(start_scatter) == 2 and all(math.isfinite(x) and x >= 0
-                                                                         for x in start_scatter)):  # fmt: skip
-        raise ValueError(f"start_scatter: two finite numbers >= 0 (seconds, metres), got {start_scatter!r}")
+    r, v, h = _fly_truth(world, sc, t, dt_tag)
+    _check_noise_shape(noise_tails, start_scatter)
     rng = np.random.default_rng(seed)
 
     def draw(sd: float, shape) -> np.ndarray:
@@ -275,32 +319,13 @@ def simulate_record(
             "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
             "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
         }
-        sidecar = {
-            "generated_by": GENERATED_BY,
-            # the declared vehicle: a mass effect stays undeclared
-            "vehicle": {"name": "CAV-H", "mass_kg": truth.TruthWorld().mass, "reference_area_m2": world.area,
-                        "aerodynamics": {"type": "cav-h"}},
-            "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude, "speed_rel_mps": sc.speed,
-                            "flight_path_angle_deg": sc.flight_path_deg, "longitude_deg": sc.longitude_deg,
-                            "latitude_deg": sc.latitude_deg, "azimuth_deg": sc.azimuth_deg},
-        }  # fmt: skip
-        write_json(out.with_suffix(".json"), sidecar, indent=2)
+        write_json(out.with_suffix(".json"), _reduced_sidecar(sc, world), indent=2)
     else:
         raise ValueError("observe must be 'ecef' or 'reduced'")
     cols["alpha_rad"] = ctrl[:, 0]
     cols["bank_rad"] = ctrl[:, 1]
     write_record(out, t, cols)
-    meta = {
-        "effects": effects,
-        "noise": {"position_m" if observe == "ecef" else "altitude_m": noise[0],
-                  "velocity_mps" if observe == "ecef" else "speed_mps": noise[1]},
-        "noise_tails": noise_tails,
-        "start_scatter": None if start_scatter is None else {"seconds": start_scatter[0], "metres": start_scatter[1]},
-        "seed": seed,
-        "scenario": asdict(sc),
-        "truth_world": asdict(world),
-        "note": "for checking only: rventry identify never reads this file",
-    }  # fmt: skip
+    meta = _truth_meta(effects, noise, observe, noise_tails, start_scatter, seed, sc, world)
     write_json(out.with_name(out.stem + ".truth.json"), meta, indent=2)
     return out
 

@@ -374,19 +374,8 @@ def points_to(attribution: list[dict], rivals: list[dict]) -> list[str]:
     return out
 
 
-def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
-    """Trace the residual of ``final`` to a force channel (see the module docstring).
-
-    :param ctx: the fit context of the record.
-    :param final: the identified fit.
-    :param threshold: the BIC margin the trace must beat the identified model by.
-    :return: the trace: ``attribution`` (a list of channel, axis, band, size, ...), the rivals,
-        the fits tried, what the record would look like with it, and the effects it points to.
-    """
-    n_groups = int(np.max(ctx.groups)) + 1
-    n_values = int(np.count_nonzero(np.isfinite(ctx.replay.y)))
-    sigma_entries = np.broadcast_to(ctx.sigma, ctx.replay.y.shape)[np.isfinite(ctx.replay.y)]
-    combos = [(c,) for c in CHANNELS] + list(itertools.combinations(CHANNELS, 2))
+def _screen(ctx, final, combos, n_values: int, sigma_entries, n_groups: int, say) -> list[dict]:
+    """One linearized step of every channel set over each axis and knot count: the screening's fits."""
     fits = []  # (label channels, axis, k, lin, step, r_new, n_params)
     engines = ctx.engines
     for axis in ("altitude", "time"):
@@ -407,6 +396,54 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
             lin.release(keep_jacobian=finer is None)
         for lin in replayed:
             lin.release()
+    return fits
+
+
+def _refine_leaders(ctx, final, chosen: dict, ranked: list, sigma_entries, n_groups: int, n_eff: float, say) -> None:
+    """Refine to convergence the leaders of the screening, and the members alone of a leading pair (in place)."""
+    # the leaders of the one-step screening, refined to convergence: a large residual is not linear
+    leaders = [f for axis in ("altitude", "time") for f in [g for g in ranked if g["axis"] == axis][:REFINE_LEADERS]]
+    # a pair is compared with its members alone, refined alike (only the leading pair of an axis)
+    leaders += [chosen[((c,), f["axis"])] for f in list(leaders)[::REFINE_LEADERS]
+                if len(f["channels"]) == 2 for c in f["channels"]]
+    leaders = list({id(f): f for f in leaders}.values())
+    for f in leaders:
+        say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
+        theta, r = _refine(ctx, f, final)
+        rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
+        f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True)
+        f["outside"] = _outside_bounds(f["lin"], theta, f["channels"])
+
+
+def _attribute(ctx, best: dict) -> tuple:
+    """(linearization, residual, attribution) of the best correction, its coefficients' covariance from the
+    Jacobian at the refined point."""
+    lin, cols, theta = best["lin"], best["cols"], best["theta"]
+    r, jac = lin.evaluate(theta)
+    ctx.nfev += 1
+    a = jac[:, cols]
+    dof = max(len(r) - len(cols), 1)
+    cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
+    cov = np.zeros((len(theta), len(theta)))
+    cov[np.ix_(cols, cols)] = cov_c
+    attribution = _describe(ctx, lin, theta, cov, best["channels"])
+    return lin, r, attribution
+
+
+def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
+    """Trace the residual of ``final`` to a force channel (see the module docstring).
+
+    :param ctx: the fit context of the record.
+    :param final: the identified fit.
+    :param threshold: the BIC margin the trace must beat the identified model by.
+    :return: the trace: ``attribution`` (a list of channel, axis, band, size, ...), the rivals,
+        the fits tried, what the record would look like with it, and the effects it points to.
+    """
+    n_groups = int(np.max(ctx.groups)) + 1
+    n_values = int(np.count_nonzero(np.isfinite(ctx.replay.y)))
+    sigma_entries = np.broadcast_to(ctx.sigma, ctx.replay.y.shape)[np.isfinite(ctx.replay.y)]
+    combos = [(c,) for c in CHANNELS] + list(itertools.combinations(CHANNELS, 2))
+    fits = _screen(ctx, final, combos, n_values, sigma_entries, n_groups, say)
     base_rss, base_n = final.rss_by_group, final.n_by_group
     best_raw = min(fits, key=lambda f: f["bic_white"])
     lag1 = whiteness(_residual_matrix(best_raw["lin"], best_raw["r"]))["lag1_autocorrelation"]
@@ -421,18 +458,7 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         if key not in chosen or f["bic"] < chosen[key]["bic"]:
             chosen[key] = f
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
-    # the leaders of the one-step screening, refined to convergence: a large residual is not linear
-    leaders = [f for axis in ("altitude", "time") for f in [g for g in ranked if g["axis"] == axis][:REFINE_LEADERS]]
-    # a pair is compared with its members alone, refined alike (only the leading pair of an axis)
-    leaders += [chosen[((c,), f["axis"])] for f in list(leaders)[::REFINE_LEADERS]
-                if len(f["channels"]) == 2 for c in f["channels"]]
-    leaders = list({id(f): f for f in leaders}.values())
-    for f in leaders:
-        say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
-        theta, r = _refine(ctx, f, final)
-        rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
-        f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True)
-        f["outside"] = _outside_bounds(f["lin"], theta, f["channels"])
+    _refine_leaders(ctx, final, chosen, ranked, sigma_entries, n_groups, n_eff, say)
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
     eligible = [f for f in ranked if f.get("refined") and not f["outside"]]
     # a pair must beat each of its members alone (same axis) by the threshold too
@@ -451,15 +477,7 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     best = eligible[0] if eligible else None
     gain = b_final - best["bic"] if best else -math.inf
     if best is not None:
-        lin, cols, theta = best["lin"], best["cols"], best["theta"]
-        r, jac = lin.evaluate(theta)
-        ctx.nfev += 1
-        a = jac[:, cols]
-        dof = max(len(r) - len(cols), 1)
-        cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
-        cov = np.zeros((len(theta), len(theta)))
-        cov[np.ix_(cols, cols)] = cov_c
-        attribution = _describe(ctx, lin, theta, cov, best["channels"])
+        lin, r, attribution = _attribute(ctx, best)
     if best is None:
         out.update({"attribution": [], "rivals": [], "points_to": [], "leading": None,
                     "statement": "No force channel explains the residual: every leading correction is outside its "
