@@ -141,7 +141,7 @@ def _agent(cfg: ScratchConfig, env, params, chunk: int):
         env=env, env_params=params, num_envs=cfg.env.num_envs, num_steps=p.num_steps, num_epochs=p.num_epochs,
         num_minibatches=p.num_minibatches, learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda,
         clip_eps=p.clip_eps, ent_coef=p.ent_coef, vf_coef=p.vf_coef, max_grad_norm=p.max_grad_norm,
-        normalize_observations=True, normalize_rewards=True, reward_normalization_discount=p.gamma,
+        normalize_observations=p.normalize_observations, normalize_rewards=True, reward_normalization_discount=p.gamma,
         total_timesteps=chunk, eval_freq=chunk, skip_initial_evaluation=True,
         agent_kwargs={"hidden_layer_sizes": tuple(p.hidden_layer_sizes), "activation": p.activation},
     )  # fmt: skip

@@ -60,6 +60,10 @@ def test_attitude_commands_fly_the_asked_attitude_within_the_rate_limits():
     wrap = command_rates(_obs([11.86], [170.0]), np.array([[2 * np.radians(11.86) / p.alpha_max - 1, -170 / 180]]),
                          TASK, np)  # fmt: skip
     assert wrap[0, 1] == pytest.approx(np.radians(20.0) / p.u_sigma_max)
+    # a time constant of 5 s approaches the command at a fifth of the difference per second
+    slow = command_rates(_obs([10.0], [0.0]), np.array([[2 * np.radians(12.0) / p.alpha_max - 1, 10 / 180]]), TASK,
+                         np, tau=5.0)  # fmt: skip
+    assert np.allclose(slow, small / 5.0)
 
 
 def test_numpy_and_jax_fly_the_same_commands():
