@@ -42,7 +42,7 @@ class EnvSection(Section):
 
     rung: str = setting("standard", check=_rung)
     actions: Literal["rates", "commands"] = "commands"
-    command_time_s: float = setting(3.0, gt=0, le=60)
+    command_time_s: float = setting(1.0, gt=0, le=60)
     num_envs: int = setting(512, ge=1)
     max_episode_steps: int = setting(2000, ge=1)
     dtype: Literal["float32", "float64"] = "float32"

@@ -12,7 +12,9 @@ Prints, on the default JAX device (say which in the output: CPU, or a GPU where 
   difference;
 * float32's impact-position error against float64 (same seed, same actions);
 * PPO env-steps/s during training: rejax PPO on the functional env (``baselines/jax_ppo.toml``),
-  its compile time, and stable-baselines3 PPO (``baselines/ppo.toml``) on the same machine.
+  its compile time, the from-scratch learner as it trains (``ppo_scratch.toml``: attitude
+  commands, curriculum starts, optimistic autoreset), and stable-baselines3 PPO
+  (``baselines/ppo.toml``) in the same run.
 
 Run: ``python scripts/bench_jax.py [--json PATH] [--quick]``
 
@@ -203,6 +205,29 @@ def jax_ppo_speed(timesteps: int, config: str | None = None) -> dict:
             "device": meta["device"]}  # fmt: skip
 
 
+def scratch_ppo_speed(timesteps: int, config: str | None = None) -> dict:
+    """The from-scratch learner (``rventry train ppo-scratch``, default its shipped config) as it
+    trains: rejax PPO with attitude commands, the reverse curriculum's starts and the optimistic
+    autoreset, evaluations excluded; env-steps/s is the median over the chunks after the first
+    (which compiles). In a fresh process, for the same reason as :func:`jax_ppo_speed`."""
+    import subprocess
+
+    out = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_ppo_scratch"
+    code = (
+        "from rventry_agents.scratch import train_scratch\n"
+        "from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config\n"
+        f"cfg = load_config({config!r} or DEFAULT_CONFIG)\n"
+        "chunk = cfg.train.chunk_timesteps\n"
+        f"train_scratch(cfg, out={str(out)!r}, timesteps=max({timesteps}, 3 * chunk), progress=lambda s: None)\n"
+    )
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], check=True)
+    meta = json.loads((out / "metadata.json").read_text())
+    return {"env_steps_per_s": meta["env_steps_per_s"], "timesteps": meta["timesteps"], "wall_s": time.perf_counter() - t0,
+            "num_envs": meta["config"]["env"]["num_envs"], "resets": meta["config"]["env"]["resets"],
+            "config": config or "rventry_agents/ppo_scratch.toml", "device": meta["device"]}  # fmt: skip
+
+
 def sb3_ppo_speed(timesteps: int) -> dict:
     """stable-baselines3 PPO with the plain baseline's config (baselines/ppo.toml): env-steps/s of ``learn``."""
     import torch
@@ -235,8 +260,10 @@ def main():
     ap.add_argument("--ppo-config", help="the JAX PPO run's config (default rventry_agents/baselines/jax_ppo.toml; "
                     "rventry_agents/baselines/jax_ppo_gpu.toml on a GPU)")  # fmt: skip
     ap.add_argument("--ppo-timesteps", type=int, help="JAX PPO steps timed (default 2M, at least 3 chunks)")
+    ap.add_argument("--scratch-config", help="the from-scratch learner's config (default rventry_agents/ppo_scratch.toml)")
+    ap.add_argument("--scratch-timesteps", type=int, help="from-scratch steps timed (default 4 chunks)")
     ap.add_argument("--skip", nargs="*", default=[],
-                    choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo", "sb3"])  # fmt: skip
+                    choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo", "scratch", "sb3"])  # fmt: skip
     args = ap.parse_args()
 
     def save():  # after each part, so that a run stopped midway keeps what it measured
@@ -312,17 +339,26 @@ def main():
               f"final position, float64 vs NumPy {a['impact_position_error_float64_vs_numpy_m']:.2g} m; "
               f"float32 vs float64: median {a['float32_end_position_error_m']['median']:.3g} m, max "
               f"{a['float32_end_position_error_m']['max']:.3g} m, same ending in {a['float32_same_ending']}/{a['episodes']}")  # fmt: skip
+    res["ppo"] = {}
     if "ppo" not in args.skip:
         j = jax_ppo_speed(args.ppo_timesteps or int(2_000_000 * q), args.ppo_config)
-        res["ppo"] = {"jax": j}
+        res["ppo"]["jax"] = j
         save()
         print(f"PPO training: rejax on the functional env ({j['num_envs']:,} envs, {j['device']}) "
               f"{j['env_steps_per_s']:,.0f} env-steps/s (compile {j['compile_s']:.0f} s)", flush=True)  # fmt: skip
-        if "sb3" not in args.skip:
-            s3 = sb3_ppo_speed(int(200_000 * q))
-            res["ppo"]["sb3"] = s3
-            print(f"PPO training: SB3 {s3['env_steps_per_s']:,.0f} env-steps/s: rejax "
-                  f"{j['env_steps_per_s'] / s3['env_steps_per_s']:.1f}x (target >= 3x)")  # fmt: skip
+    if "scratch" not in args.skip:
+        sc = scratch_ppo_speed(args.scratch_timesteps or 0, args.scratch_config)
+        res["ppo"]["scratch"] = sc
+        save()
+        print(f"PPO training from scratch (rejax, {sc['num_envs']:,} envs, {sc['resets']} fresh starts a step, "
+              f"{sc['device']}): {sc['env_steps_per_s']:,.0f} env-steps/s", flush=True)  # fmt: skip
+    if "sb3" not in args.skip:
+        s3 = sb3_ppo_speed(int(200_000 * q))
+        res["ppo"]["sb3"] = s3
+        save()
+        ratios = "; ".join(f"{name} {res['ppo'][key]['env_steps_per_s'] / s3['env_steps_per_s']:.1f}x"
+                           for key, name in (("jax", "rejax baseline"), ("scratch", "from scratch")) if key in res["ppo"])
+        print(f"PPO training: SB3 {s3['env_steps_per_s']:,.0f} env-steps/s in the same run: {ratios} (target >= 5x)")  # fmt: skip
     res["machine"]["load_average_end"] = os.getloadavg()
     print(f"load average (1, 5, 15 min) at the end: {', '.join(f'{v:.1f}' for v in os.getloadavg())} on "
           f"{os.cpu_count()} CPUs (figures taken on a busy machine are noisy: compare only those of one run)")
