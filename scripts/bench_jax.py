@@ -95,16 +95,18 @@ def numpy_substeps_speed(n: int, rounds: int = 3, steps: int = 10) -> dict:
 
 
 def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: str = "standard",
-                     parts: bool = False) -> dict:  # fmt: skip
+                     parts: bool = False, resets: int = 0) -> dict:  # fmt: skip
     """Vehicle-steps/s of the functional env: lax.scan over vmap-ed gymnax steps (autoreset), all compiled.
 
     With ``parts``, also the same scan over ``step_env`` alone (no autoreset) and over ``reset_env``
     alone (the reset that gymnax's autoreset draws for every vehicle at every step): where the time goes.
+    With ``resets`` > 0, also the scan over :func:`~rventry_env.envs.functional.step_batch`, the
+    optimistic autoreset that draws ``resets`` fresh starts a step.
     """
     import jax
     import jax.numpy as jnp
 
-    from rventry_env.envs.functional import RvEntryFunctional
+    from rventry_env.envs.functional import RvEntryFunctional, step_batch
 
     env = RvEntryFunctional(dispersion=dispersion, dtype=dtype, substeps=substeps)
     p = env.default_params
@@ -113,6 +115,10 @@ def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: 
 
     def step(s, k):
         _, s, r, _, _ = jax.vmap(env.step, in_axes=(0, 0, 0, None))(jax.random.split(k, n), s, a, p)
+        return s, r
+
+    def optimistic(s, k):
+        _, s, r, _, _ = step_batch(env, jax.random.split(k, n), s, a, p, resets)
         return s, r
 
     def step_env(s, k):
@@ -137,6 +143,9 @@ def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: 
 
     out = {"dtype": dtype, "dispersion": dispersion, "num_envs": n, "steps": steps}
     out["vehicle_steps_per_s"], out["first_call_s"] = rate(step)
+    if resets > 0:
+        out["resets"] = resets
+        out["optimistic_vehicle_steps_per_s"], _ = rate(optimistic)
     if parts:
         out["step_env_only_per_s"], _ = rate(step_env)
         out["reset_env_only_per_s"], _ = rate(reset_env)
@@ -256,6 +265,8 @@ def main():
     ap.add_argument("--functional-steps", type=int, help="steps of each functional run (default 50, 12 with --quick)")
     ap.add_argument("--functional-parts", action="store_true",
                     help="also time step_env alone and reset_env alone (where an autoreset step's time goes)")
+    ap.add_argument("--functional-resets", type=int, default=0,
+                    help="also time the optimistic autoreset with this many fresh starts a step (e.g. N / 16)")
     ap.add_argument("--functional-dispersions", nargs="+", default=["standard"], help="sets the functional env flies")
     ap.add_argument("--ppo-config", help="the JAX PPO run's config (default rventry_agents/baselines/jax_ppo.toml; "
                     "rventry_agents/baselines/jax_ppo_gpu.toml on a GPU)")  # fmt: skip
@@ -319,7 +330,7 @@ def main():
             for n in args.functional_sizes or [args.num_envs]:
                 for d in ("float64", "float32"):
                     f = functional_speed(n, d, args.functional_steps or max(5, int(50 * q)), task.substeps, disp,
-                                         args.functional_parts)
+                                         args.functional_parts, min(args.functional_resets, n))
                     res["functional"].append(f)
                     save()
                     ratio = f" ({f['vehicle_steps_per_s'] / numpy:.2f}x the NumPy vector env above)" if numpy else ""
@@ -327,6 +338,10 @@ def main():
                           f"run), {disp}, {d}, N = {n:,}: {f['vehicle_steps_per_s']:,.0f} vehicle-steps/s{ratio}"
                           + ("  (target >= 5e6 on two cores)" if d == "float32" else "")
                           + f"; compile {f['first_call_s']:.1f} s", flush=True)  # fmt: skip
+                    if "optimistic_vehicle_steps_per_s" in f:
+                        print(f"  with the optimistic autoreset ({f['resets']:,} fresh starts a step): "
+                              f"{f['optimistic_vehicle_steps_per_s']:,.0f} vehicle-steps/s "
+                              f"({f['optimistic_vehicle_steps_per_s'] / f['vehicle_steps_per_s']:.2f}x gymnax's)", flush=True)  # fmt: skip
                     if args.functional_parts:
                         print(f"  its parts: step_env alone (no autoreset) {f['step_env_only_per_s']:,.0f}/s, "
                               f"reset_env alone {f['reset_env_only_per_s']:,.0f}/s", flush=True)  # fmt: skip

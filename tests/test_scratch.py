@@ -145,9 +145,10 @@ def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
         load_saved(str(tmp_path / "nothing_here"))
 
 
-@pytest.mark.parametrize("name", ["ppo_scratch.toml", "ppo_scratch_late.toml"])
+@pytest.mark.parametrize("name", ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml"])
 def test_every_shipped_scratch_config_loads_and_round_trips(name):
     path = DEFAULT_CONFIG.parent / name
     cfg = load_config(path)
     assert load_config(cfg.to_dict()) == cfg
-    assert sorted(p.name for p in DEFAULT_CONFIG.parent.glob("ppo_scratch*.toml")) == ["ppo_scratch.toml", "ppo_scratch_late.toml"]
+    assert sorted(p.name for p in DEFAULT_CONFIG.parent.glob("ppo_scratch*.toml")) == ["ppo_scratch.toml", "ppo_scratch_gpu.toml",
+                                                                                 "ppo_scratch_late.toml"]
