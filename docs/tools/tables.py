@@ -270,6 +270,180 @@ def rounds_table(path: str) -> Callable[..., str]:
     return render
 
 
+def _subset_rate(doc: dict, n: int) -> dict:
+    """Success of an evaluation report's first ``n`` episodes (its seeds seed .. seed + n - 1), with its interval."""
+    from rventry_env.evaluation.summary import rate_interval
+
+    hits = [bool(e["success"]) for e in doc["episodes"][:n]]
+    return {"success_rate": sum(hits) / len(hits), "success_rate_ci": rate_interval(hits), "episodes": len(hits)}
+
+
+# the columns of the effects table: (label, record, the law's key in it)
+EFFECT_COLUMNS = (
+    ("`lqr`", "docs/results/bench_effects.json", "lqr"),
+    ("`dagger` (student of `mpc`)", "docs/results/bench_effects.json", "learned"),  # `learned` was `dagger` then
+    ("`dagger-flight`", "docs/results/bench_effects_dagger_flight.json", "dagger-flight"),
+    ("`learned` (`ppo`)", "docs/results/bench_effects_ppo.json", "learned"),
+)
+# the whole `flight` set on the same seeds, from the laws' 200-episode evaluations where one was kept
+EFFECT_WHOLE = {"`dagger-flight`": "docs/results/dagger_flight_flight200.json",
+                "`learned` (`ppo`)": "docs/results/ppo_q_floor/ppo_flight.json"}
+EFFECT_GLOSS = {"entry state, C_L/C_D, mass": "entry state, C_L/C_D 5 %, mass",
+                "NRLMSIS climatology": "NRLMSIS climatology (departure from its mean)"}
+
+
+def effects_records() -> tuple[str, ...]:
+    return (*dict.fromkeys(path for _, path, _ in EFFECT_COLUMNS), *EFFECT_WHOLE.values())
+
+
+def effects_table(*docs) -> str:
+    """Which effect of the ``flight`` set breaks which law: each part alone, success [95 % CI]."""
+    records = dict(zip(effects_records(), docs))
+    effects = list(dict.fromkeys(e for _, path, _ in EFFECT_COLUMNS for e in records[path]["effects"]))
+    n = {records[path]["effects"][e][key]["episodes"] for _, path, key in EFFECT_COLUMNS
+         for e in effects if key in records[path]["effects"].get(e, {})}  # fmt: skip
+    rows = []
+    for e in effects:
+        cells = [ci(records[path]["effects"][e][key]) if key in records[path]["effects"].get(e, {}) else "not flown"
+                 for _, path, key in EFFECT_COLUMNS]  # fmt: skip
+        rows.append([EFFECT_GLOSS.get(e, e), *cells])
+    (episodes,) = n
+    whole = [ci(_subset_rate(records[EFFECT_WHOLE[label]], episodes)) if label in EFFECT_WHOLE else "no record"
+             for label, _, _ in EFFECT_COLUMNS]  # fmt: skip
+    rows.append([f"the whole `flight` set (seeds 0-{episodes - 1} of the 200-episode evaluation)", *whole])
+    header = [f"effect alone ({episodes} episodes, seeds 0-{episodes - 1})", *(label for label, _, _ in EFFECT_COLUMNS)]
+    return "\n".join([md(header, rows), "", source(*effects_records())])
+
+
+def _footprint_cells(r: dict | None) -> list[str]:
+    """A set's two cells of the footprint table: success [95 % CI] (and the precision tier where any met
+    it), miss p50 / p95."""
+    if r is None:
+        return ["not flown", ""]
+    miss = r["miss_m"]
+    unit, scale = ("m", 1.0) if miss["p95"] < 1e3 else ("km", 1e-3)
+    precision = r.get("precision_success_rate") or 0.0
+    return [ci(r) + (f", precision {rate(precision)}" if precision else ""),
+            f"{sig(miss['p50'] * scale, 2)} / {sig(miss['p95'] * scale, 2)} {unit}"]
+
+
+# the footprint table's rows: (label, {set: (record, where the law's figures are in it)}); a set a
+# row does not name was not flown
+FOOTPRINT_ROWS = (
+    ("`mpc`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "mpc")) for s in ("standard", "flight")}),
+    ("`mpc` as it flies today, with the terminal alpha bound",
+     {"standard": ("docs/results/footprint_mpc_standard50.json", None)}),
+    ("`mpc-flight` as it flies today", {"flight": ("docs/results/footprint_mpc_flight_flight50.json", None)}),
+    ("`mpc-flight` before the flight-grade estimator and the 4 % relief",
+     {"flight": ("docs/results/bench_footprint_mpc_flight.json", ("sets", "flight", "laws", "mpc-flight"))}),
+    ("`dagger`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "learned")) for s in ("standard", "flight")}),
+    ("`dagger-flight`", {s: ("docs/results/bench_footprint_dagger_flight.json", ("sets", s, "laws", "dagger-flight"))
+                         for s in ("standard", "flight")}),
+    ("`learned` (`ppo`)", {s: ("docs/results/bench_footprint_ppo.json", ("sets", s, "laws", "learned"))
+                           for s in ("standard", "flight")}),
+    ("`ppo-plain`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "ppo-plain")) for s in ("standard", "flight")}),
+)  # fmt: skip
+
+
+def footprint_records() -> tuple[str, ...]:
+    return tuple(dict.fromkeys(path for _, where in FOOTPRINT_ROWS for path, _ in where.values()))
+
+
+def footprint_table(*docs) -> str:
+    """The laws on the footprint task (a target per episode), on ``standard`` and ``flight``."""
+    records = dict(zip(footprint_records(), docs))
+    refused = sorted({law for doc in records.values() for s in doc.get("sets", {}).values()
+                      for law, r in s["laws"].items() if "refused" in r})  # fmt: skip
+    rows = [[", ".join(f"`{law}`" for law in refused), "refused: cannot re-target", "", "refused", ""]] if refused else []
+    for label, where in FOOTPRINT_ROWS:
+        figures = {s: _dig(records[path], at or ("summary",)) for s, (path, at) in where.items()}
+        n = {r["episodes"] for r in figures.values()}
+        cells = [c for s in ("standard", "flight") for c in _footprint_cells(figures.get(s))]
+        rows.append([f"{label}, {'/'.join(map(str, sorted(n)))} episodes", *cells])
+    header = ["law", "`standard` + footprint: success [95 % CI]", "miss p50 / p95", "`flight` + footprint", "miss p50 / p95"]
+    return "\n".join([md(header, rows), "", source(*footprint_records())])
+
+
+def terminal_alpha_tables(doc: dict, extra: dict) -> str:
+    """``mpc``'s terminal alpha bound: the nominal flight per aim, and 20 standard episodes per aim."""
+    from rventry_env.guidance.replanning import ReplanningSettings
+
+    default = ReplanningSettings().terminal_alpha_deg
+    aims = sorted({r["aim_deg"]: r for r in doc["terminal_alpha"] + extra["terminal_alpha"]}.items())
+
+    def label(aim: float) -> str:
+        return "off" if aim == 0 else f"{aim:g} deg" + (" (the default)" if aim == default else "")
+
+    nominal = [[label(a), f"{r['alpha_final_deg']:.2f} deg", f"{r['vertical_error_deg']:.2f} deg", f"{sig(r['miss_m'])} m",
+                f"{r['cost_ratio']:.3f}"] for a, r in aims]  # fmt: skip
+    rows = []
+    for a, r in aims:
+        x = r.get("dispersed")
+        if not x:
+            continue
+        over = [f"{name} over 2 deg in {x[k]}" for name, k in (("alpha", "alpha_over_tier"), ("vertical", "vertical_over_tier"))
+                if x[k]]  # fmt: skip
+        rows.append([f"terminal alpha {label(a)}" if a == 0 else f"aimed at {label(a)}", rate(x["success_rate"]),
+                     ci(x, "precision_success_rate") + (f" ({', '.join(over)})" if over else ""),
+                     f"{x['alpha_final_deg']['p50']:.2f} / {x['alpha_final_deg']['p95']:.2f} deg",
+                     f"{x['vertical_error_deg']['p50']:.2f} / {x['vertical_error_deg']['p95']:.2f} deg",
+                     f"{x['miss_m_p50']:.0f} m"])  # fmt: skip
+    (x,) = {tuple(r["dispersed"]["seeds"]) for _, r in aims if r.get("dispersed")}
+    episodes = x[1] - x[0] + 1
+    return "\n".join([
+        md(["aiming at", "alpha(t_f)", "vertical-impact error", "miss", "J/J*"], nominal), "",
+        f"On the same {episodes} standard-set episodes per aim (seeds {x[0]}-{x[1]}):", "",
+        md([f"`mpc` on {episodes} standard episodes", "success", "precision [95 % CI]", "\\|alpha(t_f)\\| p50 / p95",
+            "vertical error p50 / p95", "miss p50"], rows), "",
+        source("docs/results/terminal_alpha_standard.json", "docs/results/terminal_alpha_nominal.json")])  # fmt: skip
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "**not met**"
+
+
+def jax_cpu_table(bench: dict, ppo: dict) -> str:
+    """The JAX backend on two CPU cores: speed against NumPy, agreement, and PPO's env-steps/s."""
+    v, a = bench["vector"], bench["agreement"]
+    sps, first = v["vehicle_steps_per_s"], v["first_step_s"]
+    numpy, f64, f32 = sps["numpy"], sps["jax_float64"], sps["jax_float32"]
+    functional = {f["dtype"]: f for f in bench["functional"] if f["dispersion"] == "standard"}
+    n_f = functional["float64"]["num_envs"]
+    jax, sb3 = ppo["ppo"]["jax"], ppo["ppo"]["sb3"]
+    speedup = jax["env_steps_per_s"] / sb3["env_steps_per_s"]
+    rows = [
+        [f"vector env, N = {v['num_envs']:,}: NumPy / JAX float64 / JAX float32",
+         f"{numpy:,.0f} / {f64:,.0f} (**{f64 / numpy:.2f}x**) / {f32:,.0f} ({f32 / numpy:.2f}x) vehicle-steps/s; first step "
+         f"(compilation) {first['jax_float64']:.1f} s / {first['jax_float32']:.1f} s",
+         f"float64 >= 2x NumPy, float32 >= 5M: {_met(f64 >= 2 * numpy and f32 >= 5e6)}"],
+        [f"functional env, N = {n_f:,}, `jit` of `lax.scan` over `vmap`-ed gymnax steps with autoreset (what JAX RL "
+         "libraries run)",
+         f"float64 {functional['float64']['vehicle_steps_per_s']:,.0f} (**{functional['float64']['vehicle_steps_per_s'] / numpy:.2f}x** "
+         f"NumPy), float32 {functional['float32']['vehicle_steps_per_s']:,.0f} "
+         f"({functional['float32']['vehicle_steps_per_s'] / numpy:.2f}x) vehicle-steps/s; compilation "
+         f"{functional['float64']['first_call_s']:.1f} s / {functional['float32']['first_call_s']:.1f} s", ""],
+        [f"JAX float64 vs NumPy, {a['episodes']} whole standard-set episodes, same seed and actions",
+         f"largest observation difference **{a['max_obs_diff_float64']:.1e}**; final positions within "
+         f"{a['impact_position_error_float64_vs_numpy_m']:.1e} m", f"<= 1e-5: {_met(a['max_obs_diff_float64'] <= 1e-5)}"],
+        [f"JAX float32 vs float64, the same {a['episodes']} episodes",
+         f"final position: median {a['float32_end_position_error_m']['median']:.1f} m, largest "
+         f"{a['float32_end_position_error_m']['max'] / 1e3:.2f} km; the same ending in {a['float32_same_ending']}/{a['episodes']}",
+         "stated"],
+        [f"PPO training, env-steps/s: rejax on the functional env ({jax['num_envs']} vehicles, `{jax['config']}`) vs "
+         "stable-baselines3 on the plain baselines' config",
+         f"rejax **{jax['env_steps_per_s']:,.0f}** (after {jax['compile_s']:.0f} s of compilation; "
+         f"{jax['timesteps'] / 1e6:.1f}M steps), SB3 {sb3['env_steps_per_s']:,.0f}: **{speedup:.1f}x**",
+         f">= 3x SB3: {_met(speedup >= 3)}"],
+    ]  # fmt: skip
+    loads = ", ".join(f"{name}: load average {m['load_average'][0]:.1f} at the start and {m['load_average_end'][0]:.1f} "
+                      "at the end" for name, m in (("speed", bench["machine"]), ("PPO", ppo["machine"])))  # fmt: skip
+    machine = bench["machine"]
+    note = (f"{machine['cpus']} CPU cores, jax {machine['jax']}, the default {bench['task']['substeps']} substep "
+            f"of {bench['task']['dt']:g} s; {loads}.")
+    return "\n".join([md(["", "measured", "target"], rows), "", note, "",
+                      source("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json")])
+
+
 # ------------------------------------------------------------------ the registry
 README = "README.md"
 TABLES: tuple[Table, ...] = (
@@ -285,6 +459,12 @@ TABLES: tuple[Table, ...] = (
     *(Table(f"scan-{name}", (f"docs/results/scan_mpc_{name}.json",), scan_table(f"docs/results/scan_mpc_{name}.json"),
             ("docs/benchmarks/guidance.md",))
       for name in ("flight", "aero", "final", "estimator", "split", "dive", "track", "floor")),
+    Table("effects-flight", effects_records(), effects_table, ("docs/benchmarks/flight_grade.md",)),
+    Table("footprint", footprint_records(), footprint_table, ("docs/benchmarks/flight_grade.md",)),
+    Table("terminal-alpha", ("docs/results/terminal_alpha_standard.json", "docs/results/terminal_alpha_nominal.json"),
+          terminal_alpha_tables, ("docs/benchmarks/guidance.md",)),
+    Table("jax-cpu", ("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json"), jax_cpu_table,
+          ("docs/benchmarks/jax.md",)),
     Table("rounds-dagger", ("rventry_agents/data/dagger/rounds.json",), rounds_table("rventry_agents/data/dagger/rounds.json"),
           ("docs/benchmarks/learned_policies.md",)),
     Table("rounds-dagger-flight", ("rventry_agents/data/dagger_flight/rounds.json",),
