@@ -118,9 +118,20 @@ def _sb3(args) -> None:
     _write(Path(args.json), [_entry(args.learner or "SB3 PPO (plain)", args.rung, runs, settings)])
 
 
+def _run_metadata(folder: Path) -> dict:
+    """A from-scratch run's metadata, or for a run stopped before its end (no metadata.json), the same
+    fields from its config and its last chunk's record."""
+    if (folder / "metadata.json").is_file():
+        return json.loads((folder / "metadata.json").read_text())
+    config = json.loads((folder / "config.json").read_text())
+    last = json.loads((folder / "evaluations.json").read_text())[-1]
+    return {"seed": config["train"]["seed"], "timesteps": last["timesteps"], "wall_s": last["wall_s"],
+            "rung": config["env"]["rung"], "config": config, "stopped_early": True}
+
+
 def _jax(args) -> None:
     entries = []
-    metas = [json.loads((Path(r) / "metadata.json").read_text()) for r in args.runs]
+    metas = [_run_metadata(Path(r)) for r in args.runs]
     for rung in args.rungs:
         runs = []
         for folder, meta in zip(args.runs, metas):
@@ -128,10 +139,11 @@ def _jax(args) -> None:
             print(f"{folder}: {rung} success {ev['success']:.2f}", flush=True)
             runs.append({"seed": meta["seed"], "timesteps": meta["timesteps"], "wall_s": meta["wall_s"],
                          "trained_on": meta["rung"], "folder": str(folder), "evaluation": ev,
-                         "env_steps_per_s": meta.get("env_steps_per_s"), "device": meta.get("device")})  # fmt: skip
+                         "env_steps_per_s": meta.get("env_steps_per_s"), "device": meta.get("device"),
+                         "curriculum_window_s": (meta.get("history") or [{}])[-1].get("curriculum", {}).get("window_s")})  # fmt: skip
         c = metas[0]["config"]
         settings = {"algorithm": "PPO (rejax), from scratch", "curriculum": c["curriculum"]["kind"],
-                    "shaping": c["shaping"]["potential"], "actions": c["env"]["actions"],
+                    "shaping": c.get("shaping", {}).get("potential", "none"), "actions": c["env"]["actions"],
                     "network": c["ppo"]["hidden_layer_sizes"], "gamma": c["ppo"]["gamma"],
                     "num_envs": c["env"]["num_envs"]}  # fmt: skip
         entries.append(_entry(args.learner, rung, runs, settings))

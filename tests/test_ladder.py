@@ -74,3 +74,23 @@ def test_the_readme_training_quick_start_lands_on_the_easiest_rung(tmp_path):
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["rung"] == "late" and report["n_episodes"] == 100
     assert report["summary"]["success_rate"] >= 0.8, report["summary"]["success_rate"]
+
+
+@pytest.mark.parametrize("name", ["late", "nominal"])
+def test_evaluate_flies_a_rung_from_where_it_starts(name, tmp_path):
+    """``rventry evaluate --rung``: a rung with start states starts there (its clock is the
+    reference's), one without at the task's initial state; the report names the rung."""
+    from rventry_env.cli import main
+    from rventry_env.evaluation.cli import run_agent
+
+    out = tmp_path / "r.json"
+    assert main(["evaluate", "--agent", "reference", "--rung", name, "--episodes", "2", "--seed", "1000", "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["rung"] == name and report["dispersion_set"] == rung(name).dispersion
+    batch, _ = run_agent("reference", 2, rung(name).dispersion, 1000, history=True, rung=name)
+    t0 = np.asarray(batch.history_t)[0]  # each episode's first time
+    if name == "late":
+        end = float(rung(name).starts().times[-1])
+        assert np.all((end - 61.0 <= t0) & (t0 <= end - 29.0)), t0
+    else:
+        assert np.all(t0 == 0.0), t0

@@ -444,6 +444,46 @@ def jax_cpu_table(bench: dict, ppo: dict) -> str:
                       source("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json")])
 
 
+BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
+
+
+def ladder_table(doc: dict) -> str:
+    """Each learner on each rung of the ladder: success over training seeds (rliable's IQM), with the
+    steps and wall time a seed took."""
+    header = ["learner", "rung", "seeds", "success per seed", "IQM [95 % CI]", "steps per seed", "wall time per seed"]
+    rows = []
+    for e in doc["entries"]:
+        runs = e["runs"]
+        trained = sorted({r.get("trained_on", e["rung"]) for r in runs})
+        learner = e["learner"] + ("" if trained == [e["rung"]] else f", trained on `{'`, `'.join(trained)}`")
+        walls = [r["wall_s"] / 60 for r in runs]
+        rows.append([learner, f"`{e['rung']}`", str(e["seeds"]), " / ".join(f"{r['evaluation']['success']:.2f}" for r in runs),
+                     f"{e['iqm']:.2f} [{e['iqm_ci'][0]:.2f}, {e['iqm_ci'][1]:.2f}]",
+                     " / ".join(f"{r['timesteps'] / 1e6:.3g}M" for r in runs),
+                     f"{min(walls):.0f}-{max(walls):.0f} min" if len(walls) > 1 else f"{walls[0]:.0f} min"])  # fmt: skip
+    episodes = sorted({r["evaluation"]["episodes"] for e in doc["entries"] for r in e["runs"]})
+    return "\n".join([md(header, rows), "", f"Each success rate over {' or '.join(map(str, episodes))} held-out episodes "
+                      f"(seeds from {doc['evaluation_seed']}); wall times on a shared two-core machine.", "",
+                      source("docs/results/ladder.json", command="python scripts/ladder.py")])  # fmt: skip
+
+
+def scratch_runs_table(doc: dict) -> str:
+    """The from-scratch runs as they stood when they stopped: settings changed, window, success."""
+    header = ["run", "settings changed from `ppo_scratch.toml`", "steps", "wall", "window", "frontier", "full task"]
+    rows = []
+    for r in doc["runs"]:
+        changed = ", ".join(f"{k.split('.', 1)[1]} {v}" for k, v in r["changed"].items()
+                            if k not in BUDGET and not (isinstance(v, str) and v.startswith("not in"))) or "none"  # fmt: skip
+        window = "-" if r["window_s"] is None else f"{r['window_s']:.0f} s"
+        front = "-" if r["frontier_success"] is None else f"{r['frontier_success']:.2f}"
+        rows.append([r["run"], changed, f"{r['timesteps'] / 1e6:.1f}M", f"{r['wall_s'] / 60:.0f} min", window, front,
+                     f"{r['select_success']:.2f}"])  # fmt: skip
+    return "\n".join([md(header, rows), "", "Window: how far before impact the curriculum started episodes when the "
+                      "run stopped; frontier: success from the window's far end; full task: the selected policy's "
+                      "success from the task's own initial state.", "",
+                      source("docs/results/scratch_runs.json", command="python scripts/ladder.py histories RUN ...")])  # fmt: skip
+
+
 # ------------------------------------------------------------------ the registry
 README = "README.md"
 TABLES: tuple[Table, ...] = (
@@ -469,6 +509,8 @@ TABLES: tuple[Table, ...] = (
           ("docs/benchmarks/learned_policies.md",)),
     Table("rounds-dagger-flight", ("rventry_agents/data/dagger_flight/rounds.json",),
           rounds_table("rventry_agents/data/dagger_flight/rounds.json"), ("docs/benchmarks/learned_policies.md",)),
+    Table("ladder", ("docs/results/ladder.json",), ladder_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("scratch-runs", ("docs/results/scratch_runs.json",), scratch_runs_table, ("docs/design-log/index.md",)),
 )  # fmt: skip
 
 

@@ -71,10 +71,10 @@ def _law(job: EvaluationJob):
 
 def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
     """Fly the episodes of one task (a worker's unit of work)."""
-    from rventry_env.evaluation.rungs import rung_starts
+    from rventry_env.evaluation.rungs import rung
 
     return rollout(_law(job), seeds=seeds, dispersion=job.dispersion, task=job.task, record_history=job.record_history,
-                   starts=None if job.rung is None else rung_starts(job.rung))  # fmt: skip
+                   starts=None if job.rung is None else rung(job.rung).starts())  # fmt: skip
 
 
 def episodes_per_task(job: EvaluationJob, n: int) -> int:
