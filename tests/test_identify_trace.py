@@ -77,8 +77,9 @@ def test_a_scattered_start_is_accepted_with_a_warning_and_a_wider_prior(tmp_path
 
 
 def test_a_grossly_wrong_sidecar_is_refused_naming_the_field(tmp_path):
-    with pytest.raises(RecordError, match=r"entry_state\.altitude_m.*scatter of those samples"):
-        identify_record(_scattered(tmp_path, 12000.0), max_effects=0)
+    # 30 km is beyond any altitude reference (21.4 km, the WGS-84 flattening): not an offset to fit
+    with pytest.raises(RecordError, match=r"entry_state\.altitude_m.*scatter of those samples.*beyond 21385 m"):
+        identify_record(_scattered(tmp_path, 30000.0), max_effects=0)
 
 
 # ------------------------------------------------------------------ the trace, one record per channel
