@@ -7,6 +7,7 @@ scatters by kilometres.
 """
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -125,7 +126,9 @@ def test_a_side_force_is_traced_across_the_lift(tmp_path):
     rep = identify_record(_record(tmp_path, ["side_force=0.02"])).report
     assert rep["unexplained"]
     (a,) = rep["attribution"]
-    assert a["channel"] == "lateral_lift" and a["size"] == pytest.approx(0.02, abs=0.006)
+    # the lift rotated out of its plane by g: a force across it of sin(g) L/D drags, the side force's 0.02
+    assert a["channel"] == "lateral_lift" and a["across_over_drag"] == pytest.approx(0.02, abs=0.006)
+    assert a["bank_offset_deg"] == pytest.approx(math.degrees(a["size"]))
     assert any("side force" in p for p in rep["trace"]["points_to"])
 
 

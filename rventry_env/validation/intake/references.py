@@ -130,7 +130,8 @@ def explain_entry_offset(names, values, stderr, setup, inflation: float = 1.0, c
         z = _agreement(dg, se_g, pred)
         references.append({"reference": "horizon_reference", "component": "dgamma0_rad", "predicted": pred,
                            "reading": reading, "z": z, "agrees": bool(z <= AGREEMENT_SIGMAS)})  # fmt: skip
-    significant = abs(dh) > AGREEMENT_SIGMAS * se_h or (early is not None and abs(early[0]) > AGREEMENT_SIGMAS * early[1])
+    significant = abs(dh) > AGREEMENT_SIGMAS * se_h
+    significant |= early is not None and abs(early[0]) > AGREEMENT_SIGMAS * early[1]
     resolved = d_alt > AGREEMENT_SIGMAS * math.hypot(min(se_h, early[1] if early else math.inf), u_ref)
     explained = [r for r in references if r["component"] == "dh0_m" and r["agrees"] and significant and resolved]
     lat_deg = math.degrees(es.latitude)
@@ -145,7 +146,8 @@ def explain_entry_offset(names, values, stderr, setup, inflation: float = 1.0, c
                  f"{u_ref:.2g} m, {r['z']:.1f} standard errors away): {r['reading']}.")  # fmt: skip
     elif significant:
         text += (f" No altitude reference explains it (the WGS-84 surface lies {d_alt:.4g} m inside the model's "
-                 f"sphere at {where}): a reading error, a time tag or a state converted in another frame remain.")  # fmt: skip
+                 f"sphere at {where}): a reading error, a time tag or a state converted in another frame "
+                 "remain.")  # fmt: skip
     return {
         "offsets": {k: {"value": fitted[k], "stderr": se[k]} for k in names},
         "stderr_inflation": inflation,

@@ -153,7 +153,8 @@ def build_report(record, replay, controls, setup, screened, ctx, state, adeq: di
         "effect": chosen[0] if chosen else ("unexplained" if adeq["unexplained"] else "none"),
         "effects": list(chosen),
         "unexplained": adeq["unexplained"],
-        "statement": statement(chosen, adeq, aliases) + surrogate_text(trace) + (" " + trace["statement"] if trace else ""),
+        "statement": (statement(chosen, adeq, aliases) + surrogate_text(trace)
+                      + (" " + trace["statement"] if trace else "")),
         "attribution": trace["attribution"] if trace else [],
         "trace": None if trace is None else {k: v for k, v in trace.items() if k not in PRIVATE_TRACE_KEYS},
         "parameters": params,

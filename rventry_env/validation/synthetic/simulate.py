@@ -350,4 +350,5 @@ def simulate_record(
     return out
 
 
-__all__ = ["DEFAULT_VALUES", "RECORD_EFFECTS", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record", "truth_world"]
+__all__ = ["DEFAULT_VALUES", "RECORD_EFFECTS", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record",
+           "truth_world"]

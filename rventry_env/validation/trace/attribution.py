@@ -344,6 +344,10 @@ def points_to(attribution: list[dict], rivals: list[dict], alpha_dependent: bool
         d, v = by["drag"], by["vertical_lift"]
         together = d["band"][0] <= v["band"][1] and v["band"][0] <= d["band"][1]  # the bands overlap
     if together:
+        if d["size"] * v["size"] > 0 and d["axis"] == "time":
+            out.append(f"a mass change over {_fmt_band(d)}{_mach_text(d)}: drag and lift accelerations change "
+                       f"together and with time (x {1 + d['size']:.3f}, a mass x {1 / (1 + d['size']):.3f}: "
+                       "ablation, a jettison)")  # fmt: skip
         if d["size"] * v["size"] > 0:
             out.append(f"the air density over {_fmt_band(d)}{_mach_text(d)}: drag and lift change together "
                        f"(drag x {1 + d['size']:.3f}), as a density the atmosphere model lacks would make them"
@@ -486,14 +490,15 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
 
     # the screening is one linear step: a large residual is not linear, so its best are refined to convergence,
     # the best of each axis first, then in the screening's order while an unrefined correction's screened BIC
-    # still beats the best refined one (what the screening found is refined, or shown to be worse)
+    # could still beat the best refined one or tie with it (within the threshold: a rival the record cannot
+    # tell apart is refined too, so the winner is decided between converged fits)
     order = [next(f for f in ranked if f["axis"] == axis) for axis in ("altitude", "time")
              if any(f["axis"] == axis for f in ranked)]  # fmt: skip
     order += [f for f in ranked if f not in order]
     n_refined = 0
     for f in order:
         best_bic = min((g["bic"] for g in ranked if eligible(g)), default=math.inf)
-        if n_refined >= 2 and (f["bic_screened"] >= best_bic or n_refined >= REFINE_BUDGET):
+        if n_refined >= 2 and (f["bic_screened"] >= best_bic + threshold or n_refined >= REFINE_BUDGET):
             break
         refine(f)
         n_refined += 1

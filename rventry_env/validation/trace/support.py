@@ -57,7 +57,8 @@ def drop_surrogates(ctx, state, trace: dict, threshold: float, say=lambda msg: N
         state.current = reduced
         removed.append({"effect": e, "bic_with": with_bic, "bic_without": b,
                         "reason": f"next to the traced correction the record prefers the model without {e} "
-                                  f"(BIC {b - with_bic:+.1f}, threshold {threshold:g}): it stood in for the trace"})  # fmt: skip
+                                  f"(BIC {b - with_bic:+.1f}, threshold {threshold:g}): it stood in for the "
+                                  "trace"})  # fmt: skip
         say(f"removed {e}: it stood in for the traced correction")
         trace["fit"] = tf
         describe_trace(ctx, reduced, trace, threshold, trace.get("rivals", []))
