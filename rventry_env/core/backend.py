@@ -125,6 +125,7 @@ MATH = SimpleNamespace(
     fmin=min,
     where=lambda cond, a, b: a if cond else b,
     isfinite=math.isfinite,
+    interp=lambda x, xp, fp: float(np.interp(x, xp, fp)),
     array=False,
     any=bool,
     all=bool,
