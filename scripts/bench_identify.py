@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -66,6 +67,14 @@ def _after_trace(rep: dict, key: str):
     return (trace.get("after_trace") or (trace.get("leading") or {}).get("after_leading") or {}).get(key)
 
 
+def _trace_facts(rep: dict) -> dict:
+    """What the trace points to, the bank offset it reads, and the effects it found standing in for it."""
+    trace = rep.get("trace") or {}
+    banks = [a["bank_offset_deg"] for a in rep.get("attribution") or [] if "bank_offset_deg" in a]
+    return {"points_to": trace.get("points_to") or [], "bank_offset_deg": banks[0] if banks else None,
+            "surrogates_removed": trace.get("surrogates_removed") or []}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", nargs="+", default=list(DEFAULT_CASES), help="effect specs joined by '+', or none")
@@ -76,6 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--h-max", type=interval(0.0, 10.0, low_open=True), default=1.0,
                    help="longest RK4 step of the replay (s)")  # fmt: skip
     p.add_argument("--no-apollo", action="store_true", help="skip the Apollo 4 and Apollo 10 loops")
+    p.add_argument("--no-cases", action="store_true", help="run only the flight records (Apollo 4 and Apollo 10)")
     p.add_argument("--target", type=positive_float, help="wall-time target per record, s (default: by --rate)")
     p.add_argument("--json", type=Path, help="write the figures here")
     args = p.parse_args(argv)
@@ -86,8 +96,11 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.json:
         check_writable(args.json)
-    cases = [(c, *_case(c)) for c in args.cases]
-    load = f"; load average {os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else ""
+    if args.no_cases and args.no_apollo:
+        p.error("--no-cases with --no-apollo leaves nothing to run")
+    cases = [] if args.no_cases else [(c, *_case(c)) for c in args.cases]
+    load_start = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    load = f"; load average {load_start:.2f}" if load_start is not None else ""
     print(f"python {platform.python_version()}, {os.cpu_count()} cpu(s) visible, "
           f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}{load}")  # fmt: skip
     rows = []
@@ -103,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
                          "rms_before": rep["before"]["position_rms_m"],
                          "rms_after": rep["after"]["position_rms_m"], "trace": _trace_text(rep),
                          "rms_after_trace": _after_trace(rep, "position_rms_m"),
-                         "parameters": rep["parameters"]})  # fmt: skip
+                         "parameters": rep["parameters"], **_trace_facts(rep)})  # fmt: skip
     flights = []
     for module in () if args.no_apollo else (apollo4, apollo10):
         name = module.__name__.rsplit(".", 1)[-1]
@@ -115,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
                         "unexplained": rep["unexplained"], "rms_before": rep["before"]["altitude_rms_m"],
                         "rms_after": rep["after"]["altitude_rms_m"], "trace": _trace_text(rep),
                         "rms_after_trace": _after_trace(rep, "altitude_rms_m"), "parameters": rep["parameters"],
+                        **_trace_facts(rep),
                         "entry_altitude_offset_m": offset,
                         "entry_offset_explained_by": (rep.get("entry_state_offset") or {}).get("explained_by")})  # fmt: skip
     apollo = next((f for f in flights if f["case"] == "apollo4"), None)
@@ -129,11 +143,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{r['case']:38s} {r['wall_s']:7.1f} {r['cpu_s']:6.1f} {r['replays']:7d}  {found:40s} "
               f"{r['rms_before']:12.1f} {r['rms_after']:8.1f}  {trace}")  # fmt: skip
     target = args.target or record_target(args.rate)
-    worst = max(r["wall_s"] for r in rows)
-    worst_cpu = max(r["cpu_s"] for r in rows)
-    print(f"\n{args.duration:g} s record at {args.rate:g} Hz ({rows[0]['samples']} samples): worst {worst:.1f} s wall, "
-          f"{worst_cpu:.1f} s CPU (target {target:g} s): {'PASS' if worst <= target else 'FAIL'} on wall time"
-          f"{'' if worst <= target else (', PASS on CPU time' if worst_cpu <= target else ', FAIL on CPU time')}")  # fmt: skip
+    if rows:
+        worst = max(r["wall_s"] for r in rows)
+        worst_cpu = max(r["cpu_s"] for r in rows)
+        print(f"\n{args.duration:g} s record at {args.rate:g} Hz ({rows[0]['samples']} samples): worst {worst:.1f} s "
+              f"wall, {worst_cpu:.1f} s CPU (target {target:g} s): {'PASS' if worst <= target else 'FAIL'} on wall time"
+              f"{'' if worst <= target else (', PASS on CPU time' if worst_cpu <= target else ', FAIL on CPU time')}")  # fmt: skip
     if apollo:
         print(f"Apollo 4 loop: {apollo['wall_s']:.1f} s wall, {apollo['cpu_s']:.1f} s CPU (target "
               f"{APOLLO_TARGET_S:g} s): {'PASS' if apollo['wall_s'] <= APOLLO_TARGET_S else 'FAIL'} on wall time")  # fmt: skip
@@ -143,10 +158,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"Apollo 10: altitude rms {a10['rms_after'] / 1e3:.2f} km (published 3-DOF replay "
               f"{apollo10.PUBLISHED_RMS_ALTITUDE_M / 1e3:.2f} km); entry altitude offset {off['value']:+.0f} +/- "
               f"{off['stderr']:.0f} m, explained by {', '.join(a10['entry_offset_explained_by']) or 'no reference'}")  # fmt: skip
-    if hasattr(os, "getloadavg"):
-        print(f"load average at the end {os.getloadavg()[0]:.2f}")
+    load_end = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    if load_end is not None:
+        print(f"load average at the end {load_end:.2f}")
     if args.json:
-        write_json(args.json, {"record_target_s": target, "apollo_target_s": APOLLO_TARGET_S,
+        command = "python scripts/bench_identify.py " + " ".join(argv if argv is not None else sys.argv[1:])
+        write_json(args.json, {"command": command, "duration_s": args.duration, "rate_hz": args.rate,
+                                "cpus": os.cpu_count(), "load_average": [load_start, load_end],
+                                "record_target_s": target, "apollo_target_s": APOLLO_TARGET_S,
                                 "cases": rows, "apollo4": apollo, "apollo10": a10}, indent=2)  # fmt: skip
     return 0
 

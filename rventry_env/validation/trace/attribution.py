@@ -41,7 +41,10 @@ MIN_ALTITUDE_SPACING = 1e3  # m between knots of an altitude profile
 MIN_TIME_SPACING = 10.0  # s between knots of a time profile
 VALUES_PER_PARAMETER = 8  # a fit needs at least this many measured values per parameter
 REFINE_NFEV = 40  # replays with sensitivities per refined correction
-REFINE_BUDGET = 6  # corrections refined at most (the best of each axis, and the screening's order after)
+# a refinement stops when a step lowers the cost by less than this fraction: on a record of n values the
+# cost is about n, so 1e-6 is a change of n/1e6 in chi-square, far below the BIC threshold it is judged by
+REFINE_FTOL = 1e-6
+REFINE_BUDGET = 6  # refinements before the search stops (a pair's members count; the last pair may add its two)
 AERO_MAX = 1.0  # an aerodynamic correction beyond 100 % of the drag is not a correction
 BAND_FRACTION = 0.5  # the band: where the correction is at least this fraction of its peak
 
@@ -470,15 +473,16 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         f["bic_screened"] = f["bic"]
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
 
-    def refine(f):
+    def refine(f) -> int:
         if f.get("refined"):
-            return
+            return 0
         say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
         theta, r, at_bound = _refine(ctx, f, final)
         rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
         f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True,
                  cost_ratio=float(r @ r) / cost_final)  # fmt: skip
         f["outside"] = sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound))
+        return 1
 
     def eligible(f):
         if not f.get("refined") or f["outside"]:
@@ -500,15 +504,15 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         best_bic = min((g["bic"] for g in ranked if eligible(g)), default=math.inf)
         if n_refined >= 2 and (f["bic_screened"] >= best_bic + threshold or n_refined >= REFINE_BUDGET):
             break
-        refine(f)
-        n_refined += 1
+        n_refined += refine(f)
         for c in f["channels"] if len(f["channels"]) == 2 else ():
-            refine(chosen[((c,), f["axis"])])  # a pair is compared with its members refined alike
+            n_refined += refine(chosen[((c,), f["axis"])])  # a pair is compared with its members refined alike
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
     eligible_fits = [f for f in ranked if eligible(f)]
     table = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"], "bic_gain": b_final - f["bic"],
               "screened_bic_gain": b_final - f["bic_screened"], "refined": bool(f.get("refined")),
-              "cost_ratio": f.get("cost_ratio"), "outside_bounds": f.get("outside") or []}
+              "cost_ratio": f.get("cost_ratio"), "refine_replays": f.get("refine_nfev"),
+              "outside_bounds": f.get("outside") or []}
              for f in ranked]  # fmt: skip
     out = {
         "method": "piecewise-linear corrections over altitude and over time per force channel, knots by BIC, "
@@ -673,7 +677,8 @@ def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray, list]:
 
     sol = least_squares(lambda x: evaluate(put(x))[0], x0[cols], jac=lambda x: evaluate(put(x))[1][:, cols],
                         bounds=(lower[cols], upper[cols]), method="trf", x_scale="jac", max_nfev=REFINE_NFEV,
-                        ftol=1e-8, xtol=1e-10, gtol=1e-10)  # fmt: skip
+                        ftol=REFINE_FTOL, xtol=1e-10, gtol=1e-10)  # fmt: skip
+    f["refine_nfev"] = int(sol.nfev)
     theta = put(sol.x).copy()
     r, _ = evaluate(theta)
     if float(r @ r) > float(lin.r @ lin.r):  # cannot happen with a descent method; never report worse than the start
