@@ -484,6 +484,62 @@ def scratch_runs_table(doc: dict) -> str:
                       source("docs/results/scratch_runs.json", command="python scripts/ladder.py histories RUN ...")])  # fmt: skip
 
 
+def _identify_row(r: dict, flight: bool) -> list[str]:
+    """One identification: what it found, where the trace points, the residual, the time it took."""
+    found = " + ".join(f"`{e}`" for e in r["effects"]) or "none"
+    if r["unexplained"]:
+        found += " (unexplained)"
+    unit, scale = ("km", 1e3) if flight else ("m", 1.0)
+    rms = f"{sig(r['rms_before'] / scale)} -> {sig(r['rms_after'] / scale)}"
+    if r.get("rms_after_trace") is not None and r.get("trace"):
+        rms += f" ({sig(r['rms_after_trace'] / scale)} after the trace)"
+    name = {"apollo4": "Apollo 4 (`rventry identify apollo4`)",
+            "apollo10": "Apollo 10 (`rventry identify apollo10`)"}.get(r["case"], f"`{r['case']}`")
+    trace = r.get("trace") or "-"
+    if r.get("bank_offset_deg") is not None:
+        trace += f" (a bank offset of {r['bank_offset_deg']:+.2f} deg)"
+    return [name, str(r["samples"]), found, trace, f"{rms} {unit}",
+            f"{r['cpu_s']:.1f} ({r['wall_s']:.0f})"]  # fmt: skip
+
+
+def identify_table(paths: tuple[str, ...]) -> Callable[..., str]:
+    """Identifications benchmarked by ``scripts/bench_identify.py``: one row per record, from its ``--json``."""
+
+    def render(*docs) -> str:
+        rows, notes, sources = [], [], []
+        for path, doc in zip(paths, docs):
+            rows += [_identify_row(r, False) for r in doc["cases"]]
+            rows += [_identify_row(doc[k], True) for k in ("apollo4", "apollo10") if doc.get(k)]
+            a10 = doc.get("apollo10")
+            if a10 and a10.get("entry_altitude_offset_m"):
+                off = a10["entry_altitude_offset_m"]
+                by = ", ".join(f"`{x}`" for x in a10.get("entry_offset_explained_by") or []) or "no reference"
+                notes.append(f"Apollo 10: entry altitude offset {off['value']:+.0f} +/- {off['stderr']:.0f} m, "
+                             f"explained by {by}.")  # fmt: skip
+            load = doc.get("load_average") or []
+            load_text = f", load average {load[0]:.1f} -> {load[1]:.1f} on {doc.get('cpus')} shared cores" if len(
+                load) == 2 and None not in load else ""  # fmt: skip
+            # the command as it ran, writing this record (where it wrote first is not part of the figures)
+            command = re.sub(r"--json \S+", f"--json {path}", doc["command"]) if doc.get("command") else None
+            sources.append(f"`{path}`" + (f" (`{command}`{load_text})" if command else ""))
+        header = ["record", "samples", "identified", "trace (size, band)", "rms before -> after",
+                  "CPU s (wall s)"]  # fmt: skip
+        parts = [md(header, rows), ""]
+        if notes:
+            parts += [" ".join(notes), ""]
+        parts.append("Records: " + "; ".join(sources) + ".")
+        return "\n".join(parts)
+
+    return render
+
+
+IDENTIFY_TABLES = {
+    "identify-findings": ("docs/results/bench_identify_bank_bias.json", "docs/results/bench_identify_density_wave.json"),
+    "identify-heldout": ("docs/results/bench_identify_heldout.json",),
+    "identify-flights": ("docs/results/bench_identify_flights.json",),
+}
+
+
 # ------------------------------------------------------------------ the registry
 README = "README.md"
 TABLES: tuple[Table, ...] = (
@@ -511,6 +567,8 @@ TABLES: tuple[Table, ...] = (
           rounds_table("rventry_agents/data/dagger_flight/rounds.json"), ("docs/benchmarks/learned_policies.md",)),
     Table("ladder", ("docs/results/ladder.json",), ladder_table, ("docs/benchmarks/learned_policies.md",)),
     Table("scratch-runs", ("docs/results/scratch_runs.json",), scratch_runs_table, ("docs/design-log/index.md",)),
+    *(Table(name, paths, identify_table(paths), ("docs/benchmarks/identification.md",))
+      for name, paths in IDENTIFY_TABLES.items()),
 )  # fmt: skip
 
 

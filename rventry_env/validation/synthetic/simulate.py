@@ -28,11 +28,23 @@ Effect values (defaults in brackets):
 * ``mach_lift=S,M`` C_L multiplied by S below Mach M (1-Mach edge; the truth's speed of sound is
   300 m/s) [0.85,21];
 * ``wind_shear=W[,H]`` an eastward wind W tanh((h - H) / 2 km) that reverses at H km [60,54];
-* ``side_force=Y`` a force out of the vertical plane, Y times the drag [0.02].
+* ``side_force=Y`` a force out of the vertical plane, Y times the drag [0.02];
+* ``density_wave=A,WAVELENGTH_KM`` ln(rho_true / rho_exp) = A sin(2 pi (h - 30 km) / WAVELENGTH):
+  the ``density_profile`` sinusoid with a wavelength of a few kilometres [0.08,6];
+* ``mass_loss=F,T0,T1`` the mass falls by the fraction F linearly from T0 to T1 s (ablation)
+  [0.05,100,300];
+* ``bank_bias=DEG`` the record's bank column reads DEG more than the bank flown [2];
+* ``alpha_bias=DEG`` the record's angle of attack reads DEG more than the angle flown (a trim
+  offset) [-1].
 
 ``mach_drag`` and ``time_offset`` are outside the identification's candidate set in shape (a smooth Mach law
-against a piecewise-linear correction) or altogether (a clock error); the last five are outside it
-altogether, for the residual trace (:mod:`rventry_env.validation.trace`).
+against a piecewise-linear correction) or altogether (a clock error); the band, Mach-lift, shear, side-force,
+mass-loss and control-bias effects are outside it altogether, for the residual trace
+(:mod:`rventry_env.validation.trace`); the density wave is in the set's shape only where the
+profile's knots resolve it.
+
+A reduced record's sidecar declares the true entry state unless ``entry_offset`` moves it (the
+sidecar's altitude and speed that much above the truth: a sidecar that disagrees with its record).
 """
 
 from __future__ import annotations
@@ -64,7 +76,12 @@ DEFAULT_VALUES = {
     "mach_lift": "0.85,21",
     "wind_shear": "60,54",
     "side_force": "0.02",
+    "density_wave": "0.08,6",
+    "mass_loss": "0.05,100,300",
+    "bank_bias": "2",
+    "alpha_bias": "-1",
 }
+RECORD_EFFECTS = ("time_offset", "bank_bias", "alpha_bias")  # in how the record reads the flight, not in the world
 SIMULATED_EFFECTS = tuple(DEFAULT_VALUES)
 
 
@@ -119,7 +136,7 @@ def parse_effects(specs: list[str]) -> dict[str, str]:
 
 
 def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
-    """The truth model containing ``effects`` (name -> value text); ``time_offset`` is not a world effect."""
+    """The truth model containing ``effects`` (name -> value text); :data:`RECORD_EFFECTS` are not world effects."""
     w = truth.TruthWorld()
     for name, text in effects.items():
         if name == "us76_density":
@@ -149,6 +166,16 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
                 raise ValueError("--effect mach_lift takes SCALE,MACH (C_L x SCALE below MACH > 0)")
             w = replace(w, mach_lift_scale=values[0], mach_lift_below=values[1])
             continue
+        if name == "density_wave":
+            if len(values) != 2 or values[1] <= 0:
+                raise ValueError("--effect density_wave takes AMPLITUDE,WAVELENGTH_KM (wavelength > 0)")
+            w = replace(w, density_amplitude=values[0], density_wavelength=values[1] * 1e3)
+            continue
+        if name == "mass_loss":
+            if len(values) != 3 or not (0 <= values[0] < 1) or not values[1] < values[2]:
+                raise ValueError("--effect mass_loss takes FRACTION,T0_S,T1_S (0 <= fraction < 1, T0 < T1)")
+            w = replace(w, mass_loss=values[0], mass_loss_start=values[1], mass_loss_end=values[2])
+            continue
         if name == "wind_shear":
             if len(values) > 2:
                 raise ValueError("--effect wind_shear takes PEAK_MPS[,REVERSAL_KM]")
@@ -174,7 +201,15 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
         elif name == "time_offset":
             if abs(v) > 10.0:
                 raise ValueError(f"--effect time_offset: at most 10 s, got {v:g}")
+        elif name in ("bank_bias", "alpha_bias"):
+            if abs(v) > 30.0:
+                raise ValueError(f"--effect {name}: at most 30 deg, got {v:g}")
     return w
+
+
+def _record_bias(effects: dict[str, str], name: str) -> float:
+    """The bias (rad) a control column reads with, from a ``bank_bias``/``alpha_bias`` effect (0 without)."""
+    return math.radians(float(effects[name])) if name in effects else 0.0
 
 
 def simulate_record(
@@ -188,6 +223,7 @@ def simulate_record(
     observe: str = "ecef",
     noise_tails: str = "normal",
     start_scatter: tuple[float, float] | None = None,
+    entry_offset: tuple[float, float] | None = None,
 ) -> Path:
     """Fly the truth model and write a record.
 
@@ -206,6 +242,9 @@ def simulate_record(
     :param start_scatter: ``(seconds, metres)``: the samples of the first ``seconds`` scatter by
         a further ``metres`` (one standard deviation, normal) in every position or altitude
         component, like a record digitised from a figure whose start is crowded.
+    :param entry_offset: ``(metres, m/s)``: a reduced record's sidecar declares the entry altitude
+        and speed this much above the truth (a sidecar that disagrees with its record, e.g. an
+        altitude on another reference).
     :return: the record path.
     """
     effects = effects or {}
@@ -245,6 +284,10 @@ def simulate_record(
     if start_scatter is not None and not (len(start_scatter) == 2 and all(math.isfinite(x) and x >= 0
                                                                          for x in start_scatter)):  # fmt: skip
         raise ValueError(f"start_scatter: two finite numbers >= 0 (seconds, metres), got {start_scatter!r}")
+    if entry_offset is not None and not (len(entry_offset) == 2 and all(math.isfinite(x) for x in entry_offset)):
+        raise ValueError(f"entry_offset: two finite numbers (metres, m/s), got {entry_offset!r}")
+    if entry_offset is not None and observe != "reduced":
+        raise ValueError("entry_offset: only a reduced record has a sidecar entry state")
     rng = np.random.default_rng(seed)
 
     def draw(sd: float, shape) -> np.ndarray:
@@ -280,15 +323,16 @@ def simulate_record(
             # the declared vehicle: a mass effect stays undeclared
             "vehicle": {"name": "CAV-H", "mass_kg": truth.TruthWorld().mass, "reference_area_m2": world.area,
                         "aerodynamics": {"type": "cav-h"}},
-            "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude, "speed_rel_mps": sc.speed,
+            "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude + (entry_offset or (0.0, 0.0))[0],
+                            "speed_rel_mps": sc.speed + (entry_offset or (0.0, 0.0))[1],
                             "flight_path_angle_deg": sc.flight_path_deg, "longitude_deg": sc.longitude_deg,
                             "latitude_deg": sc.latitude_deg, "azimuth_deg": sc.azimuth_deg},
         }  # fmt: skip
         write_json(out.with_suffix(".json"), sidecar, indent=2)
     else:
         raise ValueError("observe must be 'ecef' or 'reduced'")
-    cols["alpha_rad"] = ctrl[:, 0]
-    cols["bank_rad"] = ctrl[:, 1]
+    cols["alpha_rad"] = ctrl[:, 0] + _record_bias(effects, "alpha_bias")
+    cols["bank_rad"] = ctrl[:, 1] + _record_bias(effects, "bank_bias")
     write_record(out, t, cols)
     meta = {
         "effects": effects,
@@ -296,6 +340,7 @@ def simulate_record(
                   "velocity_mps" if observe == "ecef" else "speed_mps": noise[1]},
         "noise_tails": noise_tails,
         "start_scatter": None if start_scatter is None else {"seconds": start_scatter[0], "metres": start_scatter[1]},
+        "entry_offset": None if entry_offset is None else {"altitude_m": entry_offset[0], "speed_mps": entry_offset[1]},
         "seed": seed,
         "scenario": asdict(sc),
         "truth_world": asdict(world),
@@ -305,4 +350,5 @@ def simulate_record(
     return out
 
 
-__all__ = ["DEFAULT_VALUES", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record", "truth_world"]
+__all__ = ["DEFAULT_VALUES", "RECORD_EFFECTS", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record",
+           "truth_world"]
