@@ -467,6 +467,21 @@ def ladder_table(doc: dict) -> str:
                       source("docs/results/ladder.json", command="python scripts/ladder.py")])  # fmt: skip
 
 
+def ladder_summary(doc: dict) -> str:
+    """The ladder at a glance, one line per rung (the README keeps one results table): each learner's
+    success, IQM over its training seeds."""
+    from rventry_env.evaluation.rungs import RUNGS
+
+    by_rung: dict[str, list[str]] = {}
+    for e in doc["entries"]:
+        trained = sorted({r.get("trained_on", e["rung"]) for r in e["runs"]})
+        where = "" if trained == [e["rung"]] else f", trained on `{'`, `'.join(trained)}`"
+        by_rung.setdefault(e["rung"], []).append(f"{e['learner']}{where}: {e['iqm']:.2f} ({e['seeds']} seeds)")
+    lines = [f"- `{r}`: " + "; ".join(by_rung[r]) for r in RUNGS if r in by_rung]
+    return "\n".join([*lines, "", "Success IQM over training seeds on 100 held-out episodes of each rung; every run "
+                       "with its steps and wall time is in [the ladder](docs/benchmarks/learned_policies.md#the-ladder)."])
+
+
 def scratch_runs_table(doc: dict) -> str:
     """The from-scratch runs as they stood when they stopped: settings changed, window, success."""
     header = ["run", "settings changed from `ppo_scratch.toml`", "steps", "wall", "window", "frontier", "full task"]
@@ -566,6 +581,7 @@ TABLES: tuple[Table, ...] = (
     Table("rounds-dagger-flight", ("rventry_agents/data/dagger_flight/rounds.json",),
           rounds_table("rventry_agents/data/dagger_flight/rounds.json"), ("docs/benchmarks/learned_policies.md",)),
     Table("ladder", ("docs/results/ladder.json",), ladder_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("ladder-summary", ("docs/results/ladder.json",), ladder_summary, (README,)),
     Table("scratch-runs", ("docs/results/scratch_runs.json",), scratch_runs_table, ("docs/design-log/index.md",)),
     *(Table(name, paths, identify_table(paths), ("docs/benchmarks/identification.md",))
       for name, paths in IDENTIFY_TABLES.items()),
