@@ -201,7 +201,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
+        super().reset(seed=common.check_seed(seed))
         self._limit = common.outer_time_limit(self, self.max_episode_steps)
         options = common.reset_options(options)
         dispersion = Dispersion.parse(options["dispersion"]) if "dispersion" in options else self.dispersion
