@@ -232,8 +232,11 @@ def _existing_folder(path: Path) -> Path | None:
     return None
 
 
-def _shorten(text: str, keep: int = 60) -> str:
-    return text if len(text) <= keep else f"{text[: keep // 2]}...{text[-keep // 3 :]}"
+def _shorten(text: str, part_max: int = 40, whole_max: int = 200) -> str:
+    """``text`` (a path or a name) for a message: each long name shortened to its ends, then the whole."""
+    parts = [p if len(p) <= part_max else f"{p[:20]}...{p[-12:]}" for p in text.split(os.sep)]
+    out = os.sep.join(parts)
+    return out if len(out) <= whole_max else f"{out[: whole_max // 2]}...{out[-whole_max // 3 :]}"
 
 
 def _check_names(path: Path) -> None:
