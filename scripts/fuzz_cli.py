@@ -28,20 +28,24 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parents[1]
 OLD_REPORT = '{"kept": true}\n'
 
 
-@dataclass(frozen=True)
-class Case:
+class Case(NamedTuple):
     """One malformed invocation: its arguments, the text its message must contain, the command."""
 
     argv: tuple
     needle: str
     command: str
+
+    @property
+    def agents(self) -> bool:
+        """Whether the learning agents' package reads what is wrong (``train``, a saved policy's files)."""
+        return self.command.startswith("train") or any("/policies/" in a for a in self.argv)
 
 
 class Fixtures:
@@ -361,6 +365,9 @@ def main(argv=None) -> int:
     ok = sum(v == "ok" for _, v, _ in results)
     print(f"malformed invocations refused cleanly (exit 2, the argument named, no traceback, nothing written): "
           f"{ok} / {len(results)}  ({time.time() - t0:.0f} s)")  # fmt: skip
+    agents = [v == "ok" for c, v, _ in results if c.agents]
+    print(f"  the library's commands: {ok - sum(agents)} / {len(results) - len(agents)}; what the learning agents read "
+          f"(train, a saved policy's files): {sum(agents)} / {len(agents)}")  # fmt: skip
     for command, c in sorted(by_command.items()):
         print(f"  {command:18s} {c[True]:4d} / {c[True] + c[False]}")
     failures = [(c, v, d) for c, v, d in results if v != "ok"]

@@ -52,7 +52,7 @@ class OutputSet:
                 os.chmod(tmp, dest.stat().st_mode & 0o777 if dest.exists() else 0o666 & ~_umask())
                 backup = None
                 if dest.exists():
-                    fd, name = tempfile.mkstemp(prefix=f".{dest.name}.old.", dir=dest.parent)
+                    fd, name = tempfile.mkstemp(prefix=temp_prefix(dest, ".old"), suffix=".old", dir=dest.parent)
                     os.close(fd)
                     backup = Path(name)
                     try:
