@@ -64,9 +64,15 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
     {obs_table}
 
     mu is the conventional bank angle (0 = lift up, positive = lift to the right),
-    gamma the flight-path angle relative to the Earth. A feature outside its bound
-    (possible only from an unusual user-supplied state) is clipped and
-    ``info["observation_clipped"]`` is set.
+    gamma the flight-path angle relative to the Earth. A feature outside its bound is
+    clipped into the Box and ``info["observation_clipped"]`` is set. That happens in two
+    cases only: from an unusual user-supplied state or model, and with navigation errors
+    (the ``flight`` set, or any dispersion with accelerometer or navigation errors), where
+    the observation is built from the navigated state: in the last seconds of a flight the
+    navigation can put the vehicle more than 400 m below the ground, and the altitude
+    feature is then held at its bound -0.01. On 2000 ``flight`` episodes flown by the
+    reference, 27 % of the episodes had such steps, 0.4 per thousand steps; no other feature
+    left the Box, and no step of the sets without navigation errors did (docs/env.md).
 
     ## Rewards
 
