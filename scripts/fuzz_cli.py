@@ -286,7 +286,23 @@ def _snapshot(tmp: Path) -> set[str]:
     return {str(p.relative_to(tmp)) for p in tmp.rglob("*") if not p.name.startswith("mpl")}
 
 
-def run_case(case: Case, f: Fixtures, limit_s: float = 60.0) -> tuple[str, str]:
+def warm_up() -> None:
+    """Import what the commands load (CasADi, matplotlib, the agents' torch and stable-baselines3)
+    before any case runs: the time limit then applies to the command, and a case stopped at its
+    limit never leaves a library half imported for the next ones."""
+    import importlib
+    from importlib.metadata import entry_points
+
+    for name in ("casadi", "matplotlib.pyplot", "scipy.integrate", "torch", "stable_baselines3", "sb3_contrib"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
+    for group in ("rventry.agents", "rventry.agent_files", "rventry.commands"):
+        for ep in entry_points(group=group):
+            with contextlib.suppress(Exception):
+                ep.load()
+
+
+def run_case(case: Case, f: Fixtures, limit_s: float = 120.0) -> tuple[str, str]:
     """Run one case in this process: (verdict, detail). ``"ok"`` is a clean refusal."""
     from rventry_env.cli import main
 
@@ -342,14 +358,15 @@ def main(argv=None) -> int:
     from rventry_env.util.files import write_json
 
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--limit", type=positive_float, default=60.0, help="seconds a case may run before it counts as "
-                   "accepted [60]")  # fmt: skip
+    p.add_argument("--limit", type=positive_float, default=120.0, help="seconds a case may run before it counts as "
+                   "accepted [120]")  # fmt: skip
     p.add_argument("--only", help="run the cases of this command only (say 'evaluate')")
     p.add_argument("--first", type=positive_int, help="run the first N cases only")
     p.add_argument("--json", help="write the figures and every failure here")
     args = p.parse_args(argv)
     os.environ.setdefault("MPLCONFIGDIR", tempfile.mkdtemp(prefix="mpl"))
     results = []
+    warm_up()
     t0 = time.time()
     with tempfile.TemporaryDirectory(prefix="rventry-fuzz-") as tmp:
         f = Fixtures(Path(tmp))

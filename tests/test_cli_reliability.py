@@ -30,6 +30,7 @@ fuzz = load_script("fuzz_cli")
 
 @pytest.fixture(scope="module")
 def fixtures(tmp_path_factory):
+    fuzz.warm_up()
     return fuzz.Fixtures(tmp_path_factory.mktemp("fuzz"))
 
 
