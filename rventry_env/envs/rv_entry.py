@@ -65,9 +65,11 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
 
     mu is the conventional bank angle (0 = lift up, positive = lift to the right),
     gamma the flight-path angle relative to the Earth. A feature outside its bound is
-    clipped into the Box and ``info["observation_clipped"]`` is set. That happens in two
-    cases only: from an unusual user-supplied state or model, and with navigation errors
-    (the ``flight`` set, or any dispersion with accelerometer or navigation errors), where
+    clipped into the Box and ``info["observation_clipped"]`` is set. That happens in three
+    cases only: from an unusual user-supplied state or model; at the last step of an episode
+    flown with coarse control steps (dt of 10 s and more), where one RK4 step can carry the
+    state past the stall, skip-out or impact bounds before the episode ends; and with
+    navigation errors (the ``flight`` set, or any dispersion with accelerometer or navigation errors), where
     the observation is built from the navigated state: in the last seconds of a flight the
     navigation can put the vehicle more than 400 m below the ground, and the altitude
     feature is then held at its bound -0.01. On 2000 ``flight`` episodes flown by the
