@@ -29,7 +29,6 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import math
 import shlex
 import sys
 import time
@@ -38,103 +37,37 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_agents.config import ConfigError, read_json
+from rventry_agents.dagger_config import (  # noqa: F401  (the trainer's names for its config)
+    DEFAULT_CONFIG,
+    DaggerConfig,
+    DataSection,
+    ExpertSection,
+    FitSection,
+    SelectSection,
+    StudentSection,
+    load_config,
+)
 from rventry_agents.imitation import (
     INPUT_NAMES,
     CollectJob,
     Horizon,
     LearnedGuidance,
     collect,
-    expert_options,
     fit,
     make_network,
     network_bytes,
     network_from_bytes,  # fmt: skip
 )
+from rventry_agents.records import RunRecord, StudentFlight, StudentRecord, horizon_keys  # noqa: F401
 from rventry_env.task import EntryTask
-from rventry_env.guidance.load_relief import LoadRelief
-from rventry_env.guidance.q_floor import QFloor
 from rventry_env.util.files import atomic_write, check_writable, dumps_json, save_figure, write_json
 
-DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
 SHIPPED_DAGGER = Path(__file__).resolve().parent / "data" / "dagger"  # dagger.toml's run: the student of mpc
 SHIPPED_DAGGER_FLIGHT = Path(__file__).resolve().parent / "data" / "dagger_flight"  # dagger_flight.toml's run
 # the shipped students by agent name (held out on `flight`, 200 episodes: dagger-flight 0.75 [0.69, 0.80],
 # dagger 0.23 [0.17, 0.29]); `learned` (rventry_agents/learned.py) names the best learned policy there
 SHIPPED_STUDENTS = {"dagger": SHIPPED_DAGGER, "dagger-flight": SHIPPED_DAGGER_FLIGHT}
-
-
-def load_config(path=None) -> dict:
-    """The DAgger configuration: a TOML file (default ``rventry_agents/dagger.toml``) or a dict."""
-    from rventry_agents.config import read_config
-
-    cfg, where = read_config(path, DEFAULT_CONFIG, ("student", "data", "rounds", "fit", "select"))
-    for i, r in enumerate(cfg["rounds"]):
-        if not (isinstance(r.get("episodes"), int) and r["episodes"] >= 1 and 0.0 <= float(r.get("beta", -1)) <= 1.0):
-            raise ValueError(f"{where}: round {i} needs episodes >= 1 and beta in [0, 1], got {r}")
-    for section in ("student", "final"):
-        members = cfg.get(section, {}).get("members", 1)
-        if not (isinstance(members, int) and members >= 1):
-            raise ValueError(f"{where}: [{section}] members must be a whole number >= 1, got {members!r}")
-    if "distil" in cfg:
-        d = cfg["distil"]
-        hidden = d.get("hidden")
-        if not (isinstance(hidden, list) and hidden and all(isinstance(h, int) and h >= 1 for h in hidden)):
-            raise ValueError(f"{where}: [distil] hidden takes a list of layer widths (whole numbers >= 1), got {hidden!r}")
-        for key in ("epochs", "emphasis"):
-            value = d.get(key, 1)
-            if not (isinstance(value, int) and value >= 1):
-                raise ValueError(f"{where}: [distil] {key} must be a whole number >= 1, got {value!r}")
-        if not isinstance(d.get("keep_teacher_if_better", False), bool):
-            raise ValueError(f"{where}: [distil] keep_teacher_if_better takes true or false, got "
-                             f"{d['keep_teacher_if_better']!r}")  # fmt: skip
-        below = d.get("emphasis_below_m", 0.0)
-        if not (isinstance(below, (int, float)) and below >= 0):
-            raise ValueError(f"{where}: [distil] emphasis_below_m must be an altitude >= 0 (m), got {below!r}")
-    if cfg["rounds"][0]["beta"] != 1.0:
-        raise ValueError(f"{where}: the first round has no student yet, so its beta must be 1")
-    try:
-        flight_trackers(cfg)
-        flight_margins(cfg)
-        for i, r in enumerate(cfg["rounds"]):
-            if "load_relief_margin" in r:
-                _margin(r["load_relief_margin"], f"round {i}: load_relief_margin")
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{where}: {exc}") from None
-    return cfg
-
-
-def flight_trackers(cfg: dict) -> list[Horizon]:
-    """The candidate tracker horizons of ``[flight]``: ``tracking`` pairs [max_s, min_s], with the
-    altitude over ``tracking_descent_mps`` between them (none: no choice after training)."""
-    flight = cfg.get("flight", {})
-    pairs = flight.get("tracking", [])
-    descent = float(flight.get("tracking_descent_mps", math.inf))
-    if not isinstance(pairs, list) or not all(isinstance(p, list) and len(p) == 2 for p in pairs):
-        raise ValueError(f"[flight] tracking takes a list of [max_s, min_s] pairs, got {pairs!r}")
-    return [Horizon(float(hi), float(lo), descent) for hi, lo in pairs]
-
-
-def flight_margins(cfg: dict) -> list[float]:
-    """The candidate load-relief margins of ``[flight]``: ``load_relief_margins``, each a fraction
-    in [0, 1) of the load bound (none: the trained margin flies)."""
-    return _margins(cfg.get("flight", {}).get("load_relief_margins", []), "[flight] load_relief_margins")
-
-
-def _margins(margins, name: str) -> list[float]:
-    """A list of load-relief margins, each checked by :func:`_margin`; ``name`` says whose in an error."""
-    if not isinstance(margins, list):
-        raise ValueError(f"{name} takes a list of fractions of the load bound, got {margins!r}")
-    return [_margin(m, name) for m in margins]
-
-
-def _margin(margin, name: str) -> float:
-    """A load-relief margin, checked: a fraction in [0, 1) of the load bound; ``name`` says whose in an error."""
-    if not isinstance(margin, (int, float)) or isinstance(margin, bool):
-        raise ValueError(f"{name} takes a fraction of the load bound, got {margin!r}")
-    try:
-        return LoadRelief(task=EntryTask(), margin=float(margin)).margin  # a bad margin fails here
-    except ValueError as exc:
-        raise ValueError(f"{name}: {exc}") from None
 
 
 def _law(run: "RunSetup", law: dict | None) -> dict:
@@ -146,18 +79,16 @@ def round_law(run: "RunSetup", k: int) -> dict:
     """The law round ``k``'s student flies, in the round and in its selection: the [student] one,
     with the round's own ``load_relief_margin`` where it names one (rounds that fly the margin
     chosen after the earlier rounds: the states they visit are those of the student as it will fly)."""
-    rnd = run.cfg["rounds"][k]
-    if "load_relief_margin" not in rnd:
-        return run.law
-    return {**run.law, "load_relief_margin": float(rnd["load_relief_margin"])}
+    margin = run.cfg.rounds[k].load_relief_margin
+    return run.law if margin is None else {**run.law, "load_relief_margin": margin}
 
 
-def select_metric(student, cfg: dict, task: EntryTask) -> dict:
+def select_metric(student, cfg: DaggerConfig, task: EntryTask) -> dict:
     """The student alone on the selection set: success rate, then miss."""
     from rventry_env.evaluation.rollout import rollout
 
-    s = cfg["select"]
-    b = rollout(student, int(s["episodes"]), seed=int(s["seed"]), dispersion=s["dispersion"], task=task)
+    s = cfg.select
+    b = rollout(student, s.episodes, seed=s.seed, dispersion=s.dispersion, task=task)
     return {"success_rate": float(np.mean(b.is_success)), "miss_km_mean": float(np.mean(b.miss_km)),
             "miss_km_p50": float(np.median(b.miss_km)), "violation_rate": float(np.mean(b.constraint_violation)),
             "vertical_error_deg_p50": float(np.median(b.vertical_error_deg))}  # fmt: skip
@@ -165,7 +96,8 @@ def select_metric(student, cfg: dict, task: EntryTask) -> dict:
 
 # the config sections that shape the rounds already flown: a resumed run must keep them
 # ([final], [distil] and [flight] come after the rounds, and each checks its own record on resume)
-RUN_SECTIONS = ("student", "expert", "data", "fit", "select")
+RUN_SECTIONS = {"student": StudentSection, "expert": ExpertSection, "data": DataSection, "fit": FitSection,
+                "select": SelectSection}  # fmt: skip
 RUN_FILE = "run.json"
 
 
@@ -192,7 +124,7 @@ class Selected:
 class RunSetup:
     """A DAgger run's settings, checked before anything is flown (:func:`prepare_run`)."""
 
-    cfg: dict
+    cfg: DaggerConfig
     out: Path
     workers: int
     seed: int | None  # --seed, which offsets the training vehicles and replaces the fit seed
@@ -210,9 +142,9 @@ class RunSetup:
 
     def fit_settings(self) -> dict:
         """Keywords of :func:`fit` (and :func:`fit_commands`) after the data: the [fit] section."""
-        f = self.cfg["fit"]
-        return {"epochs": int(f["epochs"]), "batch_size": int(f["batch_size"]), "lr": float(f["learning_rate"]),
-                "seed": self.fit_seed, "weight_decay": float(f.get("weight_decay", 0.0))}  # fmt: skip
+        f = self.cfg.fit
+        return {"epochs": f.epochs, "batch_size": f.batch_size, "lr": f.learning_rate, "seed": self.fit_seed,
+                "weight_decay": f.weight_decay}  # fmt: skip
 
 
 class RunClock:
@@ -267,34 +199,45 @@ def new_network(hidden: tuple[int, ...], members: int, seed: int, stage: str):
 
 
 def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None = None) -> RunSetup:
-    """Read and check the config and the output directory; a bad setting fails here, not in a worker."""
+    """Read and check the config, the expert and the output directory: a bad setting fails here,
+    before anything is written or flown (only the output folder is made, last)."""
+    from rventry_env.evaluation.agents import agent_names
+
     cfg = load_config(config)
     out = Path(out)
-    check_writable(folders=(out,))
     task = EntryTask()
-    law = student_law(cfg["student"], task)
-    if law.pop("q_floor_margin") is not None:
-        raise ValueError("[student] q_floor_margin: the DAgger rounds fly no q floor; choose one for a trained policy "
-                         "with scripts/choose_q_floor.py")  # fmt: skip
-    trackers = flight_trackers(cfg)
+    law = cfg.student.law(task)
+    law.pop("q_floor_margin")  # none: refused by the [student] section
+    trackers = cfg.flight.trackers()
     for h in (law["horizon"], *trackers):
         h.check_step(task.dt)
-    expert_cfg = dict(cfg.get("expert", {}))
-    expert = str(expert_cfg.pop("agent", "mpc"))
-    expert_settings = tuple(sorted(expert_cfg.items()))
-    expert_options(expert, expert_settings)  # a bad setting fails here
+    expert = cfg.expert.agent
+    if expert not in agent_names() and not Path(expert).exists():
+        raise ValueError(f"[expert] agent {expert!r} is neither an agent ({', '.join(agent_names())}) nor a saved policy")
+    check_writable(folders=(out,))
     return RunSetup(
-        cfg=cfg, out=out, workers=workers, seed=seed, task=task,
-        hidden=tuple(int(h) for h in cfg["student"]["hidden"]), members=int(cfg["student"].get("members", 1)),
-        law=law, trackers=trackers, margins=flight_margins(cfg), fit_seed=int(cfg["fit"]["seed"] if seed is None else seed), expert=expert,
-        expert_settings=expert_settings,
-        first_seed=int(cfg["data"]["train_seed"]) + (0 if seed is None else 1_000 * seed), cluster=cluster,
+        cfg=cfg, out=out, workers=workers, seed=seed, task=task, hidden=cfg.student.hidden, members=cfg.student.members,
+        law=law, trackers=trackers, margins=list(cfg.flight.load_relief_margins),
+        fit_seed=cfg.fit.seed if seed is None else seed, expert=expert, expert_settings=cfg.expert.setting_pairs,
+        first_seed=cfg.data.train_seed + (0 if seed is None else 1_000 * seed), cluster=cluster,
     )  # fmt: skip
 
 
+def _identity(seed, sections: dict) -> dict:
+    """What the rounds were flown with: the --seed and the sections of :data:`RUN_SECTIONS`, each
+    through its schema (so that a record that left a default out compares by its value)."""
+    identity = {"seed": seed}
+    for name, cls in RUN_SECTIONS.items():
+        value = sections.get(name, {})
+        try:
+            identity[name] = cls.from_dict(value).to_dict()
+        except ConfigError:
+            identity[name] = value  # compared as it is: it differs
+    return json.loads(dumps_json(identity))
+
+
 def _run_identity(run: RunSetup) -> dict:
-    """What the rounds were flown with: the sections of :data:`RUN_SECTIONS` and the --seed."""
-    return json.loads(dumps_json({"seed": run.seed, **{k: run.cfg.get(k, {}) for k in RUN_SECTIONS}}))
+    return _identity(run.seed, {name: getattr(run.cfg, name) for name in RUN_SECTIONS})
 
 
 def _differences(old, new, prefix: str = "") -> list[str]:
@@ -304,26 +247,66 @@ def _differences(old, new, prefix: str = "") -> list[str]:
     return [] if old == new else [f"{prefix.rstrip('.')} ({json.dumps(old)} -> {json.dumps(new)})"]
 
 
+def _started_with(run: RunSetup, identity: dict) -> tuple[dict | None, dict]:
+    """What the run in ``run.out`` was started with, and this run's identity to compare it with: its
+    ``run.json``, or for a run from before that record was kept, its ``metadata.json`` (its config
+    and the fit seed it used); (None, identity) for a run with neither."""
+    if (run.out / RUN_FILE).is_file():
+        started = read_json(run.out / RUN_FILE)
+        return _identity(started.get("seed"), started), identity
+    if (run.out / "metadata.json").is_file():
+        meta = RunRecord.read_json(run.out / "metadata.json")
+        config = meta.config or {}
+        started = _identity(identity["seed"], {**config, "fit": {**config.get("fit", {}), "seed": meta.seed}})
+        return started, {**identity, "fit": {**identity["fit"], "seed": run.fit_seed}}
+    return None, identity
+
+
 def check_resumable(run: RunSetup, resume: bool) -> None:
     """Refuse to resume a run with another config than it was started with, naming the fields;
     then record this run's (``run.json``). A run from before the record was kept is checked
     against its ``metadata.json``, where it has one."""
     identity = _run_identity(run)
     if resume:
-        started = mine = None
-        if (run.out / RUN_FILE).is_file():
-            started, mine = json.loads((run.out / RUN_FILE).read_text()), identity
-        elif (run.out / "metadata.json").is_file():  # a run of before: its config and the fit seed it used
-            meta = json.loads((run.out / "metadata.json").read_text())
-            started = {"seed": identity["seed"], **{k: meta["config"].get(k, {}) for k in RUN_SECTIONS}}
-            started["fit"] = {**started["fit"], "seed": meta["seed"]}
-            mine = {**identity, "fit": {**identity["fit"], "seed": run.fit_seed}}
+        started, mine = _started_with(run, identity)
         changed = [] if started is None else _differences(started, mine)
         if changed:
             raise ValueError(f"cannot resume {run.out}: it was started with another config; changed: "
                              f"{', '.join(changed)}. Resume with the same config and --seed, or start a new run "
                              "(another --out)")  # fmt: skip
     write_json(run.out / RUN_FILE, identity)
+
+
+ROUND_KEYS = ("round", "episodes", "beta", "samples", "wall_s", "select_success_rate", "select_miss_km_mean")
+
+
+def _read_rounds(path: Path) -> list[dict]:
+    """An earlier run's ``rounds.json``, checked: one record per round, in order."""
+    done = read_json(path, list)
+    for k, rec in enumerate(done):
+        missing = [key for key in ROUND_KEYS if not isinstance(rec, dict) or key not in rec]
+        if missing or rec["round"] != k:
+            raise ConfigError(f"{path}: round {k}'s record is malformed (missing {', '.join(missing) or 'nothing'}, "
+                              f"round {rec.get('round') if isinstance(rec, dict) else rec!r})", located=True)  # fmt: skip
+    return done
+
+
+def _round_data(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A round's recorded features and expert labels; an unreadable file is refused naming it."""
+    import zipfile
+
+    try:
+        with np.load(path) as d:
+            data = {k: d[k] for k in d.files}
+    except (OSError, ValueError, EOFError, AttributeError, zipfile.BadZipFile) as exc:  # junk, truncated, a bare array
+        raise ValueError(f"cannot resume: {path} is unreadable ({type(exc).__name__}: {exc})") from None
+    if "angles" not in data:
+        raise ValueError(f"cannot resume: {path} was recorded with another kind of label (the expert's rates, or "
+                         f"none: {sorted(data)}); start a new run")  # fmt: skip
+    x, y = data.get("x", np.zeros((0, 0))), data["angles"]
+    if x.ndim != 2 or y.shape != (len(x), 2):
+        raise ValueError(f"cannot resume: {path} holds features {x.shape} and labels {y.shape}, not one row each")
+    return x, y
 
 
 def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds: Rounds) -> None:
@@ -337,12 +320,9 @@ def _take_round(run: RunSetup, k: int, n: int, beta: float, record: dict, rounds
     if flown != law["load_relief_margin"]:
         raise ValueError(f"cannot resume {run.out}: its round {k} flew the load-relief margin {flown}, the config "
                          f"says {law['load_relief_margin']}")  # fmt: skip
-    with np.load(run.out / f"data_round_{k}.npz") as d:
-        if "angles" not in d:
-            raise ValueError(f"cannot resume {run.out}: its round {k} was recorded with another kind of label "
-                             "(the expert's rates); start a new run")  # fmt: skip
-        rounds.xs.append(d["x"])
-        rounds.ys.append(d["angles"])
+    x, y = _round_data(run.out / f"data_round_{k}.npz")
+    rounds.xs.append(x)
+    rounds.ys.append(y)
     rounds.records.append(record)
     rounds.laws.append(law)
 
@@ -353,7 +333,7 @@ def _fly_round(run: RunSetup, k: int, n: int, beta: float, first_seed: int, stud
     state, refit a new student on all the data so far and select it alone; returns it and its record."""
     blob = None if student is None else network_bytes(student)
     law = round_law(run, k)
-    jobs = [CollectJob(seed=first_seed + i, dispersion=run.cfg["data"]["dispersion"],
+    jobs = [CollectJob(seed=first_seed + i, dispersion=run.cfg.data.dispersion,
                        beta=beta if blob else 1.0, student=blob, hidden=run.hidden, task=run.task, expert=run.expert,
                        expert_settings=run.expert_settings, horizon=law["horizon"],
                        load_relief_margin=law["load_relief_margin"], members=run.members)
@@ -410,24 +390,32 @@ def _round_network(run: RunSetup, k: int, rounds: Rounds) -> bytes:
     return blob
 
 
+def _round_student(run: RunSetup, k: int, rounds: Rounds):
+    """Round ``k``'s network, to go on from (:func:`_round_network`)."""
+    try:
+        return network_from_bytes(_round_network(run, k, rounds), run.hidden, run.members)
+    except ValueError as exc:
+        raise ValueError(f"cannot resume {run.out}: student_round_{k}.pt: {exc}") from None
+
+
 def run_rounds(run: RunSetup, clock: RunClock, resume: bool, progress_bar: bool = True) -> Rounds:
     """The config's DAgger rounds; with ``resume``, the rounds an earlier run finished in ``run.out``
     are taken as they are and the run goes on from the last one's student. The best round on the
     task metric is selected (student.pt, student.json) as the rounds go."""
     from rich.progress import Progress
 
-    done = json.loads((run.out / "rounds.json").read_text()) if resume and (run.out / "rounds.json").is_file() else []
+    done = _read_rounds(run.out / "rounds.json") if resume and (run.out / "rounds.json").is_file() else []
     if done:
         clock.credit(done[-1]["wall_s"])  # wall times count the whole run
     rounds, student, next_seed = Rounds(), None, run.first_seed
     with Progress(disable=not progress_bar) as bar:
-        for k, rnd in enumerate(run.cfg["rounds"]):
-            n, beta = int(rnd["episodes"]), float(rnd["beta"])
+        for k, rnd in enumerate(run.cfg.rounds):
+            n, beta = rnd.episodes, rnd.beta
             if k < len(done):
                 _take_round(run, k, n, beta, done[k], rounds)
                 bar.console.print(f"round {k}: taken from {run.out}")
                 if k == len(done) - 1:  # the student to go on with, and the best so far
-                    student = network_from_bytes(_round_network(run, k, rounds), run.hidden, run.members)
+                    student = _round_student(run, k, rounds)
                     sel = max(range(len(done)), key=lambda j: _select_key(done[j]))  # the first of equals, as below
                     rounds.best = Selected(sel, _round_network(run, sel, rounds), run.members, run.hidden,
                                            rounds.laws[sel])  # fmt: skip
@@ -445,15 +433,15 @@ def refit_ensemble(run: RunSetup, rounds: Rounds, clock: RunClock, resume: bool)
     """``[final] members`` > 1: an ensemble refitted on all the rounds' data, selected if it beats the
     best round; on resume, an earlier run's ensemble of the same size and data is taken as it is.
     Returns the selected network and the ensemble's record (None without one)."""
-    n_final = int(run.cfg.get("final", {}).get("members", 1))
+    n_final = run.cfg.final.members
     best = rounds.best
     law = _law(run, rounds.laws[-1] if rounds.laws else None)  # the last round's: the newest data was flown with it
     if n_final == 1:
         (run.out / "final.json").unlink(missing_ok=True)  # an earlier run's ensemble, which this run does not refit
         return best, None
     path = run.out / "final.json"
-    done = json.loads(path.read_text()) if resume and path.is_file() else None
-    if done is not None and done["members"] == n_final and done["samples"] == rounds.samples:
+    done = read_json(path) if resume and path.is_file() else None
+    if done is not None and done.get("members") == n_final and done.get("samples") == rounds.samples:
         final = done
         clock.at_least(final["wall_s"])  # its fit counts in the run's wall time
         print(f"final ensemble: taken from {run.out}")
@@ -479,7 +467,7 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
     flies in its place (with ``keep_teacher_if_better``, not where its teacher is one network of the
     same widths that does better on the selection set); returns the network that flies and the
     distillation's record (None without one, or when the teacher flies)."""
-    if "distil" not in run.cfg:
+    if run.cfg.distil is None:
         for name in ("distil.json", "student_distilled.pt"):
             (run.out / name).unlink(missing_ok=True)  # an earlier run's, which this run does not distil
         return teacher, None
@@ -488,7 +476,7 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
                                run.fit_seed, resume)  # fmt: skip
     if taken:
         clock.credit(distilled["wall_s"])  # a distillation taken as it was counts in the run's wall time
-    if (run.cfg["distil"].get("keep_teacher_if_better", False) and teacher.members == 1
+    if (run.cfg.distil.keep_teacher_if_better and teacher.members == 1
             and tuple(distilled["hidden"]) == teacher.hidden and isinstance(teacher.source, int)
             and _select_key(distilled) < _select_key(rounds.records[teacher.source])):  # fmt: skip
         # one network of its teacher's widths saves nothing per decision: it flies only if it does as well
@@ -544,7 +532,7 @@ def write_run_record(run: RunSetup, rounds: Rounds, best: Selected, final: dict 
         selected = {**selected, "tracking": tracking}
     write_json(run.out / "metadata.json", {
         "command": " ".join(shlex.quote(a) for a in ["rventry", *sys.argv[1:]]) if sys.argv else "",
-        "seed": run.fit_seed, "workers": run.workers, "wall_s": clock.elapsed(), "config": run.cfg,
+        "seed": run.fit_seed, "workers": run.workers, "wall_s": clock.elapsed(), "config": run.cfg.to_dict(),
         "selected_round": best.source, "selected": selected,
     })  # fmt: skip
     after = {} if final is None else {f"ensemble of {final['members']}, all rounds' data": final}
@@ -562,10 +550,10 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     taken as it is (each phase checks its own), and a run started with another config is refused.
     With ``cluster`` (a Dask scheduler's address) the expert's episodes fly on its workers; every
     episode is seeded, so the run is the same as on local workers."""
+    run = prepare_run(config, out, workers, seed, cluster)  # a bad setting is refused before torch even loads
+    check_resumable(run, resume)
     import torch
 
-    run = prepare_run(config, out, workers, seed, cluster)
-    check_resumable(run, resume)
     torch.set_num_threads(max(1, workers))
     clock = RunClock()
     rounds = run_rounds(run, clock, resume, progress_bar)
@@ -591,7 +579,7 @@ def _select_key(rec: dict) -> tuple[float, float]:
     return task_metric_key(rec["select_success_rate"], rec["select_miss_km_mean"])
 
 
-def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: dict, task: EntryTask) -> list[dict]:
+def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: DaggerConfig, task: EntryTask) -> list[dict]:
     """The network flown alone on the selection set with each tracker horizon and the load-relief
     margin ``relief``: one record each."""
     scan = []
@@ -602,38 +590,13 @@ def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: 
     return scan
 
 
-def horizon_keys(h: Horizon, prefix: str) -> dict:
-    """A horizon as student.json keys (an unbounded descent rate as null)."""
-    return {f"{prefix}_s": h.max_s, f"{prefix}_min_s": h.min_s,
-            f"{prefix}_descent_mps": h.descent_mps if math.isfinite(h.descent_mps) else None}  # fmt: skip
-
-
-def _horizon_from(student_cfg: dict, prefix: str) -> Horizon | None:
-    keys = {f"{prefix}_s": "max_s", f"{prefix}_min_s": "min_s", f"{prefix}_descent_mps": "descent_mps"}
-    given = {keys[k]: float(v) for k, v in student_cfg.items() if k in keys and v is not None}
-    if "max_s" in given:
-        given.setdefault("min_s", given["max_s"])
-    return Horizon(**given) if given else None
-
-
-def student_law(student_cfg: dict, task: EntryTask) -> dict:
-    """The student's law options (:class:`LearnedGuidance` keywords) from a [student] section or
-    a student.json (where an unbounded descent rate and no load relief are null):
-
-    * ``horizon``, the tracker's: ``tracking_*`` where a tracker was chosen after training
-      (``[flight]``), else the labels' ``lookahead_*``, which the rounds fly; one step when none is
-      named (the students trained before the horizon existed, with one-step labels and a deadbeat
-      tracker);
-    * ``load_relief_margin``, None when none is named (no load relief);
-    * ``q_floor_margin``, None when none is named (no q floor)."""
-    horizon = _horizon_from(student_cfg, "tracking") or _horizon_from(student_cfg, "lookahead")
-    margin = student_cfg.get("load_relief_margin")
-    if margin is not None:
-        margin = LoadRelief(task=task, margin=float(margin)).margin  # a bad margin fails here, not in a worker
-    floor = student_cfg.get("q_floor_margin")
-    if floor is not None:
-        floor = QFloor(task=task, margin=float(floor)).margin
-    return {"horizon": horizon or Horizon(task.dt, task.dt), "load_relief_margin": margin, "q_floor_margin": floor}
+def student_law(student: StudentFlight | dict, task: EntryTask) -> dict:
+    """The student's law options (:class:`LearnedGuidance` keywords) from a [student] section, a
+    student.json or a fine-tuned policy's spec (:meth:`~rventry_agents.records.StudentFlight.law`)."""
+    if isinstance(student, dict):
+        student = StudentFlight.from_dict({k: v for k, v in student.items() if k in StudentFlight.__dataclass_fields__},
+                                          "the student's settings")  # fmt: skip
+    return student.law(task)
 
 
 def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, tracker: Horizon | None = None,
@@ -642,23 +605,26 @@ def _write_selected(out: Path, best: Selected, law: dict, task: EntryTask, track
     margin the one it flies); ``tracker``, the tracker horizon chosen after training (None: the
     trained one); ``distilled_from``, the round or "final" a distilled network was fitted to;
     ``trained_margin``, the rounds' load-relief margin where a margin was chosen after training."""
+    record = {
+        "hidden": list(best.hidden), "members": best.members,
+        "inputs": "observation features without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
+        "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
+        **horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else horizon_keys(tracker, "tracking")),
+        "load_relief_margin": law["load_relief_margin"], "selected_round": best.source,
+        **({} if trained_margin in (None, law["load_relief_margin"]) else {"trained_load_relief_margin": trained_margin}),
+        **({} if distilled_from is None else {"distilled_from": distilled_from}),
+    }  # fmt: skip
+    StudentRecord.from_dict(record, str(out / "student.json"))  # what a loader reads back
     atomic_write(out / "student.pt", best.weights)
-    write_json(out / "student.json", {"hidden": list(best.hidden), "members": best.members, "inputs": "observation features "
-               "without alpha, sigma, the lift shares and the load factor; 10 ln k_D, 10 ln k_LD",
-               "input_features": list(INPUT_NAMES), "task": task.record(), "outputs": "alpha and bank commands",
-               **horizon_keys(law["horizon"], "lookahead"), **({} if tracker is None else horizon_keys(tracker, "tracking")),
-               "load_relief_margin": law["load_relief_margin"], "selected_round": best.source,
-               **({} if trained_margin in (None, law["load_relief_margin"]) else
-                  {"trained_load_relief_margin": trained_margin}),
-               **({} if distilled_from is None else {"distilled_from": distilled_from})})  # fmt: skip
+    write_json(out / "student.json", record)
 
 
 def _student_words(name, members: int) -> str:
     return f"the ensemble of {members}" if members > 1 else ("the final refit" if name == "final" else f"round {name}")
 
 
-def _distil(cfg: dict, out: Path, teacher: Selected, xs: list, samples: int, law: dict, task: EntryTask, seed: int,
-            resume: bool) -> tuple[dict, bool]:  # fmt: skip
+def _distil(cfg: DaggerConfig, out: Path, teacher: Selected, xs: list, samples: int, law: dict, task: EntryTask,
+            seed: int, resume: bool) -> tuple[dict, bool]:  # fmt: skip
     """``[distil]``: one network of ``hidden`` widths fitted, by the [fit] settings and ``epochs``,
     to the selected network's commands on every state the rounds visited, those below
     ``emphasis_below_m`` counted ``emphasis`` times; written as
@@ -667,12 +633,12 @@ def _distil(cfg: dict, out: Path, teacher: Selected, xs: list, samples: int, law
     from rventry_agents.imitation import fit_commands, network_commands
     from rventry_env.envs.observation import ALTITUDE_SCALE, feature_index
 
-    d, fit_cfg = cfg["distil"], cfg["fit"]
+    d, f = cfg.distil, cfg.fit
     rec = {"teacher": teacher.source, "teacher_members": teacher.members, "teacher_hidden": list(teacher.hidden),
-           "teacher_sha256": hashlib.sha256(teacher.weights).hexdigest(), "seed": seed,
-           "hidden": [int(h) for h in d["hidden"]], "epochs": int(d.get("epochs", fit_cfg["epochs"])), "samples": samples,
-           "emphasis_below_m": float(d.get("emphasis_below_m", 0.0)), "emphasis": int(d.get("emphasis", 1))}  # fmt: skip
-    done = json.loads((out / "distil.json").read_text()) if resume and (out / "distil.json").is_file() else None
+           "teacher_sha256": hashlib.sha256(teacher.weights).hexdigest(), "seed": seed, "hidden": list(d.hidden),
+           "epochs": d.epochs or f.epochs, "samples": samples, "emphasis_below_m": d.emphasis_below_m,
+           "emphasis": d.emphasis}  # fmt: skip
+    done = read_json(out / "distil.json") if resume and (out / "distil.json").is_file() else None
     if done is not None and all(done.get(k) == v for k, v in rec.items()):
         print(f"distilled network: taken from {out}")
         return done, True
@@ -681,9 +647,8 @@ def _distil(cfg: dict, out: Path, teacher: Selected, xs: list, samples: int, law
     low = x[:, feature_index("altitude")] * ALTITUDE_SCALE < rec["emphasis_below_m"]
     x = np.concatenate([x, np.repeat(x[low], rec["emphasis"] - 1, axis=0)])  # the few seconds near the ground
     net = new_network(tuple(rec["hidden"]), 1, seed, "distil")
-    losses = fit_commands(net, x, network_commands(teacher.network(), x),
-                          rec["epochs"], int(fit_cfg["batch_size"]), float(fit_cfg["learning_rate"]), seed,
-                          float(fit_cfg.get("weight_decay", 0.0)))  # fmt: skip
+    losses = fit_commands(net, x, network_commands(teacher.network(), x), rec["epochs"], f.batch_size, f.learning_rate,
+                          seed, f.weight_decay)  # fmt: skip
     metric = select_metric(LearnedGuidance(net, task=task, **law), cfg, task)
     rec.update({"emphasized": int(low.sum()), "fit_loss_first": losses[0], "fit_loss_last": losses[-1],
                 "wall_s": time.time() - t0, **{f"select_{key}": v for key, v in metric.items()}})  # fmt: skip
@@ -725,30 +690,34 @@ def plot_rounds(rounds: list[dict], path: Path, after: dict | None = None) -> No
 
 def load_student(run_dir, task: EntryTask | None = None) -> LearnedGuidance:
     """The selected student of a finished run, as a guidance law for ``task`` (default: the task it
-    was trained on).
+    was trained on). Its files are read through their schemas: a corrupt one is refused, named.
 
-    :raises ValueError: ``task`` differs from the training task (each difference named), or the
-        network reads its features in another order than this package builds them.
+    :raises ValueError: ``task`` differs from the training task (each difference named), the
+        network reads its features in another order than this package builds them, or a file is
+        corrupt.
     """
     run_dir = Path(run_dir)
-    meta = json.loads((run_dir / "student.json").read_text())
-    trained = meta.get("task", EntryTask().record())  # runs before the task was recorded trained on the default
+    meta = StudentRecord.read_json(run_dir / "student.json")
     if task is None:
         task = EntryTask()
-    task.check_trained(trained, f"the DAgger student in {run_dir}")
-    names = meta.get("input_features")
+    task.check_trained(meta.task or EntryTask().record(), f"the DAgger student in {run_dir}")  # none: the default
+    names = meta.input_features
     if names is not None and tuple(names) != INPUT_NAMES:
         raise ValueError(f"the DAgger student in {run_dir} reads {len(names)} input features in another order than "
                          f"this package builds; first difference: "
                          + next(f"index {i}: {a!r} saved, {b!r} now" for i, (a, b) in enumerate(zip(names, INPUT_NAMES))
                                 if a != b))  # fmt: skip
-    network = network_from_bytes((run_dir / "student.pt").read_bytes(), tuple(meta["hidden"]), int(meta.get("members", 1)))
-    law = LearnedGuidance(network, task=task, **student_law(meta, task))
-    run = json.loads((run_dir / "metadata.json").read_text()) if (run_dir / "metadata.json").is_file() else {}
-    teacher = run.get("config", {}).get("expert", {}).get("agent", "mpc")
+    try:
+        network = network_from_bytes((run_dir / "student.pt").read_bytes(), meta.hidden, meta.members)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{run_dir / 'student.pt'}: {exc}") from None
+    law = LearnedGuidance(network, task=task, **meta.law(task))
+    run = RunRecord.read_json(run_dir / "metadata.json") if (run_dir / "metadata.json").is_file() else RunRecord()
+    where = f"{run_dir / 'metadata.json'} [config]"
+    teacher = load_config(run.config, where).expert.agent if run.config is not None else "mpc"
     law.provenance = {"algorithm": f"DAgger (supervised imitation of {teacher})", "start": "scratch",
-                      "samples": run.get("selected", {}).get("samples"), "seed": run.get("seed"),
-                      "selected": meta.get("selected_round")}  # fmt: skip
+                      "samples": (run.selected or {}).get("samples"), "seed": run.seed,
+                      "selected": meta.selected_round}  # fmt: skip
     return law
 
 

@@ -38,6 +38,7 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 from torch import nn
 
 from rventry_agents.imitation import INPUTS, LOG_SCALE_GAIN, LearnedGuidance, tracking_rates
+from rventry_agents.records import FineTunedSpec
 from rventry_env.guidance.law import Measurement
 
 ACTION_BOUND = 8.0  # standardized commands: the student's outputs lie within a few of their spreads
@@ -272,26 +273,27 @@ def load_start(start: str, task, q_floor_margin: float | None = None) -> Learned
     return law
 
 
-def student_spec(law: LearnedGuidance, scales: StudentScales, start: str) -> dict:
+def student_spec(law: LearnedGuidance, scales: StudentScales, start: str) -> FineTunedSpec:
     """How to fly a fine-tuned policy (``policy.json``'s ``student``): the student it started from (its
     name and the SHA-256 of its saved weights, which name one network when a name is shipped anew),
     its standardization, its tracker horizon, its load relief and its q floor."""
     import hashlib
 
-    from rventry_agents.dagger import horizon_keys
     from rventry_agents.imitation import network_bytes
+    from rventry_agents.records import horizon_keys
 
-    return {"start": start, "start_sha256": hashlib.sha256(network_bytes(law.network)).hexdigest(),
-            "scales": scales.as_dict(), **horizon_keys(law.horizon, "tracking"),
-            "load_relief_margin": law.load_relief_margin, "q_floor_margin": law.q_floor_margin}  # fmt: skip
+    return FineTunedSpec.from_dict({
+        "start": start, "start_sha256": hashlib.sha256(network_bytes(law.network)).hexdigest(),
+        "scales": scales.as_dict(), **horizon_keys(law.horizon, "tracking"),
+        "load_relief_margin": law.load_relief_margin, "q_floor_margin": law.q_floor_margin,
+    }, "the student's spec")  # fmt: skip
 
 
-def fine_tuned_law(policy, spec: dict, task) -> LearnedGuidance:
-    """A PPO policy trained from a student (``spec`` from :func:`student_spec`) as a guidance law."""
-    from rventry_agents.dagger import student_law
-
-    scales = StudentScales(**spec["scales"])
-    return LearnedGuidance(ActorCommands(policy, scales), task=task, **student_law(spec, task))
+def fine_tuned_law(policy, spec: FineTunedSpec | dict, task) -> LearnedGuidance:
+    """A PPO policy trained from a student (``spec`` from :func:`student_spec`, or its dict) as a guidance law."""
+    spec = FineTunedSpec.from_dict(spec, "the student's spec")
+    scales = StudentScales(**spec.scales.to_dict())
+    return LearnedGuidance(ActorCommands(policy, scales), task=task, **spec.law(task))
 
 
 __all__ = ["ACTION_BOUND", "PRIVILEGED", "ActorCommands", "PrivilegedCriticPolicy", "StudentScales", "StudentVecEnv",

@@ -1,9 +1,10 @@
 """``learned``: the shipped learned policy that lands the most of the ``flight`` set, by a name
 that stays when a better one is shipped.
 
-Today that is ``ppo``: PPO fine-tuning of the flight-set DAgger student (``dagger-flight``), 0.79
-of 200 held-out ``flight`` episodes against the student's 0.75 on the same ones (the README's
-learned-policy section gives the figures and the command behind each).
+Today that is ``ppo``: PPO fine-tuning of the flight-set DAgger student (``dagger-flight``), flown
+with its q floor. Its figures, each beside its record and command, are on the manual's
+learned-policies results page (``docs/benchmarks/learned_policies.md``); this docstring quotes none,
+so that it cannot disagree with them.
 """
 
 from __future__ import annotations

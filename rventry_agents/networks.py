@@ -89,7 +89,10 @@ def load_bytes(data: bytes, inputs: tuple[str, ...], hidden=None, members=None) 
     :raises ValueError: the file's inputs differ from ``inputs`` (named), or its architecture
         from a given ``hidden`` / ``members``, or it is no student network.
     """
-    blob = torch.load(io.BytesIO(data), weights_only=True)
+    try:
+        blob = torch.load(io.BytesIO(data), weights_only=True)
+    except Exception as exc:  # empty, truncated or foreign bytes: torch raises several kinds
+        raise ValueError(f"these bytes hold no student network ({type(exc).__name__}: {str(exc)[:200]})") from None
     if isinstance(blob, dict) and blob.get("format") == FORMAT:
         saved = tuple(blob["inputs"])
         if saved != tuple(inputs):
@@ -110,7 +113,11 @@ def load_bytes(data: bytes, inputs: tuple[str, ...], hidden=None, members=None) 
     else:
         raise ValueError("these bytes hold no student network")
     net = build(len(inputs), tuple(hidden), int(members))
-    net.load_state_dict(state)
+    try:
+        net.load_state_dict(state)
+    except RuntimeError as exc:  # weights of other shapes than the architecture it names
+        raise ValueError(f"the saved weights do not fit a student of hidden = {list(hidden)}, members = {members}: "
+                         f"{str(exc)[:300]}") from None  # fmt: skip
     return net
 
 

@@ -2,95 +2,45 @@
 
 Two loaders are registered with ``rventry evaluate`` through entry points:
 
-* ``ppo`` and ``ppo-residual`` (group ``rventry.agents``): the PPO-trained policy shipped in
-  ``rventry_agents/data/ppo``, the PPO residual on TV-LQR; ``ppo-plain``, ``recurrent-ppo-plain`` and
-  ``sac-plain``: the plain-RL baselines;
+* group ``rventry.agents``: ``ppo``, PPO fine-tuning of the flight-set DAgger student
+  (``rventry_agents/data/ppo_finetune``); ``ppo-residual``, the PPO residual on TV-LQR
+  (``rventry_agents/data/ppo``); ``ppo-plain``, ``recurrent-ppo-plain`` and ``sac-plain``, the
+  plain-RL baselines (``rventry_agents/data/baselines``);
 * ``sb3`` (group ``rventry.agent_files``): any saved model, given as a path.
 
-A training run of this package writes, beside ``model.zip``, ``policy.json`` (how
-to fly it: direct, or residual on the classical law) and ``vecnormalize.pkl`` (the
-observation statistics). A model without its normalization file is refused, never
-flown on raw observations, which would be a different policy; a model that was trained
-on raw observations says so in ``policy.json`` beside it: ``{"mode": "direct",
-"normalized": false}``.
+A training run of this package writes, beside ``model.zip``, ``policy.json`` (how to fly it: its
+mode, :mod:`rventry_agents.modes`) and ``vecnormalize.pkl`` (the observation statistics). A
+model without its normalization file is refused, never flown on raw observations, which would
+be a different policy; a model that was trained on raw observations says so in ``policy.json``
+beside it: ``{"mode": "direct", "normalized": false}``. Every file beside the model is read
+through its schema (:mod:`rventry_agents.records`): a corrupt one is refused naming it.
 """
 
 from __future__ import annotations
 
-import json
 import pickle
 import re
 from pathlib import Path
 
 import numpy as np
 
+from rventry_agents.modes import (  # noqa: F401  (where the shipped policies live, and the predictor, by their old names)
+    SHIPPED_BASELINES,
+    SHIPPED_PPO,
+    SHIPPED_PPO_FINETUNE,
+    DirectLaw,
+    PolicyMode,
+    Predictor,
+)
+from rventry_agents.records import PolicyRecord, RunRecord
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 
-SHIPPED_PPO = Path(__file__).resolve().parent / "data" / "ppo"  # the PPO residual on TV-LQR
-# the PPO-trained policy: PPO fine-tuning of the flight-set DAgger student (ppo_finetune.toml)
-SHIPPED_PPO_FINETUNE = Path(__file__).resolve().parent / "data" / "ppo_finetune"
-# agent name -> the shipped PPO-trained policy's directory
+# agent name -> the shipped PPO-trained policy's directory (``ppo``: PPO fine-tuning of the flight-set
+# DAgger student, ppo_finetune.toml; ``ppo-residual``: the PPO residual on TV-LQR, ppo.toml)
 SHIPPED_PPO_AGENTS = {"ppo": SHIPPED_PPO_FINETUNE, "ppo-residual": SHIPPED_PPO}
-SHIPPED_BASELINES = Path(__file__).resolve().parent / "data" / "baselines"
 # agent name -> the shipped plain baseline's directory under SHIPPED_BASELINES
 BASELINE_AGENTS = {"ppo-plain": "ppo", "recurrent-ppo-plain": "recurrent_ppo", "sac-plain": "sac"}
-
-
-class Predictor:
-    """``predict(observations) -> actions`` of a model, deterministic, on normalized observations.
-
-    A recurrent model (sb3-contrib ``RecurrentPPO``) carries its LSTM state from call to call,
-    one per vehicle; :meth:`reset` starts new episodes.
-    """
-
-    def __init__(self, model, normalize=None):
-        self.model, self.normalize = model, normalize
-        self.recurrent = hasattr(model.policy, "lstm_actor")
-        self.reset(0)
-
-    def reset(self, n_episodes: int) -> None:
-        self.lstm_state, self.starts = None, np.ones(int(n_episodes), bool)
-
-    def __call__(self, obs):
-        obs = obs if self.normalize is None else self.normalize(obs)
-        if not self.recurrent:
-            return self.model.predict(obs, deterministic=True)[0]
-        if len(self.starts) != len(obs):
-            self.reset(len(obs))
-        actions, self.lstm_state = self.model.predict(obs, state=self.lstm_state, episode_start=self.starts,
-                                                      deterministic=True)  # fmt: skip
-        self.starts = np.zeros(len(obs), bool)
-        return actions
-
-
-class _Direct(Law):
-    """A direct policy: the model's action is the environment's (it aims where the observation's
-    target features point, so it flies any target it is told)."""
-
-    retargets = True
-
-    def __init__(self, predict):
-        self.predict = predict
-
-    def reset(self, n_episodes: int) -> None:
-        if hasattr(self.predict, "reset"):
-            self.predict.reset(n_episodes)
-
-    def __call__(self, m: Measurement) -> np.ndarray:
-        return self.predict(m.observation)
-
-
-def make_policy(predict, mode: str, authority=None, task: EntryTask | None = None):
-    """A rollout policy from ``predict(observations) -> actions``: direct, or residual on the classical law.
-
-    :param authority: residual mode: (alpha, sigma) offsets in rad at a residual of 1.
-    """
-    if mode == "direct":
-        return _Direct(predict)
-    from rventry_agents.residual import ResidualGuidance, ResidualPolicy
-
-    return ResidualPolicy(predict, ResidualGuidance(authority, task))
 
 
 def _load_sb3(path: Path, algorithm: str | None = None):
@@ -101,7 +51,11 @@ def _load_sb3(path: Path, algorithm: str | None = None):
     from rventry_agents.config import algorithm_class
 
     if algorithm is not None:
-        return algorithm_class(algorithm).load(path, device="cpu")
+        cls = algorithm_class(algorithm)
+        try:
+            return cls.load(path, device="cpu")
+        except Exception as exc:  # a truncated or foreign zip
+            raise ValueError(f"{path} is not a saved {cls.__name__} model ({type(exc).__name__}: {exc})") from None
     errors = []
     for algo in (PPO, SAC, TD3, A2C, DDPG, algorithm_class("recurrent_ppo")):
         try:
@@ -122,6 +76,69 @@ def _normalization_for(model_zip: Path) -> Path:
     return model_zip.with_name("vecnormalize.pkl")
 
 
+def _normalization_path(path: Path, given, record: PolicyRecord) -> Path | None:
+    """The statistics file to read: ``given``, or the one that belongs to the model; None for a
+    model its ``policy.json`` declares trained on raw observations."""
+    if given is not None:
+        if not Path(given).is_file():
+            raise FileNotFoundError(f"no VecNormalize statistics at {given}")
+        return Path(given)
+    found = _normalization_for(path)
+    if found.is_file():
+        return found
+    if not record.normalized:
+        return None
+    raise FileNotFoundError(
+        f"{path} has no observation statistics beside it ({found.name}): flown on raw "
+        "observations it would be a different policy, so it is refused. Put the VecNormalize file "
+        f"it was trained with there as {found.name}, or, for a model trained on raw "
+        f'observations, write {{"mode": "direct", "normalized": false}} to '
+        f"{path.parent / 'policy.json'}"
+    )
+
+
+def read_normalization(path: Path, observation_shape: tuple) -> tuple:
+    """(mean, var, clip_obs, epsilon) of the observations from SB3's VecNormalize pickle at
+    ``path`` (mean and var None where it did not normalize observations), checked against the
+    model's ``observation_shape``; a corrupt or foreign file is refused naming it."""
+    try:
+        with open(path, "rb") as f:
+            vn = pickle.load(f)  # SB3's own format for VecNormalize
+    except Exception as exc:  # empty, truncated or foreign: EOFError, UnpicklingError, OverflowError, ...
+        raise ValueError(f"{path} is not a VecNormalize file stable-baselines3 saved "
+                         f"({type(exc).__name__}: {exc})") from None  # fmt: skip
+    try:
+        norm_obs, clip_obs, epsilon = bool(vn.norm_obs), float(vn.clip_obs), float(vn.epsilon)
+        mean, var = (vn.obs_rms.mean.copy(), vn.obs_rms.var.copy()) if norm_obs else (None, None)
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path} holds a {type(vn).__name__}, not stable-baselines3's VecNormalize ({exc})") from None
+    if norm_obs:  # statistics exist even when they were not used
+        if np.shape(mean) != tuple(observation_shape) or np.shape(var) != tuple(observation_shape):
+            raise ValueError(f"{path} normalizes observations of shape {np.shape(mean)}, the model reads "
+                             f"{tuple(observation_shape)}")  # fmt: skip
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
+            raise ValueError(f"{path} holds non-finite or negative observation statistics")
+    return mean, var, clip_obs, epsilon
+
+
+def _beside(path: Path, name: str) -> Path | None:
+    """``name`` beside the model, or one level up (for checkpoints/): an rventry run's record."""
+    return next((d / name for d in (path.parent, path.parent.parent) if (d / name).is_file()), None)
+
+
+def _run_record(path: Path, algorithm: str):
+    """The run's metadata (checked) and its config's [env] (None without a record)."""
+    from rventry_agents.sb3_config import load_config
+
+    meta = _beside(path, "metadata.json")
+    if meta is None:
+        return None, None
+    record = RunRecord.read_json(meta)
+    if record.config is None:
+        return record, None
+    return record, load_config(record.config, record.algorithm or algorithm, f"{meta} [config]").env
+
+
 class SB3Policy(Law):
     """A saved stable-baselines3 model (zip) with its VecNormalize statistics, acting deterministically.
 
@@ -133,69 +150,51 @@ class SB3Policy(Law):
     """
 
     def __init__(self, model_path: str | Path, normalize_path: str | Path | None = None, task: EntryTask | None = None):
-        from stable_baselines3.common.base_class import BaseAlgorithm
-
         path = Path(model_path)
         if path.is_dir():
             path = path / "model.zip"
         if not path.is_file():
             raise FileNotFoundError(f"no saved policy at {path}")
-        # policy.json sits beside the model (or one level up, for checkpoints/): an rventry run
-        spec = next((d / "policy.json" for d in (path.parent, path.parent.parent) if (d / "policy.json").is_file()), None)
-        self.spec = json.loads(spec.read_text()) if spec is not None else {"mode": "direct"}
+        spec = _beside(path, "policy.json")
         self.from_run = spec is not None
-        self.model: BaseAlgorithm = _load_sb3(path, self.spec.get("algorithm"))  # first: is it a model at all
-        if normalize_path is None:
-            normalize_path = _normalization_for(path)
-            if not normalize_path.is_file():
-                if self.spec.get("normalized", True):
-                    raise FileNotFoundError(
-                        f"{path} has no observation statistics beside it ({normalize_path.name}): flown on raw "
-                        "observations it would be a different policy, so it is refused. Put the VecNormalize file "
-                        f"it was trained with there as {normalize_path.name}, or, for a model trained on raw "
-                        f'observations, write {{"mode": "direct", "normalized": false}} to '
-                        f"{path.parent / 'policy.json'}"
-                    )
-                normalize_path = None
+        self.record = PolicyRecord.read_json(spec) if spec is not None else PolicyRecord()
+        self.mode = PolicyMode.of_record(self.record)
+        self.model = _load_sb3(path, self.record.algorithm)  # first: is it a model at all
+        self.normalize_path = _normalization_path(path, normalize_path, self.record)
         self.obs_mean = self.obs_var = None
         self.clip_obs, self.epsilon = 10.0, 1e-8
-        self.normalize_path = None if normalize_path is None else Path(normalize_path)
         if self.normalize_path is not None:
-            if not self.normalize_path.is_file():
-                raise FileNotFoundError(f"no VecNormalize statistics at {self.normalize_path}")
-            with open(self.normalize_path, "rb") as f:
-                vn = pickle.load(f)  # SB3's own format for VecNormalize
-            if vn.norm_obs:  # statistics exist even when they were not used
-                self.obs_mean, self.obs_var = vn.obs_rms.mean.copy(), vn.obs_rms.var.copy()
-                self.clip_obs, self.epsilon = vn.clip_obs, vn.epsilon
-        meta = next((d / "metadata.json" for d in (path.parent, path.parent.parent) if (d / "metadata.json").is_file()), None)
-        self.metadata = json.loads(meta.read_text()) if meta is not None else {}
+            shape = self.model.observation_space.shape
+            self.obs_mean, self.obs_var, self.clip_obs, self.epsilon = read_normalization(self.normalize_path, shape)
+        self.metadata, env = _run_record(path, self.record.algorithm or "ppo")
         self.task = EntryTask() if task is None else task
-        env = self.metadata.get("config", {}).get("env")
         if env is not None:
-            self.task.check_trained(EntryTask(dt=float(env["dt"]), substeps=int(env["substeps"])).record(),
-                                    f"the model {path}")  # fmt: skip
-        self.provenance = self.metadata.get("provenance") or (
-            {"algorithm": f"{self.metadata.get('algorithm', self.spec.get('algorithm', 'ppo'))} (stable-baselines3)",
-             "start": {"residual": "TV-LQR, residual", "direct": "scratch"}.get(self.spec["mode"], self.spec["mode"]),
-             "timesteps": self.metadata.get("timesteps"), "seed": self.metadata.get("seed")}
-            if self.from_run else None)  # fmt: skip
-        if self.spec["mode"] == "student":
-            floor = self.spec["student"].get("q_floor_margin")
-            self.with_q_floor(floor)
-            if floor is not None and self.provenance is not None:
-                self.provenance = {**self.provenance, "q_floor_margin": floor}
+            self.task.check_trained(EntryTask(dt=env.dt, substeps=env.substeps).record(), f"the model {path}")
+        self.provenance = self._provenance()
+        self._act = self.mode.law(self.model, self.normalize, self.task)
+
+    @property
+    def spec(self) -> dict:
+        """``policy.json`` as a dict (``{"mode": "direct", ...}`` for a model without one)."""
+        return self.record.to_dict()
+
+    def _provenance(self) -> dict | None:
+        meta = self.metadata
+        if meta is not None and meta.provenance:
+            provenance = dict(meta.provenance)
+        elif self.from_run:
+            algorithm = (meta and meta.algorithm) or self.record.algorithm or "ppo"
+            provenance = {"algorithm": f"{algorithm} (stable-baselines3)", "start": self.mode.origin,
+                          "timesteps": meta and meta.timesteps, "seed": meta and meta.seed}  # fmt: skip
         else:
-            self._act = make_policy(Predictor(self.model, self.normalize), self.spec["mode"],
-                                    self.spec.get("authority_rad"), self.task)  # fmt: skip
+            return None
+        floor = self.mode.q_floor_margin
+        return provenance if floor is None else {**provenance, "q_floor_margin": floor}
 
-    def with_q_floor(self, margin: float | None) -> "SB3Policy":
+    def with_q_floor(self, margin: float | None) -> SB3Policy:
         """A student-mode policy flies with the q floor ``margin`` (None: none) in place of its own."""
-        from rventry_agents.finetune import fine_tuned_law
-
-        if self.spec["mode"] != "student":
-            raise ValueError(f"a q floor belongs to a policy fine-tuned from a student, not to a {self.spec['mode']!r} one")
-        self._act = fine_tuned_law(self.model.policy, {**self.spec["student"], "q_floor_margin": margin}, self.task)
+        self.mode = self.mode.with_q_floor(margin)
+        self._act = self.mode.law(self.model, self.normalize, self.task)
         return self
 
     def reset(self, n_episodes: int) -> None:
@@ -257,5 +256,5 @@ __all__ = [
     "load_baseline",
     "load_saved",
     "load_shipped",
-    "make_policy",
+    "read_normalization",
 ]

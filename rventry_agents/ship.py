@@ -15,10 +15,11 @@ Only what evaluation needs travels, with the run's record:
 
 from __future__ import annotations
 
-import json
 import shutil
 from pathlib import Path
 
+from rventry_agents.config import read_json
+from rventry_agents.records import PolicyRecord
 from rventry_env.util.files import atomic_write, write_json
 
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
@@ -29,18 +30,20 @@ DAGGER_RECORDS = ("final.json", "distil.json", "flight.json")  # written by some
 def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     """Copy the selected policy of ``run_dir`` to ``dest`` (default: the packaged policy directory).
 
-    :param run_dir: a finished ``rventry train ppo | recurrent-ppo | sac | dagger`` output directory.
+    :param run_dir: a finished ``rventry train`` output directory (any stable-baselines3 command, or ``dagger``).
     :param dest: where to put it.
     """
     from rventry_agents.config import algorithm_class
+    from rventry_agents.sb3_policy import SB3Policy
 
     run_dir = Path(run_dir)
     if (run_dir / "student.json").exists():
         return _ship_dagger(run_dir, dest)
     _check_finished(run_dir, ("model.zip", *RUN_FILES), "training run")
     dest = Path(dest) if dest is not None else default_destination(run_dir)
+    SB3Policy(run_dir)  # a policy that does not load (or whose records are corrupt) is not shipped
+    algorithm = PolicyRecord.read_json(run_dir / "policy.json").algorithm or "ppo"
     dest.mkdir(parents=True, exist_ok=True)
-    algorithm = json.loads((run_dir / "policy.json").read_text()).get("algorithm", "ppo")
     model = algorithm_class(algorithm).load(run_dir / "model.zip", device="cpu")
     # a fresh optimizer carries no moment buffers; the weights are untouched (SAC: actor and critic each have one)
     for part in (model.policy, getattr(model, "actor", None), getattr(model, "critic", None)):
@@ -56,27 +59,22 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
 
 def default_destination(run_dir: str | Path) -> Path:
     """Where a finished run's policy is shipped unless told otherwise, by what the run trained: a
-    DAgger run's student to ``dagger``'s directory; PPO fine-tuning of a student (``policy.json``
-    mode ``student``) to ``ppo``'s; a residual on TV-LQR to ``ppo-residual``'s; a plain baseline
-    (mode ``direct``) to its algorithm's baseline directory."""
-    from rventry_agents.sb3_policy import BASELINE_AGENTS, SHIPPED_BASELINES, SHIPPED_PPO, SHIPPED_PPO_FINETUNE
+    DAgger run's student to ``dagger``'s directory; a stable-baselines3 run where its mode ships
+    (:meth:`~rventry_agents.modes.PolicyMode.destination`): PPO fine-tuning of a student to
+    ``ppo``'s, a residual on TV-LQR to ``ppo-residual``'s, a plain baseline to its algorithm's
+    baseline directory."""
+    from rventry_agents.modes import PolicyMode
 
     run_dir = Path(run_dir)
     if (run_dir / "student.json").exists():
         from rventry_agents.dagger import SHIPPED_DAGGER
 
         return SHIPPED_DAGGER
-    spec = json.loads((run_dir / "policy.json").read_text())
-    mode = spec.get("mode", "direct")
-    if mode == "student":
-        return SHIPPED_PPO_FINETUNE
-    if mode == "residual":
-        return SHIPPED_PPO
-    folder = spec.get("algorithm", "ppo")  # the baselines' folders are named by algorithm
-    if mode != "direct" or folder not in BASELINE_AGENTS.values():
-        raise ValueError(f"{run_dir / 'policy.json'}: no shipped place for mode {mode!r}, algorithm "
-                         f"{spec.get('algorithm')!r}; give --dest")  # fmt: skip
-    return SHIPPED_BASELINES / folder
+    record = PolicyRecord.read_json(run_dir / "policy.json")
+    try:
+        return PolicyMode.of_record(record).destination(record.algorithm or "ppo")
+    except ValueError as exc:
+        raise ValueError(f"{run_dir / 'policy.json'}: {exc}") from None
 
 
 def _check_finished(run_dir: Path, files: tuple[str, ...], what: str) -> None:
@@ -87,7 +85,7 @@ def _check_finished(run_dir: Path, files: tuple[str, ...], what: str) -> None:
 
 def _write_metadata(run_dir: Path, dest: Path) -> None:
     """The run's metadata, with where it was shipped from."""
-    meta = json.loads((run_dir / "metadata.json").read_text())
+    meta = read_json(run_dir / "metadata.json")
     meta["shipped_from"] = str(run_dir)
     write_json(dest / "metadata.json", meta)
 

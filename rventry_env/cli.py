@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "rventry_env.evaluation.cli",
     "rventry_env.evaluation.oracle_cli",
     "rventry_env.validation.cli",
+    "rventry_env.task.glossary",
 )
 COMMAND_GROUP = "rventry.commands"
 
@@ -31,7 +32,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rventry",
         description="Entry guidance research on the rv-Euler parameterization (Miller & Rao).",
+        epilog="The words the commands print are explained by `rventry glossary`.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)
@@ -39,6 +42,18 @@ def build_parser() -> argparse.ArgumentParser:
         ep.load()(sub)
     _negative_numbers_are_values(parser)
     return parser
+
+
+def _version() -> str:
+    """The installed distribution's version (the package's own where it runs from a source tree)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("rventry")
+    except PackageNotFoundError:
+        from rventry_env import __version__
+
+        return __version__
 
 
 # argparse takes "-1e9" for an option (its own pattern knows "-1" and "-1.5" only) and answers

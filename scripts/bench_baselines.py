@@ -3,7 +3,7 @@
 Each baseline is a finished training run (``rventry train ppo | recurrent-ppo | sac --config
 rventry_agents/baselines/<algorithm>.toml``), shipped or not. This script flies each run's selected
 model on the evaluation's seeds (never the selection's): the nominal flight, 200 standard-set and
-200 wide-set episodes from seed 0, and prints the table the README quotes. It also draws every
+200 wide-set episodes from seed 0, and prints the table the manual's learned-policies results quote. It also draws every
 run's selection-set learning curve in one figure.
 
     python scripts/bench_baselines.py --json out/bench_baselines.json --plot out/baselines_learning_curves.png

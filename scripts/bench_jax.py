@@ -16,7 +16,7 @@ Prints, on the default JAX device (say which in the output: CPU, or a GPU where 
 
 Run: ``python scripts/bench_jax.py [--json PATH] [--quick]``
 
-On a GPU the functional env wants millions of vehicles, and PPO a bigger batch: the README's GPU
+On a GPU the functional env wants millions of vehicles, and PPO a bigger batch: the manual's GPU
 figures come from ``--functional-sizes 65536 1048576 4194304 --functional-steps 100``
 (``--functional-parts`` splits a step's time between the physics and the autoreset) and from
 ``rventry train jax-ppo --config rventry_agents/baselines/jax_ppo_gpu.toml``
@@ -210,11 +210,11 @@ def sb3_ppo_speed(timesteps: int) -> dict:
     from rventry_agents.train import BASELINES, algorithm_class, load_config, make_task, make_vec_env, policy_kwargs
 
     cfg = load_config(BASELINES / "ppo.toml", "ppo")
-    torch.set_num_threads(int(cfg["train"].get("torch_threads", 2)))
+    torch.set_num_threads(cfg.train.torch_threads)
     venv = make_vec_env(cfg, make_task(cfg), algorithm="ppo")
     model = algorithm_class("ppo")("MlpPolicy", venv, seed=0, device="cpu", policy_kwargs=policy_kwargs(cfg, "ppo"),
-                                   verbose=0, **dict(cfg["ppo"]))  # fmt: skip
-    model.learn(int(cfg["env"]["num_envs"]) * int(cfg["ppo"]["n_steps"]))  # warm-up: one rollout and update
+                                   verbose=0, **cfg.ppo.kwargs())  # fmt: skip
+    model.learn(cfg.env.num_envs * cfg.ppo.n_steps)  # warm-up: one rollout and update
     t0 = time.perf_counter()
     model.learn(timesteps, reset_num_timesteps=False)
     return {"env_steps_per_s": timesteps / (time.perf_counter() - t0), "timesteps": timesteps}

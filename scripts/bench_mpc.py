@@ -24,7 +24,7 @@ precision tier's miss, and success by the size of the vertical (altitude) error.
     python scripts/bench_mpc.py --scan --variants flight --dispersion flight --episodes 12 --workers 2 --json out/scan_mpc_flight.json
     python scripts/bench_mpc.py --scan --variants aero --dispersion flight --episodes 20 --seed 1000 --workers 2 --json out/scan_mpc_aero.json
 
-Timings depend on the machine: the README quotes this 2-core machine's (``--workers 2``).
+Timings depend on the machine: the manual's results quote this 2-core machine's (``--workers 2``).
 Success rates do not: the solver's budget is an iteration count.
 """
 

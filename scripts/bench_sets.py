@@ -2,7 +2,7 @@
 Wilson intervals, miss percentiles, and the oracle's ceiling beside them.
 
 For each set and law this runs what ``rventry evaluate --agent LAW --dispersion SET`` runs (seeds
-0 .. N-1) and prints one Markdown table per set (the README's). The ceiling column reads
+0 .. N-1) and prints one Markdown table per set (the manual's flight-grade results). The ceiling column reads
 ``out/oracle_SET.json`` (``rventry oracle --dispersion SET --episodes 50 --json out/oracle_SET.json``)
 when it is there.
 

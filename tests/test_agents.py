@@ -17,16 +17,15 @@ from rventry_env.evaluation.rollout import rollout
 SMOKE_TASK = EntryTask()
 
 
-def _smoke_config() -> dict:
-    """The shipped config, shrunk to a smoke test (every key still comes from rventry_agents/ppo.toml)."""
+def _smoke_config():
+    """The shipped config, shrunk to a smoke test (every other key still comes from rventry_agents/ppo.toml)."""
     from rventry_agents.train import load_config
 
-    cfg = load_config()
-    cfg["env"].update(num_envs=8, max_episode_steps=60)
-    cfg["ppo"].update(n_steps=64, batch_size=256, n_epochs=2)
-    cfg["policy"].update(net_arch_pi=[32], net_arch_vf=[32])
-    cfg["train"].update(eval_every=1024, eval_episodes=4, checkpoint_every=1024, torch_threads=1)
-    return cfg
+    return load_config().merged({
+        "env": {"num_envs": 8, "max_episode_steps": 60}, "ppo": {"n_steps": 64, "batch_size": 256, "n_epochs": 2},
+        "policy": {"net_arch_pi": [32], "net_arch_vf": [32]},
+        "train": {"eval_every": 1024, "eval_episodes": 4, "checkpoint_every": 1024, "torch_threads": 1},
+    })  # fmt: skip
 
 
 @pytest.mark.slow
@@ -114,18 +113,16 @@ def test_any_saved_sb3_algorithm_loads(tmp_path):
     assert batch.miss_km.shape == (2,)
 
 
-def _baseline_smoke_config(algorithm: str) -> dict:
+def _baseline_smoke_config(algorithm: str):
     """A plain baseline's shipped config, shrunk to a smoke test."""
     from rventry_agents.train import BASELINES, load_config
 
-    cfg = load_config(BASELINES / f"{algorithm}.toml", algorithm)
-    cfg["env"].update(num_envs=8, max_episode_steps=60)
-    if algorithm == "sac":
-        cfg["sac"].update(learning_starts=200, buffer_size=10_000, batch_size=64)
-    else:
-        cfg[algorithm].update(n_steps=64, batch_size=256, n_epochs=2)
-    cfg["train"].update(eval_every=1024, eval_episodes=4, checkpoint_every=1024, torch_threads=1)
-    return cfg
+    small = {"learning_starts": 200, "buffer_size": 10_000, "batch_size": 64} if algorithm == "sac" else \
+        {"n_steps": 64, "batch_size": 256, "n_epochs": 2}  # fmt: skip
+    return load_config(BASELINES / f"{algorithm}.toml", algorithm).merged({
+        "env": {"num_envs": 8, "max_episode_steps": 60}, algorithm: small,
+        "train": {"eval_every": 1024, "eval_episodes": 4, "checkpoint_every": 1024, "torch_threads": 1},
+    })  # fmt: skip
 
 
 @pytest.mark.parametrize("algorithm", ["ppo", "recurrent_ppo", "sac"])
@@ -134,11 +131,13 @@ def test_plain_baseline_configs_fly_directly_from_scratch(algorithm):
     environment's own reward, and at least 10M steps."""
     from rventry_agents.train import BASELINES, load_config
 
+    from rventry_env.envs.reward import RewardWeights
+
     cfg = load_config(BASELINES / f"{algorithm}.toml", algorithm)
-    assert cfg["policy"]["mode"] == "direct" and "reward" not in cfg
-    assert cfg["shaping"]["range_weight"] == 0.0
-    assert cfg["train"]["total_timesteps"] >= 10_000_000
-    assert cfg["train"]["eval_seed"] != 0  # selection never uses the evaluation's seeds
+    assert cfg.policy.mode == "direct" and cfg.reward == RewardWeights()
+    assert cfg.shaping.range_weight == 0.0
+    assert cfg.train.total_timesteps >= 10_000_000
+    assert cfg.train.eval_seed != 0  # selection never uses the evaluation's seeds
 
 
 def test_a_config_without_the_algorithms_section_or_with_a_residual_off_ppo_is_refused(tmp_path):
@@ -148,8 +147,8 @@ def test_a_config_without_the_algorithms_section_or_with_a_residual_off_ppo_is_r
         load_config(load_config(), "sac")
     with pytest.raises(ValueError, match="unknown algorithm 'dqn'"):
         load_config(None, "dqn")
-    cfg = _baseline_smoke_config("sac")
-    cfg["policy"].update(mode="residual", alpha_authority_deg=1.0, sigma_authority_deg=5.0)
+    cfg = _baseline_smoke_config("sac").to_dict()
+    cfg["policy"] = {"mode": "residual", "alpha_authority_deg": 1.0, "sigma_authority_deg": 5.0}
     with pytest.raises(ValueError, match="residual' is built for ppo, not sac"):
         train_sb3("sac", cfg, timesteps=64, out=tmp_path / "run", progress_bar=False)
     assert not (tmp_path / "run").exists()  # refused before anything is written
@@ -182,8 +181,7 @@ def test_plain_baseline_trains_saves_reloads_and_evaluates_deterministically(tmp
     with pytest.raises(ValueError, match="has done 2,048 of 2,048 steps"):
         train_sb3(algorithm, _baseline_smoke_config(algorithm), timesteps=2048, seed=3, out=out, task=SMOKE_TASK,
                   progress_bar=False, resume=True)  # fmt: skip
-    changed = _baseline_smoke_config(algorithm)
-    changed["train"]["eval_episodes"] = 5
+    changed = _baseline_smoke_config(algorithm).merged({"train": {"eval_episodes": 5}})
     with pytest.raises(ValueError, match=r"config differs .*\['train'\]"):
         train_sb3(algorithm, changed, timesteps=4096, seed=3, out=out, task=SMOKE_TASK, progress_bar=False, resume=True)
     train_sb3(algorithm, _baseline_smoke_config(algorithm), timesteps=4096, seed=3, out=out, task=SMOKE_TASK,
@@ -307,8 +305,11 @@ def test_ship_puts_each_kind_of_run_in_its_own_place_by_default(tmp_path):
             (d / "student.json").write_text("{}")
         return d
 
-    assert default_destination(run("ft", {"algorithm": "ppo", "mode": "student"})) == SHIPPED_PPO_FINETUNE
-    assert default_destination(run("res", {"mode": "residual"})) == SHIPPED_PPO
+    shipped = {name: json.loads((folder / "policy.json").read_text()) for name, folder in
+               (("ft", SHIPPED_PPO_FINETUNE), ("res", SHIPPED_PPO))}  # fmt: skip
+    assert shipped["ft"]["mode"] == "student" and shipped["res"]["mode"] == "residual"
+    assert default_destination(run("ft", shipped["ft"])) == SHIPPED_PPO_FINETUNE
+    assert default_destination(run("res", shipped["res"])) == SHIPPED_PPO
     assert default_destination(run("sac", {"algorithm": "sac", "mode": "direct"})) == SHIPPED_BASELINES / "sac"
     assert default_destination(run("dagger", student=True)) == SHIPPED_DAGGER
     with pytest.raises(ValueError, match=r"no shipped place for mode 'direct', algorithm 'a2c'; give --dest"):

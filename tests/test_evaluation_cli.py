@@ -37,7 +37,15 @@ def test_compare_on_a_few_episodes_writes_the_report_and_plots(tmp_path, capsys)
     assert sorted(p.name for p in plots.iterdir()) == ["dispersed_outcomes.png", "dispersed_trajectories.png",
                                                        "nominal_trajectories.png"]  # fmt: skip
     printed = capsys.readouterr().out
-    assert "2 or 1 dispersed episodes per law (standard set)" in printed and "benchmark's targets" in printed
+    assert "Standard set, seeds 5-6: 2 episodes per law (mpc: 1)" in printed and "Best on the standard set: " in printed
+    assert "NOT met" not in printed and doc["verdict"][0].startswith("Best on the standard set: ")
+    # the tables fit a 100-column terminal, every cell on one line: one table line per law
+    assert max(len(line) for line in printed.splitlines() if "─" in line) <= 100
+    import re
+
+    for law in ("learned", "dagger-flight", "dagger", "ppo-plain", "lqr", "lqr-est", "mpc", "reference"):
+        rows = [line for line in printed.splitlines() if re.match(rf"{re.escape(law)}\s+(yes|no|\d)", line)]
+        assert len(rows) == 2, (law, rows)
 
 
 def test_compare_checks_its_destinations_before_flying(tmp_path, capsys):

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from rventry_agents.imitation import network_bytes
-from rventry_agents.train import FINETUNE_CONFIG, train_sb3
+from rventry_agents.train import FINETUNE_CONFIG, load_config, train_sb3
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 
-START = tomllib.loads(FINETUNE_CONFIG.read_text())["policy"]["start"]  # the shipped config's student
+START = load_config(FINETUNE_CONFIG).policy.start  # the shipped config's student
 
 
 def _small(total: int, warmup: int) -> dict:
@@ -99,17 +99,18 @@ def test_fine_tuning_refuses_a_bad_q_floor_margin_before_writing(tmp_path):
 def test_the_fine_tuning_env_hands_the_law_the_navigation_state_as_evaluation_does():
     """On `flight` the vehicle's navigation errs; PPO must train on what the law flies by in
     evaluation (rollout hands it info["navigation_state"]), never on the truth."""
-    from rventry_agents.finetune import StudentScales, StudentVecEnv, load_start
+    from rventry_agents.finetune import StudentVecEnv
     from rventry_agents.train import make_task, make_vec_env
 
-    cfg = _small(512, 0)
-    assert cfg["env"]["dispersion"] == "flight"
+    cfg = load_config(_small(512, 0))
+    assert cfg.env.dispersion == "flight"
     task = make_task(cfg, None)
-    law = load_start(START, task)
+    mode = cfg.policy.build(task)  # loads the student
+    law = mode.student
     seen = []
     observe = law.tracker.estimator.observe
     law.tracker.estimator.observe = lambda m: (seen.append(m.navigation_state.copy()), observe(m))[1]
-    venv = make_vec_env(cfg, task, student=(law, StudentScales.of(law.network)))
+    venv = make_vec_env(cfg, task, mode=mode)
     student = venv
     while not isinstance(student, StudentVecEnv):
         student = student.venv
@@ -175,7 +176,8 @@ def test_a_privileged_critic_sees_the_draw_and_the_actor_flies_as_the_student(tm
 
 
 @pytest.mark.parametrize("policy, message", [({"privileged_critic": "yes"}, "must be true or false"),
-                                             ({"mode": "direct", "privileged_critic": True}, "built for mode = 'student'")])  # fmt: skip
+                                             ({"mode": "direct", "privileged_critic": True},
+                                              r"\[policy\] .*unknown key 'privileged_critic'; it belongs to mode = 'student', not 'direct'")])  # fmt: skip
 def test_a_bad_privileged_critic_setting_is_refused_before_writing(tmp_path, policy, message):
     cfg = _small(512, 0)
     cfg["policy"].update(policy)

@@ -148,6 +148,7 @@ MATH = Namespace(
     fmin=min,
     where=lambda cond, a, b: a if cond else b,
     isfinite=math.isfinite,
+    interp=lambda x, xp, fp: float(np.interp(x, xp, fp)),
     array=False,
     any=bool,
     all=bool,

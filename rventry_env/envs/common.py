@@ -18,11 +18,20 @@ from rventry_env.physics.model import EntryModel
 class EntryEnvSetup:
     """Construction shared by :class:`RvEntryEnv` and :class:`RvEntryVectorEnv`."""
 
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        """The observation's feature names in index order (``obs[..., i]`` is ``feature_names[i]``;
+        :func:`rventry_env.envs.observation.feature_index` gives an index by name)."""
+        from rventry_env.envs.observation import feature_names
+
+        return feature_names()
+
     def _configure(self, model, task, reward, dt, substeps, dispersion, render_mode, ns,
-                   targets=None) -> tuple[spaces.Box, spaces.Box]:  # fmt: skip
+                   targets=None, starts=None, shaping=None) -> tuple[spaces.Box, spaces.Box]:  # fmt: skip
         """Validate and store the arguments; return the single-copy (observation, action) spaces."""
         from rventry_env.envs.observation import observation_box
         from rventry_env.envs.propagation import Propagator
+        from rventry_env.envs.shaping import check_shaping
 
         self.model = make_model(model)
         self.task = make_task(task, dt, substeps, targets)
@@ -41,11 +50,21 @@ class EntryEnvSetup:
         self._nominal = self.task.problem.initial_state(self.model.planet.radius)
         self._obs_low, self._obs_high = observation_box(self.task, self._radius)
         self._prop = Propagator(self.task, ns, self.reward)
+        self.starts = check_starts(starts, self._radius, self.task)
+        self.shaping = check_shaping(shaping)
         self._x = None
         return (
             spaces.Box(self._obs_low, self._obs_high, dtype=np.float32),
             spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32),
         )
+
+
+    def _potential(self, x, c_ae, ns):
+        """The shaping potential of the true states ``x`` (C_AE ``c_ae``); None without shaping."""
+        if self.shaping is None:
+            return None
+        planet = self.model.planet
+        return self.shaping.phi(x, c_ae, self._target, planet.mu, planet.radius, ns)
 
 
 def _feature_major(columns, dtype) -> np.ndarray:
@@ -258,6 +277,66 @@ def check_state(state, radius: float, task: EntryTask) -> np.ndarray:
         raise ValueError(f"the initial alpha must lie in [0, {math.degrees(alpha_max):g}] deg (alpha_max), "
                          f"got {x[10]:.6g} rad")  # fmt: skip
     return x
+
+
+def check_starts(starts, radius: float, task: EntryTask):
+    """A :class:`~rventry_env.task.StartStates` (or None) checked against the planet and the task: every
+    state its window can pick, at the extremes of its perturbations, lies above the surface and below
+    the skip-out ceiling, with alpha in [0, alpha_max] (the perturbation holds alpha there)."""
+    from rventry_env.task.starts import StartStates
+
+    if starts is None:
+        return None
+    if not isinstance(starts, StartStates):
+        raise TypeError(f"starts must be a StartStates (rventry_env.task.starts) or None, got {type(starts).__name__}")
+    lo, hi = starts.window_times()
+    rows = starts.states[(starts.times >= lo - 1e-9) & (starts.times <= hi + 1e-9)]
+    if rows.size == 0:
+        raise ValueError(f"start states ({starts.label}): no table state lies in the window {starts.before_end_s} s before its end")
+    h = rows[:, 0] - radius
+    if h.min() - starts.altitude_m <= 0 or h.max() + starts.altitude_m > task.ceiling_altitude:
+        raise ValueError(
+            f"start states ({starts.label}): altitudes {h.min():.0f}-{h.max():.0f} m with the +/-{starts.altitude_m:g} m "
+            f"perturbation must lie above the surface and below the skip-out ceiling ({task.ceiling_altitude:g} m)"
+        )
+    alpha = rows[:, 10]
+    if alpha.min() < 0 or alpha.max() > task.problem.alpha_max:
+        raise ValueError(f"start states ({starts.label}): alpha must lie in [0, alpha_max] in every state of the window")
+    if rows[:, 5].min() - starts.speed_mps <= 0 or rows[:, 5].max() + starts.speed_mps > MAX_INITIAL_SPEED:
+        raise ValueError(f"start states ({starts.label}): speeds with the +/-{starts.speed_mps:g} m/s perturbation must "
+                         f"lie in (0, {MAX_INITIAL_SPEED:g}] m/s")  # fmt: skip
+    return starts
+
+
+# a start state lies this far inside each path bound (relative): the success test allows 1 % outside
+START_MARGIN = 0.005
+_SLOPE_STEP_M = 10.0
+
+
+def within_path_bounds(x: tuple, model: EntryModel, task: EntryTask, ns, iterations: int = 2) -> tuple:
+    """The start state components ``x`` moved in altitude where needed, so that the dynamic pressure lies
+    :data:`START_MARGIN` inside q >= q_min and the load factor inside n <= n_max.
+
+    A state taken from a trajectory that rides a path bound (the optimum rides q_min) and then
+    perturbed can start outside it, and an episode that starts outside a bound has failed before
+    its first decision. At a fixed speed and alpha both q and n scale with the density, so the
+    altitude alone moves them: ``iterations`` Newton steps on ln q(h), its slope from a
+    10 m difference of the model's own forces (any atmosphere, wind and aerodynamics). Floats,
+    NumPy arrays or JAX values alike.
+    """
+    from rventry_env.physics.entry import entry_forces
+
+    p, g0 = task.problem, model.planet.g0
+    x = list(x)
+    for _ in range(iterations):
+        f = entry_forces(x, model, ns)
+        q, n = f.dynamic_pressure, f.aero_accel / g0
+        q_hi = q * p.a_max_g * (1.0 - START_MARGIN) / ns.fmax(n, 1e-12)  # where n meets its bound
+        want = ns.fmax(ns.fmin(q, q_hi), p.q_min * (1.0 + START_MARGIN))  # q_min first where both bind
+        up = entry_forces([x[0] + _SLOPE_STEP_M, *x[1:]], model, ns).dynamic_pressure
+        slope = (ns.log(up) - ns.log(q)) / _SLOPE_STEP_M  # d ln q / dh < 0
+        x[0] = x[0] + ns.log(want / q) / slope
+    return tuple(x)
 
 
 def position_velocity_e(c_ae, c_ba, r, v):

@@ -68,10 +68,15 @@ from rventry_env.envs.observation import observation_box
 from rventry_env.envs.propagation import Propagator
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import SCALAR_FIELDS, Dispersion, apply_state_dispersion, disperse_state
+from rventry_env.envs.outcome import time_limit_penalty
+from rventry_env.envs.shaping import PotentialShaping, check_shaping
 from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
+from rventry_env.task.starts import DRAWS, StartStates, perturbed, window_time
 from rventry_env.physics.model import EntryModel, numeric_leaves, scaled_model, with_numeric_leaves
 
 DTYPES = ("float32", "float64")
+ENV_DEFAULT = object()  # make_params: the environment's own setting
+_START_OFFSET = 96  # the start draw's counters, after the dispersion's, the pool pick's and the sensors'
 
 
 class EnvParams(NamedTuple):
@@ -84,6 +89,18 @@ class EnvParams(NamedTuple):
     clip_sigmas: Any  # where the normals are clipped
     max_steps_in_episode: Any  # time limit in control steps
     pool: Any = None  # flight-grade environments: the FlightPool the resets pick from
+    starts: Any = None  # environments with start states: the StartParams the resets draw from
+
+
+class StartParams(NamedTuple):
+    """A :class:`~rventry_env.task.starts.StartStates` as arrays (changing them needs no recompilation)."""
+
+    times: Any  # (K,) the table's flight times
+    states: Any  # (K, 12)
+    window: Any  # (2,) the table times an episode may start at: earliest, latest
+    probability: Any  # the share of episodes that start from the table
+    half_widths: Any  # (6,) the perturbations of PERTURBATIONS
+    far_weight: Any  # the start time's density grows toward the window's far end as (s - earliest)^far_weight
 
 
 class FlightPool(NamedTuple):
@@ -116,6 +133,7 @@ class EnvState(NamedTuple):
     flight: Flight
     scales: Any  # (4,) this episode's density, C_L, C_D and mass factors
     errors: Any = None  # flight-grade environments: this episode's FlightDraw
+    potential: Any = None  # environments with shaping: the potential of the current state
 
     @property
     def time(self):
@@ -141,7 +159,8 @@ class RvEntryFunctional(environment.Environment):
 
     def __init__(self, model=None, task=None, dt=None, substeps=None, dispersion=None,
                  max_episode_steps: int = MAX_EPISODE_STEPS, dtype: str = "float32",
-                 reward: RewardWeights | None = None, pool_size: int = 256):  # fmt: skip
+                 reward: RewardWeights | None = None, pool_size: int = 256, starts: StartStates | None = None,
+                 shaping: PotentialShaping | None = None, time_limit_is_failure: bool = False):  # fmt: skip
         super().__init__()
         if dtype not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
@@ -169,10 +188,16 @@ class RvEntryFunctional(environment.Environment):
         radius = self.model.planet.radius
         self.obs_low, self.obs_high = observation_box(self.task, radius)
         self._nominal = self.task.problem.initial_state(radius)
+        self.starts = common.check_starts(starts, radius, self.task)
+        self.shaping = check_shaping(shaping)
+        if not isinstance(time_limit_is_failure, bool):
+            raise ValueError(f"time_limit_is_failure must be True or False, got {time_limit_is_failure!r}")
+        self.time_limit_is_failure = time_limit_is_failure
 
     # gymnax's step/reset are jitted with ``self`` static: hash and compare by configuration
     def _key(self):
-        return (type(self), self.model, self.task, self.reward, self.dtype, self.flight_grade, self.pool_size)
+        return (type(self), self.model, self.task, self.reward, self.dtype, self.flight_grade, self.pool_size,
+                id(self.shaping), self.time_limit_is_failure)  # fmt: skip
 
     def __hash__(self):
         return hash(self._key())
@@ -186,13 +211,15 @@ class RvEntryFunctional(environment.Environment):
         return self.make_params()
 
     def make_params(self, model: EntryModel | None = None, dispersion=None, max_episode_steps: int | None = None,
-                    nominal=None, seed: int = 0) -> EnvParams:  # fmt: skip
+                    nominal=None, seed: int = 0, starts=ENV_DEFAULT) -> EnvParams:  # fmt: skip
         """Params for a model with this environment's structure (its parts' types and tuples).
 
         :param model: default: the environment's. Another model must have the same structure
             (e.g. the same parts with other numbers, or per-vehicle arrays in their place).
         :param nominal: an initial state (12,), checked like ``reset(options={"state": ...})``.
         :param seed: flight-grade environments: the seed of the pool of flight-grade draws.
+        :param starts: a :class:`~rventry_env.task.starts.StartStates` the resets draw from, or None for
+            none (default: the environment's).
         """
         model = self.model if model is None else common.make_model(model)
         leaves = numeric_leaves(model)
@@ -215,7 +242,20 @@ class RvEntryFunctional(environment.Environment):
         return EnvParams(tuple(jnp.asarray(v, dtype=f) for v in leaves), jnp.asarray(x0, f),
                          jnp.asarray([*half, dispersion.mass], f), jnp.asarray(dispersion.shape == "gaussian"),
                          jnp.asarray(dispersion.clip_sigmas, f), jnp.asarray(steps, jnp.int32),
-                         self._pool(model, dispersion, seed) if self.flight_grade else None)  # fmt: skip
+                         self._pool(model, dispersion, seed) if self.flight_grade else None,
+                         self.start_params(self.starts if starts is ENV_DEFAULT else starts, model))  # fmt: skip
+
+    def start_params(self, starts, model: EntryModel | None = None) -> StartParams | None:
+        """Start states as the params' arrays (checked against the model's planet and the task): what a
+        curriculum changes between calls without recompiling (``params._replace(starts=...)``)."""
+        model = self.model if model is None else model
+        starts = common.check_starts(starts, model.planet.radius, self.task)
+        if starts is None:
+            return None
+        f = self.ns.float_dtype
+        return StartParams(jnp.asarray(starts.times, f), jnp.asarray(starts.states, f),
+                           jnp.asarray(starts.window_times(), f), jnp.asarray(starts.probability, f),
+                           jnp.asarray(starts.half_widths, f), jnp.asarray(starts.far_weight, f))  # fmt: skip
 
     def _pool(self, model: EntryModel, dispersion: Dispersion, seed: int) -> FlightPool:
         """The pool of flight-grade draws (zeros for a set without them)."""
@@ -247,8 +287,32 @@ class RvEntryFunctional(environment.Environment):
             errors = FlightDraw(row, row.dr, row.dv)
         model = self._model(params, scales, errors)
         flight = start_flight(x0, model, self.prop)
-        obs, _, _ = self._observe(key, flight, dcm(*x0[1:5]), model, params, errors, None)
-        return obs, EnvState(flight, scales, errors)
+        if params.starts is not None:
+            flight = self._start_from_table(key, params.starts, flight, model)
+        c_ae = dcm(*flight.x[1:5])
+        obs, _, _ = self._observe(key, flight, c_ae, model, params, errors, None)
+        return obs, EnvState(flight, scales, errors, self._potential(flight.x, c_ae))
+
+    def _start_from_table(self, key, sp: StartParams, flight: Flight, model: EntryModel) -> Flight:
+        """``flight``, or where this reset's draw says so, a flight from the start table (the NumPy
+        environments' rule: :meth:`~rventry_env.task.starts.StartStates.draw`)."""
+        ns = self.ns
+        u = uniforms(key, DRAWS, ns.float_dtype, offset=_START_OFFSET)
+        k = jnp.clip(jnp.searchsorted(sp.times, window_time(u[1], sp.window, sp.far_weight, jnp)), 0,
+                     sp.times.shape[0] - 1)  # fmt: skip
+        row = sp.states[k]
+        x = perturbed(tuple(row[i] for i in range(12)), tuple((2.0 * u[2:] - 1.0) * sp.half_widths),
+                      self.task.problem.alpha_max, ns)  # fmt: skip
+        x = common.within_path_bounds(x, model, self.task, ns)
+        table = start_flight(x, model, self.prop)._replace(t=sp.times[k])
+        return jax.tree.map(lambda a, b: jnp.where(u[0] < sp.probability, a, b), table, flight)
+
+    def _potential(self, x, c_ae):
+        """The shaping potential of the true state (None without shaping)."""
+        if self.shaping is None:
+            return None
+        planet = self.model.planet
+        return self.shaping.phi(x, c_ae, self.target, planet.mu, planet.radius, self.ns)
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         a = jnp.clip(jnp.asarray(action, dtype=self.ns.float_dtype), -1.0, 1.0)
@@ -257,13 +321,20 @@ class RvEntryFunctional(environment.Environment):
         obs, clipped, errors = self._observe(key, tr.flight, tr.c_ae, model, params, state.errors, tr.out.elapsed)
         done = tr.terminated | tr.truncated
         o = tr.outcome
+        reward = tr.reward
+        if self.time_limit_is_failure:  # training: a cut is charged like a failure, and is final
+            reward = reward - jnp.where(tr.truncated, time_limit_penalty(o.metrics, self.reward, self.ns), 0.0)
+        phi = self._potential(tr.flight.x, tr.c_ae)
+        if phi is not None:
+            final = tr.terminated | (tr.truncated & self.time_limit_is_failure)
+            reward = reward + self.shaping.reward(state.potential, phi, final, self.ns)
         info = {
             "terminated": tr.terminated, "truncated": tr.truncated, "status": tr.out.status,
             "observation_clipped": clipped, "time_s": tr.flight.t, "discount": jnp.where(tr.terminated, 0.0, 1.0),
             **o.metrics._asdict(), "constraint_violation": o.constraint_violation, "is_success": o.is_success,
             "terminal_penalty": o.terminal_penalty,
         }  # fmt: skip
-        return obs, EnvState(tr.flight, state.scales, errors), tr.reward, done, info
+        return obs, EnvState(tr.flight, state.scales, errors, phi), reward, done, info
 
     def observation_space(self, params: EnvParams | None = None):
         return spaces.Box(jnp.asarray(self.obs_low), jnp.asarray(self.obs_high), self.obs_low.shape, jnp.float32)
@@ -317,6 +388,37 @@ class RvEntryFunctional(environment.Environment):
         raw = jnp.stack(observe_flight(seen_flight, seen_c_ae, model, self.prop, self.target)).astype(jnp.float32)
         clipped = jnp.any((raw < self.obs_low) | (raw > self.obs_high))
         return jnp.clip(raw, self.obs_low, self.obs_high), clipped, errors
+
+
+def step_batch(env, keys, states, actions, params, resets: int):
+    """One step of a batch of episodes of a gymnax environment, with an optimistic autoreset.
+
+    gymnax's ``step`` computes a whole reset for every episode at every step and selects it where
+    the episode ended; under ``vmap`` both branches always run, and on a GPU the reset is half
+    of an ``RvEntry`` step's time. This steps every episode (``vmap`` of ``step_env``), draws only
+    ``resets`` new starts (keys from the first episode's), and gives the k-th episode that ended
+    the start number k modulo ``resets`` (Craftax's optimistic reset). Each start is a fresh draw
+    of the environment's own reset, so the distribution of starts is the plain reset's; only when
+    more than ``resets`` episodes end in one step do some of them share a start.
+
+    :param keys: (N, 2) one key per episode; ``states``, ``actions``: the batch (N leading).
+    :return: as a vmapped ``step``: observations, states, rewards, dones and infos, each (N, ...).
+    """
+    import jax
+
+    n = actions.shape[0]
+    if not 1 <= resets <= n:
+        raise ValueError(f"resets must lie in [1, {n}] (the batch), got {resets}")
+    obs_st, state_st, reward, done, info = jax.vmap(env.step_env, in_axes=(0, 0, 0, None))(keys, states, actions, params)
+    reset_keys = jax.random.split(jax.random.fold_in(keys[0], 0x5EED), resets)
+    obs_re, state_re = jax.vmap(env.reset_env, in_axes=(0, None))(reset_keys, params)
+    pick = (jnp.cumsum(done) - 1) % resets
+
+    def select(fresh, stepped):
+        mask = done.reshape(done.shape + (1,) * (stepped.ndim - 1))
+        return jnp.where(mask, fresh[pick], stepped)
+
+    return select(obs_re, obs_st), jax.tree.map(select, state_re, state_st), reward, done, info
 
 
 def _flight_grade(dispersion: Dispersion) -> bool:
@@ -389,5 +491,6 @@ def _structure(obj):
     return obj
 
 
-__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "DTYPES", "uniforms",
+__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "StartParams", "DTYPES", "uniforms",
+           "step_batch",
            "dispersion_draw", "with_mass_factor"]  # fmt: skip

@@ -75,9 +75,9 @@ class _Compiled:
         it = iter(dyn)
         return with_numeric_leaves(self.template, iter([next(it) if v is None else v for v in self.scalars]))
 
-    def _restart(self, carry, x0, mask, dyn, errors):
+    def _restart(self, carry, x0, t0, mask, dyn, errors):
         env = self.env
-        fresh = start_flight(tuple(x0), self.model(dyn), env._jprop)
+        fresh = start_flight(tuple(x0), self.model(dyn), env._jprop)._replace(t=t0)
         nav = (errors.dr, errors.dv) if self.sensing else None
         if carry is None:
             return fresh, nav
@@ -138,7 +138,8 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
     """:class:`RvEntryVectorEnv` with its step compiled by JAX (see the module docstring).
 
     :param dtype: ``"float64"`` (default: agrees with NumPy to rounding) or ``"float32"``
-        (faster; see the README for its error at impact).
+        (faster; see the manual's JAX page for its error at impact).
+
     Other arguments as :class:`RvEntryVectorEnv`; ``render_mode`` is not supported.
     """
 
@@ -200,15 +201,20 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
 
     # ------------------------------------------------------------------ backend hooks
     def _reset_copies(self, idx: np.ndarray, dispersion=None) -> list:
-        x0, extras = self._draw(idx, dispersion)
+        x0, t0, started, extras = self._draw(idx, dispersion)
         if self._x0 is None or self._carry is None or len(idx) == self.num_envs:
             self._x0 = np.empty((12, self.num_envs))
+            self._t0 = np.zeros(self.num_envs)
         self._x0[:, idx] = x0.T
+        self._t0[idx] = t0
         mask = np.zeros(self.num_envs, bool)
         mask[idx] = True
         errs = self._errors
         host = (errs.model(self._density, self._lift, self._drag) if errs.any_model
                 else scaled_model(self.model, self._density, self._lift, self._drag))  # fmt: skip
+        if started.any():  # start states inside the path bounds, with each copy's own model (on the host)
+            rows = idx[started]
+            self._x0[0, rows] = common.within_path_bounds(tuple(self._x0), host, self.task, NUMPY)[0][rows]
         leaves = numeric_leaves(host)
         dynamic = tuple(i for i, v in enumerate(leaves) if np.ndim(v) > 0)
         sensing = bool(errs.any_sensing)
@@ -228,7 +234,8 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
             self._carry = (self._carry[0], nav)
         self._fn = fn
         self._dyn = tuple(jnp.asarray(np.ascontiguousarray(leaves[i]), f) for i in dynamic)
-        self._carry = fn.restart(self._carry, jnp.asarray(self._x0, f), jnp.asarray(mask), self._dyn, self._sensor)
+        self._carry = fn.restart(self._carry, jnp.asarray(self._x0, f), jnp.asarray(self._t0, f), jnp.asarray(mask),
+                                 self._dyn, self._sensor)  # fmt: skip
         return extras
 
     def _sensor_errors(self) -> SensorErrors:

@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rventry_env.core.targeting import surface_angle, target_in_a
 from rventry_env.task import EntryTask
 from rventry_env.physics.entry import EntryForces
 
@@ -93,10 +94,8 @@ def observe(x: tuple, forces: EntryForces, c_ae, t, task: EntryTask, target_e, r
     u2, u3 = c_ba[1][0], c_ba[2][0]
     lift_up = u2 * cs + u3 * ss
     lift_right = u2 * ss - u3 * cs
-    # target in A
-    ta = tuple(c_ae[i][0] * target_e[0] + c_ae[i][1] * target_e[1] + c_ae[i][2] * target_e[2] for i in range(3))
-    horiz = ns.sqrt(ta[1] * ta[1] + ta[2] * ta[2])
-    theta = ns.arctan2(horiz, ta[0])
+    ta = target_in_a(c_ae, target_e)
+    theta = surface_angle(ta, ns)
     # heading change about the local vertical, clockwise seen from above (like azimuth)
     vh2, vh3 = c_ba[0][1], c_ba[0][2]
     dot = vh2 * ta[1] + vh3 * ta[2]

@@ -26,6 +26,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from rventry_env.core.targeting import surface_angle, target_in_a
 from rventry_env.envs.propagation import FAILURE_NAMES, IMPACT
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import EntryTask
@@ -57,8 +58,7 @@ def terminal_metrics(x: tuple, c_ae, task: EntryTask, target_e, radius: float, n
     cos = -b1 . a1 = 2 (eB2^2 + eB3^2) - 1 = 1 - 2 (eB1^2 + etaB^2), i.e.
     2 asin(sqrt(eB1^2 + etaB^2)); zero exactly when eB1 = etaB = 0 (Table tab:Ex2-BCs).
     """
-    ta = tuple(c_ae[i][0] * target_e[0] + c_ae[i][1] * target_e[1] + c_ae[i][2] * target_e[2] for i in range(3))
-    theta = ns.arctan2(ns.sqrt(ta[1] * ta[1] + ta[2] * ta[2]), ta[0])
+    theta = surface_angle(target_in_a(c_ae, target_e), ns)
     s = ns.sqrt(ns.fmin(x[6] * x[6] + x[9] * x[9], 1.0))
     vertical = 2.0 * ns.arctan2(s, ns.sqrt(ns.fmax(1.0 - s * s, 0.0)))
     return TerminalMetrics(

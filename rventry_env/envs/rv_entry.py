@@ -16,8 +16,10 @@ from rventry_env.envs.outcome import episode_outcome
 from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
+from rventry_env.envs.shaping import PotentialShaping
 from rventry_env.envs.uncertainty import FlightState, Sensed
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
+from rventry_env.task.starts import StartStates
 from rventry_env.physics.model import EntryModel
 
 class RvEntryEnv(common.EntryEnvSetup, gym.Env):
@@ -183,9 +185,11 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         render_mode: str | None = None,
         targets: str | None = None,
         max_episode_steps: int | None = MAX_EPISODE_STEPS,
+        starts: StartStates | None = None,
+        shaping: PotentialShaping | None = None,
     ):
         self.observation_space, self.action_space = self._configure(
-            model, task, reward, dt, substeps, dispersion, render_mode, MATH, targets
+            model, task, reward, dt, substeps, dispersion, render_mode, MATH, targets, starts, shaping
         )
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self._limit = self.max_episode_steps  # this episode's: the own limit or a shorter outer one
@@ -219,24 +223,31 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         extras = draw_extras(self.np_random, dispersion, self.task.problem)
         target = self.task.draw_target(self.np_random, self._radius)
         self._target = self._nominal_target if target is None else tuple(float(c) for c in target)
+        start = None if self.starts is None or "state" in options else self.starts.draw(self.np_random, self.task.problem.alpha_max)
         self._errors = FlightState(1, self.model)
         self._errors.assign(0, dispersion, extras)
-        if not dispersion.is_zero:
+        if start is not None:  # a start state: the table's perturbation replaces the initial state's
+            x0 = start[1]
+        elif not dispersion.is_zero:
             x0 = apply_state_dispersion(x0, d)
+        if not dispersion.is_zero:
             # Python floats, not NumPy scalars: the single env works on floats (overflow raises, and is caught)
             self._episode_model = self._errors.model(float(1 + d[0]), float(1 + d[1]), float(1 + d[2]), single=True)
         else:
             self._episode_model = self.model
         self.dispersion_draw = d
         self._x = tuple(float(c) for c in x0)
+        if start is not None:
+            self._x = common.within_path_bounds(self._x, self._episode_model, self.task, MATH)
         self._forces = self._prop.forces(self._x, self._episode_model)
         self._c_ae = dcm(*self._x[1:5])
-        self._t = 0.0
+        self._t = 0.0 if start is None else start[0]
         self._steps = 0
         self._cost = 0.0
         self._max_load = self._forces.aero_accel / self._g0
         self._min_q = self._forces.dynamic_pressure
         self._ended = False
+        self._phi = self._potential(self._x, self._c_ae, MATH)
         self._track = Track() if self.render_mode else None
         self._measure()
         obs, clipped = self._observe()
@@ -269,6 +280,10 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         reward = -(out.cost + out.path_penalty)
         terminated = out.status != FLYING
         truncated = not terminated and self._limit is not None and self._steps >= self._limit
+        if self.shaping is not None:
+            phi = self._potential(self._x, self._c_ae, MATH)
+            reward += self.shaping.reward(self._phi, phi, terminated, MATH)
+            self._phi = phi
         self._measure(out.elapsed)
         info_obs, obs_clipped = self._observe()
         info = self._info(clipped, out.alpha_saturated, obs_clipped)

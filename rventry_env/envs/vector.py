@@ -16,10 +16,12 @@ from rventry_env.envs.allocator import keep_freed_memory
 from rventry_env.envs.observation import observe
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
+from rventry_env.envs.shaping import PotentialShaping
 from rventry_env.envs.propagation import IDLE, Propagator, StepOutcome
 from rventry_env.envs.transition import Flight, Transition, advance
 from rventry_env.envs.uncertainty import FlightState
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
+from rventry_env.task.starts import StartStates
 from rventry_env.physics.entry import entry_forces
 from rventry_env.physics.model import EntryModel, scaled_model
 
@@ -99,6 +101,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         render_mode: str | None = None,
         targets: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        starts: StartStates | None = None,
+        shaping: PotentialShaping | None = None,
     ):
         if int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs}")
@@ -109,7 +113,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self.num_envs = int(num_envs)
         self.max_episode_steps = common.check_max_steps(max_episode_steps)
         self.single_observation_space, self.single_action_space = self._configure(
-            model, task, reward, dt, substeps, dispersion, render_mode, NUMPY, targets
+            model, task, reward, dt, substeps, dispersion, render_mode, NUMPY, targets, starts, shaping
         )
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -166,7 +170,9 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                 )
             states = np.broadcast_to(states, (n, states.shape[-1])) if states.ndim == 1 else states
             self._initial = np.stack([common.check_state(s, self._radius, self.task) for s in states])
+            self._explicit = True
         else:
+            self._explicit = False
             self._initial = np.broadcast_to(self._nominal, (n, self._nominal.size))
         self._density = np.ones(n)
         self._lift = np.ones(n)
@@ -179,12 +185,15 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._min_q = np.zeros(n)
         self._prev_done = np.zeros(n, dtype=bool)
         self._frozen = np.zeros(n, dtype=bool)  # DISABLED: copies whose episode ended
+        self._phi = np.zeros(n)  # with shaping: each copy's potential
         self.dispersion_draw = np.zeros((n, 9))
         self._targets = np.tile(self._nominal_target, (n, 1))  # each copy's target, unit vector in E
         self._errors = FlightState(n, self.model)
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
         extras = self._reset_copies(np.arange(n), dispersion)
         self._measure()
+        if self.shaping is not None:
+            self._phi = self._potential_now()
         obs, clipped = self._observe()
         info = self._info(np.zeros(n, bool), np.zeros(n, bool), clipped)
         # the draws, for evaluation only: a guidance law is never given them
@@ -214,6 +223,11 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         ended = terminated | truncated
         infos = self._info_dict(st.info, action_clipped & ~restart, st.alpha_saturated & ~restart, st.obs_clipped)
         reward = st.reward
+        if self.shaping is not None:
+            phi = self._potential_now()
+            stepped = ~restart
+            reward = reward + np.where(stepped, self.shaping.reward(self._phi, phi, terminated, NUMPY), 0.0)
+            self._phi = phi  # a copy restarted this step is at its new start
         if st.outcome is not None:
             self._finish(infos, st.outcome, ended, st.info_max_load, st.info_min_q)
         self._record()
@@ -229,6 +243,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             infos["_final_info"] = ended.copy()
             self._reset_copies(idx)
             self._measure()
+            if self.shaping is not None:
+                self._phi[idx] = self._potential_now()[idx]
             obs_r, _ = self._observe()
             obs[idx] = obs_r[idx]
         return obs, reward.astype(np.float64), terminated, truncated, infos
@@ -248,7 +264,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
 
         :param dispersion: this reset's dispersion (default: the constructor's).
         """
-        x0, extras = self._draw(idx, dispersion)
+        x0, t0, started, extras = self._draw(idx, dispersion)
         if self._errors.any_model:
             self._model = self._errors.model(self._density, self._lift, self._drag)
         else:
@@ -260,9 +276,12 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             self._float_models = [self._copy_model(i) for i in range(self.num_envs)]
         for c in range(12):
             self._x[c][idx] = x0[:, c]
+        if started.any():  # start states inside the path bounds, with each copy's own model
+            rows = idx[started]
+            self._x[0][rows] = common.within_path_bounds(self._x, self._model, self.task, NUMPY)[0][rows]
         self._forces = self._prop.forces(self._x, self._model)
         self._c_ae = dcm(*self._x[1:5])
-        self._t[idx] = 0.0
+        self._t[idx] = t0
         self._steps[idx] = 0
         self._cost[idx] = 0.0
         self._max_load[idx] = self._forces.aero_accel[idx] / self._g0  # forces/frames re-formed for all copies
@@ -273,6 +292,11 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
                     self._tracks[i] = Track()
             self._record(only=[i for i in idx if i < len(self._tracks)])
         return extras
+
+    def _potential_now(self) -> np.ndarray:
+        """Every copy's shaping potential at its true state now."""
+        x = tuple(self.state.T)
+        return np.broadcast_to(self._potential(x, dcm(*x[1:5]), NUMPY), (self.num_envs,))
 
     def _measure(self, elapsed=None, active=None) -> None:
         """What the vehicles' sensors and navigation make of the truth (the truth itself where
@@ -338,30 +362,39 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             steps = [t if t.outcome is not None else t._replace(outcome=blank) for t in steps]
         return _map_leaves(_stack, *steps)
 
-    def _draw(self, idx: np.ndarray, dispersion: Dispersion | None) -> tuple[np.ndarray, list]:
-        """Draw new episodes for copies ``idx`` from their generators: their initial states (len(idx), 12)
-        and their flight-grade draws (None each for a set without them); the density, lift and drag
-        factors go to ``_density``, ``_lift``, ``_drag``, the flight-grade parts to ``_errors``."""
+    def _draw(self, idx: np.ndarray, dispersion: Dispersion | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+        """Draw new episodes for copies ``idx`` from their generators: their initial states (len(idx), 12),
+        start times (len(idx),), which started from the start states (len(idx),) and flight-grade draws
+        (None each for a set without them); the density, lift and drag factors go to ``_density``,
+        ``_lift``, ``_drag``, the flight-grade parts to ``_errors``."""
         dispersion = self.dispersion if dispersion is None else dispersion
         d = np.empty((len(idx), 9))
-        extras = []
+        extras, starts = [], []
+        draw_start = self.starts is not None and not self._explicit
         for j, i in enumerate(idx):  # each copy's draws in the single env's order
             d[j] = draw_dispersion(self._rngs[i], dispersion)
             extras.append(draw_extras(self._rngs[i], dispersion, self.task.problem))
             target = self.task.draw_target(self._rngs[i], self._radius)
             if target is not None:
                 self._targets[i] = target
+            starts.append(self.starts.draw(self._rngs[i], self.task.problem.alpha_max) if draw_start else None)
             self._errors.assign(i, dispersion, extras[-1])
         if self.task.targets != "fixed":
             self._target = tuple(self._targets[:, k].copy() for k in range(3))
         x0 = self._initial[idx]
         if not dispersion.is_zero:
             x0 = apply_state_dispersion(x0, d)
+        t0 = np.zeros(len(idx))
+        started = np.array([s is not None for s in starts], dtype=bool)
+        if started.any():  # a start state: the table's perturbation replaces the initial state's
+            x0 = np.array(x0, dtype=float)
+            for j in np.nonzero(started)[0]:
+                t0[j], x0[j] = starts[j]
         self.dispersion_draw[idx] = d
         self._density[idx] = 1 + d[:, 0]
         self._lift[idx] = 1 + d[:, 1]
         self._drag[idx] = 1 + d[:, 2]
-        return x0, extras
+        return x0, t0, started, extras
 
     def _observe(self):
         x, forces, c_ae = self._seen

@@ -11,6 +11,7 @@ import argparse
 import time
 from pathlib import Path
 
+from rventry_env.task.glossary import terms_line
 from rventry_env.task.definition import TARGETS
 from rventry_env.util.args import agent_spec, positive_int, seed
 from rventry_env.util.files import check_writable, output_set, write_json
@@ -43,7 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     _dispersion_arguments(ev)
     ev.add_argument("--seed", type=seed, default=0, help="episode i uses seed SEED + i (default 0)")
     _targets_argument(ev)
-    ev.add_argument("--json", required=True, metavar="PATH", help="write the summary and per-episode records here")
+    ev.add_argument("--json", metavar="PATH",
+                    help="write the summary and per-episode records here (default out/evaluate_AGENT_DISPERSION.json)")
     ev.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     _parallel_arguments(ev)
     ev.set_defaults(func=_evaluate)
@@ -149,7 +151,7 @@ def check_memory(episodes: int, history: bool, option: str = "--episodes", per_e
 
 def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
               cluster: str | None = None, progress=None, targets: str = "fixed"):  # fmt: skip
-    """Evaluate one agent on episodes with seeds ``seed .. seed + episodes - 1``; returns (batch, summary).
+    """Evaluate one agent on the episodes of seeds ``seed`` to ``seed + episodes - 1``; returns (batch, summary).
 
     :param targets: the task's targets (``"fixed"`` or ``"footprint"``); a law that cannot
         re-target is refused here, before any episode flies.
@@ -193,9 +195,21 @@ def _label(agent: str) -> str:
     return agent if agent in agent_names() else Path(agent).stem
 
 
-def _evaluate(args) -> int:
-    from rich.progress import Progress
+def progress_bar(transient: bool = True):
+    """The progress display of the commands that fly episodes: a spinner and the elapsed time run even
+    while a batched law flies all its episodes in one task (its bar moves only when the task ends)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+    return Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), transient=transient)  # fmt: skip
+
+
+def default_report(agent: str, dispersion: str) -> str:
+    """Where ``rventry evaluate`` writes its report when ``--json`` is not given."""
+    return f"out/evaluate_{_label(agent)}_{dispersion}.json"
+
+
+def _evaluate(args) -> int:
     from rventry_env.task import EntryTask
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.reference import load_reference
@@ -205,11 +219,13 @@ def _evaluate(args) -> int:
     # every argument first: a refused command creates nothing
     dispersion = dispersion_name(args)
     check_agent(args.agent)
+    if args.json is None:
+        args.json = default_report(args.agent, dispersion)
     check_writable(args.json, folders=(args.plots,) if args.plots else ())
     check_memory(args.episodes, bool(args.plots))
     t0 = time.time()
-    with Progress(transient=True) as progress:
-        job = progress.add_task(f"{args.agent}: {args.episodes} episode(s)", total=args.episodes)
+    with progress_bar() as progress:
+        job = progress.add_task(f"{args.agent}: {args.episodes} episode(s), {dispersion}", total=args.episodes)
         batch, summary = run_agent(args.agent, args.episodes, dispersion, args.seed, history=bool(args.plots),
                                    workers=args.workers, cluster=args.cluster,
                                    progress=lambda n: progress.advance(job, n), targets=args.targets)  # fmt: skip
@@ -224,6 +240,10 @@ def _evaluate(args) -> int:
                               reference=load_reference())  # fmt: skip
             plot_outcomes({label: batch}, Path(args.plots) / f"outcomes_{label}.png", EntryTask().success)
     _print_summary(args.agent, summary)
+    print(f"wrote {args.json}" + (f" and {args.plots}/" if args.plots else "") + f" in {time.time() - t0:.0f} s")
+    printed = [*EVALUATE_TERMS, *(["load relief"] if summary.get("load_relief") else []),
+               *(["navigation"] if _navigation_shown(summary) else [])]  # fmt: skip
+    print(terms_line(printed))
     return 0
 
 
@@ -237,9 +257,9 @@ COMPARED = (("dagger-flight", "DAgger of mpc-flight"), ("dagger", "DAgger of mpc
 
 def _compare(args) -> int:
     from rich.console import Console
-    from rich.progress import Progress
 
     from rventry_env.task import EntryTask
+    from rventry_env.evaluation import compare_report as cr
     from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.evaluation.summary import summarize
@@ -265,9 +285,9 @@ def _compare(args) -> int:
     # every law's episodes on one pool: the batched laws fly beside mpc's episodes, not after them
     jobs = [(EvaluationJob(agent, d, task, record_history=True), list(range(args.seed, args.seed + n)))
             for _, agent, _, n, d in plan]  # fmt: skip
-    with Progress() as progress:
-        overall = progress.add_task("rventry compare", total=sum(p[3] for p in plan))
-        bars = [progress.add_task(f"  {case}: {name}", total=n) for case, _, name, n, _ in plan]
+    with progress_bar(transient=False) as progress:
+        overall = progress.add_task(f"rventry compare ({dispersion} set)", total=sum(p[3] for p in plan))
+        bars = [progress.add_task(f"  {case}: {agent}", total=n) for case, agent, _, n, _ in plan]
 
         def advance(j, k):
             progress.advance(bars[j], k)
@@ -277,14 +297,69 @@ def _compare(args) -> int:
     for (case, agent, name, n, d), batch in zip(plan, batches):
         summary = summarize(batch, j_star, task)
         runs[(case, name)] = (batch, summary, _document(agent, n, d, args.seed, batch, summary))
+    doc = {
+        "agent": args.agent,
+        "seed": args.seed,
+        "dispersion_set": dispersion,
+        "episodes": episodes,
+        "targets": _target_checks(runs, label, dispersion),
+        "runs": {f"{case}/{name}": d for (case, name), (_, _, d) in runs.items()},
+        "wall_time_s": None,
+        "workers": None if args.cluster else args.workers,
+    }
+    doc["verdict"] = cr.verdict(doc)
+    ref = load_reference()
+    plots = Path(args.plots)
+    shown = {name: cr.display_name(runs[("dispersed", name)][2]) for _, name in agents}
+    counts = sorted(set(episodes.values()), reverse=True)
+    n_text = f"{counts[0]} episodes per law" + (f" (mpc: {counts[-1]})" if len(counts) > 1 else "")
+    doc["wall_time_s"] = time.time() - t0
+    with output_set():  # the report and its plots: all replaced, or none
+        write_json(args.json, doc)
+        plot_trajectories({shown[name]: runs[("nominal", name)][0] for _, name in agents},
+                          plots / "nominal_trajectories.png", reference=ref,
+                          title="Nominal flight (no dispersion): every law against the optimal reference",
+                          headline=shown[label])  # fmt: skip
+        plot_trajectories({shown[name]: runs[("dispersed", name)][0] for _, name in agents},
+                          plots / "dispersed_trajectories.png", reference=ref,
+                          title=f"{dispersion.capitalize()} set, seeds {args.seed}-{args.seed + counts[0] - 1}: "
+                                f"{n_text}", headline=shown[label])  # fmt: skip
+        plot_outcomes({shown[name]: runs[("dispersed", name)][0] for _, name in agents},
+                      plots / "dispersed_outcomes.png", EntryTask().success,
+                      title=f"Outcomes on the {dispersion} set: {n_text}")  # fmt: skip
+    print_compare(doc, Console(width=100))
+    print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)"
+          f" in {time.time() - t0:.0f} s")  # fmt: skip
+    print(terms_line(cr.TERMS))
+    return 0
+
+
+def print_compare(doc: dict, console) -> None:
+    """The tables and the verdict of a compare report (also used to print a saved one)."""
+    from rventry_env.evaluation import compare_report as cr
+
+    console.print(cr.rich_table(*cr.nominal_table(doc), caption=cr.title(doc, "nominal")))
+    console.print()
+    console.print(cr.rich_table(*cr.dispersed_table(doc), caption=cr.title(doc, "dispersed")))
+    console.print(cr.success_note(doc) + ".", highlight=False)
+    for line in cr.limiter_lines(doc):
+        console.print(line, highlight=False)
+    console.print()
+    for line in doc.get("verdict") or cr.verdict(doc):
+        console.print(line, highlight=False)
+
+
+def _target_checks(runs: dict, label: str, dispersion: str) -> dict:
+    """The benchmark's targets for a learned policy, checked on the agent given by ``--agent``: kept in the
+    JSON report as a record; the console shows the laws against the success definition instead."""
     nominal, dispersed = runs[("nominal", label)][1], runs[("dispersed", label)][1]
-    # the learned policy's dispersed-success target exists for the sets it was built for; the
-    # flight-grade sets are reported against the oracle's ceiling instead (`rventry oracle`)
-    success_target = DISPERSED_SUCCESS_TARGETS.get(dispersion)
     checks = {
         f"nominal_{k}": {"target": v, "measured": nominal[k], "met": nominal[k] is not None and abs(nominal[k]) <= v}
         for k, v in NOMINAL_TARGETS.items()
     }
+    # the dispersed-success target exists for the sets a learned policy was first built for; the
+    # flight-grade sets are read against the oracle's ceiling instead (`rventry oracle`)
+    success_target = DISPERSED_SUCCESS_TARGETS.get(dispersion)
     if success_target is not None:
         checks["dispersed_success_rate"] = {"target": success_target, "measured": dispersed["success_rate"],
                                             "met": dispersed["success_rate"] >= success_target}  # fmt: skip
@@ -292,115 +367,46 @@ def _compare(args) -> int:
             gain = dispersed["success_rate"] - runs[("dispersed", "TV-LQR")][1]["success_rate"]
             checks["success_over_lqr"] = {"target": MARGIN_OVER_LQR, "measured": gain,
                                           "met": gain >= MARGIN_OVER_LQR - 1e-9}  # fmt: skip
-    doc = {
-        "agent": args.agent,
-        "seed": args.seed,
-        "dispersion_set": dispersion,
-        "episodes": episodes,
-        "targets": checks,
-        "runs": {f"{case}/{name}": d for (case, name), (_, _, d) in runs.items()},
-        "wall_time_s": time.time() - t0,
-        "workers": None if args.cluster else args.workers,
-    }
-    ref = load_reference()
-    plots = Path(args.plots)
-    with output_set():  # the report and its plots: all replaced, or none
-        write_json(args.json, doc)
-        for case, title in (("nominal", "Nominal: guidance laws vs the optimal reference"),
-                            ("dispersed", f"Dispersed ({dispersion} set)")):  # fmt: skip
-            plot_trajectories({f"{name}": runs[(case, name)][0] for _, name in agents},
-                              plots / f"{case}_trajectories.png", reference=ref, title=title)  # fmt: skip
-        plot_outcomes({name: runs[("dispersed", name)][0] for _, name in agents}, plots / "dispersed_outcomes.png",
-                      EntryTask().success)  # fmt: skip
-    console = Console(width=150)
-    for table in _tables(runs, [name for _, name in agents], episodes, dispersion, checks):
-        console.print(table)
-    print(f"wrote {args.json} and {plots}/ (nominal_trajectories.png, dispersed_trajectories.png, dispersed_outcomes.png)"
-          f" in {time.time() - t0:.0f} s")  # fmt: skip
-    return 0
+    return checks
 
 
-def _tables(runs, names, episodes, dispersion, checks):
-    """Two tables, nominal and dispersed, with the agents as columns."""
-    from rich.table import Table
+# the terms `rventry evaluate` prints, besides the load relief and navigation where they appear
+EVALUATE_TERMS = ("success", "95 % CI", "precision", "miss", "p5 / p50 / p95", "vertical-impact error", "speed error",
+                  "J/J*", "path violation", "endings")  # fmt: skip
 
-    # (label, summary key, format, nominal target, dispersed target): the benchmark's targets
-    nominal = {k: f"<= {v:g}" for k, v in NOMINAL_TARGETS.items()}
-    success = f">= {checks['dispersed_success_rate']['target']:.2f}" if "dispersed_success_rate" in checks else ""
-    if "success_over_lqr" in checks:
-        success += f", TV-LQR + {checks['success_over_lqr']['target']:.2f}"
-    rows = (
-        ("miss (km)", "miss_km", "{:.3g}", nominal["miss_km"], ""),
-        ("vertical-impact error (deg)", "vertical_error_deg", "{:.3g}", nominal["vertical_error_deg"], ""),
-        ("|speed error| (m/s)", "abs_speed_error_mps", "{:.3g}", nominal["abs_speed_error_mps"], ""),
-        ("alpha(t_f) (deg)", "alpha_final_deg", "{:.3g}", "", ""),
-        ("cost J / J*", "cost_ratio", "{:.3f}", nominal["cost_ratio"], ""),
-        ("peak load factor (g)", "max_load_factor_g", "{:.2f}", "", ""),
-        ("min dynamic pressure (kPa)", "min_dynamic_pressure_pa", "{:.2f}", "", ""),
-        ("path-violation rate", "constraint_violation_rate", "{:.2f}", "", ""),
-        ("success rate", "success_rate", "{:.2f}", "", success),
-        ("episodes", "episodes", "{:d}", "", ""),
-        ("re-solve time p50 / p99 (s)", "replanning", "", "", ""),
-        ("load relief: capped steps (episodes)", "load_relief", "", "", ""),
-    )
-    tables = []
-    counts = sorted(set(episodes.values()), reverse=True)
-    n_text = " or ".join(str(c) for c in counts)
-    for case, title in (("nominal", "Nominal flight (targets apply to the learned agent)"),
-                        ("dispersed", f"{n_text} dispersed episodes per law ({dispersion} set): "
-                                      "mean (5th / 95th percentile)")):  # fmt: skip
-        t = Table(title=title)
-        t.add_column("metric")
-        for name in names:
-            t.add_column(name, justify="right")
-        t.add_column("target", justify="right")
-        for label, key, fmt, nominal_target, dispersed_target in rows:
-            target = nominal_target if case == "nominal" else dispersed_target
-            cells = []
-            for name in names:
-                s = runs[(case, name)][1]
-                v = s.get(key)
-                if key == "replanning":
-                    cells.append("-" if not v else f"{v['solve_time_s']['p50']:.2f} / {v['solve_time_s']['p99']:.2f}")
-                    continue
-                if key == "load_relief":
-                    cells.append("-" if not v else f"{v['capped_steps']} ({v['episodes_capped']})")
-                    continue
-                if key == "episodes":
-                    cells.append(str(v))
-                    continue
-                scale = 1e-3 if key == "min_dynamic_pressure_pa" else 1.0
-                cell = "-" if v is None else fmt.format(v * scale)
-                if case == "dispersed" and key in s.get("percentiles", {}):
-                    lo, hi = (s["percentiles"][key][p] for p in ("p5", "p95"))
-                    if lo is not None and hi is not None:
-                        cell += f" ({fmt.format(lo * scale)} / {fmt.format(hi * scale)})"
-                cells.append(cell)
-            t.add_row(label, *cells, target)
-        tables.append(t)
-    met = ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in checks.items())
-    tables[-1].caption = (
-        "success: impact with miss <= 5 km, vertical error <= 5 deg, |speed error| <= 100 m/s, "
-        f"no path bound exceeded by more than 1 %.\nThe benchmark's targets for the learned agent: {met}"
-    )
-    return tables
+
+def _navigation_shown(s: dict) -> bool:
+    return bool((n := s.get("navigation")) and n["horizontal_error_m"]["p95"] > 0)
 
 
 def _print_summary(agent: str, s: dict) -> None:
-    print(
-        f"{agent}: {s['episodes']} episode(s): success rate {s['success_rate']:.2f} "
-        f"[{s['success_rate_ci'][0]:.2f}, {s['success_rate_ci'][1]:.2f}], precision {s['precision_success_rate']:.2f} "
-        f"[{s['precision_success_rate_ci'][0]:.2f}, {s['precision_success_rate_ci'][1]:.2f}]; miss p50/p95/p99 "
-        f"{s['miss_m']['p50']:.0f}/{s['miss_m']['p95']:.0f}/{s['miss_m']['p99']:.0f} m; means: miss {s['miss_km']:.3g} km, "
-        f"vertical error {s['vertical_error_deg']:.3g} deg, speed error {s['speed_error_mps']:.3g} m/s, "
-        f"J/J* {s['cost_ratio']:.3f}; endings {s['endings']} (percentiles in the JSON report)"
-        + (f", load relief capped {r['capped_steps']} step(s) in {r['episodes_capped']} episode(s)"
-           if (r := s.get("load_relief")) else "")
-        + (f"; navigation at the end: horizontal error p50/p95 {n['horizontal_error_m']['p50']:.0f}/"
-           f"{n['horizontal_error_m']['p95']:.0f} m, vertical {n['vertical_error_abs_m']['p50']:.0f}/"
-           f"{n['vertical_error_abs_m']['p95']:.0f} m, the miss it believed p50 {n['navigated_miss_m']['p50']:.0f} m"
-           if (n := s.get("navigation")) and n["horizontal_error_m"]["p95"] > 0 else "")
-    )
+    p = s["percentiles"]
+
+    def pair(key, scale=1.0, fmt=".3g"):
+        q = p[key]
+        return " / ".join("-" if q[k] is None else format(q[k] * scale, fmt) for k in ("p50", "p95"))
+
+    lines = [
+        f"{agent}: {s['episodes']} episode(s)",
+        f"  success                  {s['success_rate']:.3g} [{s['success_rate_ci'][0]:.2f}, {s['success_rate_ci'][1]:.2f}]"
+        f"   precision {s['precision_success_rate']:.2f} [{s['precision_success_rate_ci'][0]:.2f}, "
+        f"{s['precision_success_rate_ci'][1]:.2f}]",
+        f"  miss p50 / p95 / p99     {s['miss_m']['p50']:.0f} / {s['miss_m']['p95']:.0f} / {s['miss_m']['p99']:.0f} m",
+        f"  vertical-impact error    {pair('vertical_error_deg')} deg (p50 / p95)",
+        f"  |speed error|            {pair('abs_speed_error_mps')} m/s (p50 / p95)",
+        f"  J/J*                     {s['cost_ratio']:.3f} (mean)",
+        f"  path violations          {s['constraint_violation_rate']:.3g} of the episodes",
+        "  endings                  " + ", ".join(f"{k} {v}" for k, v in s["endings"].items()),
+    ]  # fmt: skip
+    if r := s.get("load_relief"):
+        lines.append(f"  load relief              capped {r['capped_steps']} step(s) in {r['episodes_capped']} episode(s)")
+    if _navigation_shown(s):
+        n = s["navigation"]
+        lines.append(f"  navigation at the end    horizontal error p50 / p95 {n['horizontal_error_m']['p50']:.0f} / "
+                     f"{n['horizontal_error_m']['p95']:.0f} m, vertical {n['vertical_error_abs_m']['p50']:.0f} / "
+                     f"{n['vertical_error_abs_m']['p95']:.0f} m; the miss it believed p50 "
+                     f"{n['navigated_miss_m']['p50']:.0f} m")  # fmt: skip
+    print("\n".join(lines))
 
 
 __all__ = ["register", "run_agent", "dispersion_name", "NOMINAL_TARGETS", "DISPERSED_SUCCESS_TARGETS",

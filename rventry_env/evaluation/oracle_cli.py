@@ -28,9 +28,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _oracle(args) -> int:
-    from rich.progress import Progress
-
-    from rventry_env.evaluation.cli import check_memory
+    from rventry_env.evaluation.cli import check_memory, progress_bar
+    from rventry_env.task.glossary import terms_line
     from rventry_env.evaluation.oracle import OracleSettings, oracle
     from rventry_env.task import Dispersion, EntryTask
 
@@ -39,7 +38,7 @@ def _oracle(args) -> int:
     settings = OracleSettings()
     t0 = time.time()
     seeds = list(range(args.seed, args.seed + args.episodes))
-    with Progress(transient=True) as progress:
+    with progress_bar() as progress:
         job = progress.add_task(f"oracle, {args.dispersion}: {args.episodes} draw(s)", total=args.episodes)
         out = oracle(args.dispersion, seeds, EntryTask(), settings, workers=args.workers, cluster=args.cluster,
                      progress=lambda n: progress.advance(job, n))  # fmt: skip
@@ -52,6 +51,7 @@ def _oracle(args) -> int:
           f"[{s['flyable_fraction_ci'][0]:.2f}, {s['flyable_fraction_ci'][1]:.2f}], precision "
           f"{s['precision_flyable_fraction']:.2f}, converged {s['converged']}, J p50 "
           + (f"{s['J']['p50']:.3f}" if s["J"] else "-"))  # fmt: skip
+    print(terms_line(["flyable", "95 % CI", "precision", "J/J*", "dispersion set"]))
     return 0
 
 

@@ -39,6 +39,8 @@ class EvaluationJob:
     :param task: the task.
     :param options: keyword arguments for the built-in law.
     :param record_history: keep every step's state and action.
+    :param rung: a rung of the ladder whose start states replace the task's initial state
+        (:mod:`rventry_env.evaluation.rungs`; its dispersion and targets are given as usual), or None.
     """
 
     agent: str
@@ -46,6 +48,7 @@ class EvaluationJob:
     task: EntryTask = field(default_factory=EntryTask)
     options: tuple = ()  # (name, value) pairs, hashable
     record_history: bool = False
+    rung: str | None = None
 
 
 _LAWS: dict = {}
@@ -69,7 +72,10 @@ def _law(job: EvaluationJob):
 
 def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
     """Fly the episodes of one task (a worker's unit of work)."""
-    return rollout(_law(job), seeds=seeds, dispersion=job.dispersion, task=job.task, record_history=job.record_history)
+    from rventry_env.evaluation.rungs import rung_starts
+
+    return rollout(_law(job), seeds=seeds, dispersion=job.dispersion, task=job.task, record_history=job.record_history,
+                   starts=None if job.rung is None else rung_starts(job.rung))  # fmt: skip
 
 
 def episodes_per_task(job: EvaluationJob, n: int) -> int:

@@ -40,6 +40,24 @@ def conventional_bank_deg(x: np.ndarray) -> np.ndarray:
     return mu
 
 
+def unwrapped_bank_deg(x: np.ndarray) -> np.ndarray:
+    """The conventional bank angle mu in degrees like :func:`conventional_bank_deg`, but unwrapped
+    along time (a roll through 180 deg reads 190, not -170), so that a line through it is the roll
+    flown; NaN where it means nothing (near vertical flight, padding). ``x`` is (T, ...) with time first."""
+    e_b = np.moveaxis(np.where(np.isfinite(x[..., 6:10]), x[..., 6:10], 0.0), -1, 0)
+    theta_u, n2 = lift_up_angle(e_b)
+    mu = wrap_angle(x[..., 11] - theta_u)
+    shown = (n2 > NEAR_VERTICAL) & np.isfinite(x[..., 11])
+    flat_mu = mu.reshape(mu.shape[0], -1)
+    flat_shown = shown.reshape(shown.shape[0], -1)
+    out = np.full(flat_mu.shape, np.nan)
+    for j in range(flat_mu.shape[1]):
+        k = np.flatnonzero(flat_shown[:, j])
+        if k.size:
+            out[k, j] = np.unwrap(flat_mu[k, j])
+    return np.degrees(out).reshape(mu.shape)
+
+
 def coinciding(batches: dict[str, EpisodeBatch], altitude_m: float = 100.0, bank_deg: float = 1.0) -> list[list[str]]:
     """Groups of single-episode batches whose flights lie on top of one another: altitude within
     ``altitude_m`` and conventional bank within ``bank_deg`` at every common step."""
@@ -65,14 +83,17 @@ def _words(names: list[str]) -> str:
 
 
 def plot_trajectories(
-    batches: dict[str, EpisodeBatch], path: str | Path, reference=None, target_deg=(0.0, 25.15), title: str = ""
+    batches: dict[str, EpisodeBatch], path: str | Path, reference=None, target_deg=(0.0, 25.15), title: str = "",
+    headline: str | None = None,
 ) -> Path:
-    """Altitude, speed, ground track, alpha and sigma (deg) of every episode of every batch.
+    """Altitude, speed, ground track, alpha and the bank angle (deg, unwrapped) of every episode of every batch.
 
     :param batches: label -> batch recorded with ``record_history=True``.
     :param path: PNG file to write.
     :param reference: a loaded reference solution to draw in black (its own time grid).
     :param target_deg: (latitude, longitude) of the target in degrees.
+    :param title: the figure's title (say the set and the episode count).
+    :param headline: the label drawn on top of the others, bold; the others fainter beneath it.
     """
     import matplotlib
 
@@ -85,41 +106,63 @@ def plot_trajectories(
     for label, b in batches.items():
         if b.history_x is None:
             raise ValueError(f"batch {label!r} was not recorded with record_history=True")
+    if headline is not None and headline not in batches:
+        raise ValueError(f"headline {headline!r} is not among the batches {list(batches)}")
     groups = coinciding(batches)
     # flights on top of one another: the second of a group dashed, the third dotted, ... to tell them apart
     styles = {name: ("-", "--", ":", "-.")[i % 4] for g in groups for i, name in enumerate(g)}
-    for k, (label, b) in enumerate(batches.items()):
-        c = colors[k % len(colors)]
-        ls = styles.get(label, "-")
+    color = {label: colors[k % len(colors)] for k, label in enumerate(batches)}
+    # the headline last, so that it is drawn over the others
+    order = [k for k in batches if k != headline] + ([headline] if headline is not None else [])
+    banks = {label: unwrapped_bank_deg(batches[label].history_x) for label in batches}
+    for label in order:
+        b = batches[label]
+        c, ls = color[label], styles.get(label, "-")
         t, x = b.history_t, b.history_x
         n = x.shape[1]
-        lw, alpha = (1.6, 1.0) if n == 1 else (0.6, max(0.08, min(0.6, 8.0 / n)))
+        top = label == headline
+        if n == 1:
+            lw, alpha = (2.4, 1.0) if top else (1.4, 0.9 if headline is None else 0.7)
+        else:
+            lw, alpha = (0.9, max(0.15, min(0.8, 20.0 / n))) if top else (0.5, max(0.03, min(0.5, 4.0 / n)))
+        kw = dict(color=c, lw=lw, alpha=alpha, ls=ls, zorder=3 if top else 2)
         lat, lon = _ground_track(x)
-        ax["h"].plot(t, (x[..., IDX.r] - R_E) / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
-        ax["v"].plot(t, x[..., IDX.v] / 1e3, color=c, lw=lw, alpha=alpha, ls=ls)
-        ax["track"].plot(lon, lat, color=c, lw=lw, alpha=alpha, ls=ls)
-        ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), color=c, lw=lw, alpha=alpha, ls=ls)
-        ax["sigma"].plot(t, conventional_bank_deg(x), color=c, lw=lw, alpha=alpha, ls=ls)
-        ax["legend"].plot([], [], color=c, lw=2, ls=ls, label=f"{label} ({n} episode{'s' if n > 1 else ''})")
+        ax["h"].plot(t, (x[..., IDX.r] - R_E) / 1e3, **kw)
+        ax["v"].plot(t, x[..., IDX.v] / 1e3, **kw)
+        ax["track"].plot(lon, lat, **kw)
+        ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), **kw)
+        ax["sigma"].plot(t, banks[label], **kw)
+    # the bank panel's range: where nearly all of the drawn bank angles lie, so that a few vehicles
+    # spinning at the end do not squeeze every other line flat
+    every = np.concatenate([v[np.isfinite(v)] for v in banks.values()] or [np.zeros(1)])
+    if every.size:
+        lo, hi = np.percentile(every, [0.5, 99.5])
+        ax["sigma"].set_ylim(min(lo, -185.0) - 10.0, max(hi, 185.0) + 10.0)
+    for label in batches:  # the legend in the order of the batches, the headline first where it is
+        n = batches[label].history_x.shape[1]
+        text = f"{label} ({n} episode{'s' if n > 1 else ''})" + (": drawn on top" if label == headline else "")
+        ax["legend"].plot([], [], color=color[label], lw=3 if label == headline else 2, ls=styles.get(label, "-"),
+                          label=text)  # fmt: skip
     if reference is not None:
         tr = np.linspace(0, reference.tf, 2000)
         xr = reference.state(tr)
         lat, lon = _ground_track(xr)
-        kw = dict(color="k", lw=1.2, ls="--")
+        kw = dict(color="k", lw=1.2, ls="--", zorder=4)
         ax["h"].plot(tr, (xr[:, IDX.r] - R_E) / 1e3, **kw)
         ax["v"].plot(tr, xr[:, IDX.v] / 1e3, **kw)
         ax["track"].plot(lon, lat, **kw)
         ax["alpha"].plot(tr, np.degrees(xr[:, IDX.alpha]), **kw)
-        ax["sigma"].plot(tr, conventional_bank_deg(xr), **kw)
+        ax["sigma"].plot(tr, unwrapped_bank_deg(xr), **kw)
         ax["legend"].plot([], [], label="collocation reference (optimal)", **kw)
-    ax["track"].plot([target_deg[1]], [target_deg[0]], "rx", ms=10, mew=2)
+    ax["track"].plot([target_deg[1]], [target_deg[0]], "rx", ms=10, mew=2, zorder=5)
     ax["legend"].plot([], [], "rx", ms=10, mew=2, label="target")
     ax["h"].set(xlabel="t (s)", ylabel="altitude (km)")
     ax["v"].set(xlabel="t (s)", ylabel="speed (km/s)")
     ax["track"].set(xlabel="longitude (deg)", ylabel="latitude (deg)", title="ground track")
     ax["alpha"].set(xlabel="t (s)", ylabel="angle of attack (deg)")
-    ax["sigma"].set(xlabel="t (s)", ylabel="bank angle (deg, 0 = lift up, + right)", ylim=(-185, 185),
-                    yticks=range(-180, 181, 90))  # fmt: skip
+    ax["sigma"].set(xlabel="t (s)", ylabel="bank angle (deg, 0 = lift up, + right)",
+                    title="bank angle, unwrapped (a roll through 180 deg continues)")  # fmt: skip
+    ax["sigma"].yaxis.set_major_locator(matplotlib.ticker.MultipleLocator(90))
     ax["legend"].axis("off")
     ax["legend"].legend(loc="center", fontsize=10, frameon=False)
     notes = [f"{_words(g)} fly within 100 m of altitude\nand 1 deg of bank of one another: their lines overlap"
@@ -134,60 +177,77 @@ def plot_trajectories(
     return save_figure(fig, path)
 
 
-def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds) -> Path:
-    """Histograms of miss, vertical-impact error and speed error with the success thresholds, as a PNG."""
-    return save_figure(outcomes_figure(batches, thresholds), path, tight=False)
+def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds, title: str = "") -> Path:
+    """Histograms of miss, vertical-impact error and speed error with the success thresholds, one row per law, as a PNG."""
+    return save_figure(outcomes_figure(batches, thresholds, title), path, tight=False)
 
 
-def outcomes_figure(batches: dict[str, EpisodeBatch], thresholds):
-    """The figure of :func:`plot_outcomes`."""
+def outcomes_figure(batches: dict[str, EpisodeBatch], thresholds, title: str = ""):
+    """The figure of :func:`plot_outcomes`: a row of three histograms per law (miss, vertical-impact
+    error, speed error) on bins shared down each column, each row's heights a fraction of that law's
+    own episodes, the success threshold dashed in red, and the law, its episode count and success
+    rate written beside its row, so that nothing covers a bar."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib import ticker
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6 + 0.25 * ((len(batches) + 3) // 4)))
     specs = (
         ("miss_km", "miss (km)", thresholds.miss_km, True),
         ("vertical_error_deg", "vertical-impact error (deg)", thresholds.vertical_error_deg, True),
         ("speed_error_mps", "speed error (m/s)", thresholds.speed_error_mps, False),
     )
-    for ax, (key, label, thr, positive) in zip(axes, specs):
+    names = list(batches)
+    rows = max(1, len(names))
+    fig, axes = plt.subplots(rows, 3, figsize=(13, 1.2 + 1.15 * rows), sharex="col", squeeze=False)
+    for col, (key, label, thr, positive) in enumerate(specs):
         values = {name: np.asarray(getattr(b, key), float) for name, b in batches.items()}
         values = {name: v[np.isfinite(v)] for name, v in values.items()}
         pooled = np.concatenate([v for v in values.values()]) if values else np.zeros(0)
-        # one set of bins for every law, so the bars compare; heights are fractions of each law's episodes
+        # one set of bins for every law, so the rows compare; heights are fractions of each law's episodes
         if positive:
             lo = max(pooled.min(), 1e-3) if pooled.size else 1e-3
             hi = max(pooled.max(), 10 * lo) if pooled.size else 1.0
             bins = np.logspace(np.log10(lo), np.log10(hi), 40)
-            ax.set_xscale("log")
         else:
-            bins = np.linspace(pooled.min(), pooled.max(), 40) if pooled.size > 1 else 10
-        for name, v in values.items():
-            if v.size:
-                ax.hist(np.clip(v, bins[0], bins[-1]) if positive else v, bins=bins, alpha=0.5,
-                        weights=np.full(v.size, 1.0 / v.size), label=f"{name} ({v.size})", histtype="stepfilled")
+            lo, hi = (pooled.min(), pooled.max()) if pooled.size > 1 else (-thr, thr)
+            lo, hi = min(lo, -thr), max(hi, thr)
+            bins = np.linspace(lo, hi, 40)
         unit = label.rsplit("(", 1)[-1].rstrip(")")
-        ax.axvline(thr, color="r", ls="--", lw=1, label=f"success threshold ({'' if positive else '+/-'}{thr:g} {unit})")
-        if not positive:
-            ax.axvline(-thr, color="r", ls="--", lw=1)
+        axes[0, col].set_title(f"{label}\ndashed: success within {'' if positive else '+/-'}{thr:g} {unit}", fontsize=10)
+        for row, name in enumerate(names):
+            ax = axes[row, col]
+            v = values[name]
+            if v.size:
+                ax.hist(np.clip(v, bins[0], bins[-1]) if positive else v, bins=bins, color=f"C{row % 10}",
+                        weights=np.full(v.size, 1.0 / v.size), histtype="stepfilled", alpha=0.8)  # fmt: skip
+            ax.axvline(thr, color="r", ls="--", lw=1)
+            if not positive:
+                ax.axvline(-thr, color="r", ls="--", lw=1)
+            ax.set_ylim(0, 1.05)
+            ax.yaxis.set_major_locator(ticker.FixedLocator([0, 0.5, 1]))
+            ax.tick_params(labelsize=8)
+            ax.grid(alpha=0.3)
+            if positive:
+                ax.set_xscale("log")
+        bottom = axes[-1, col]
+        bottom.set_xlabel(label)
         if positive:  # whole labels at 1, 2, 5 per decade, none on the minor ticks: no overlap
-            from matplotlib import ticker
-
-            ax.set_xlim(min(bins[0], thr) / 1.2, max(bins[-1], thr) * 1.2)
-            ax.xaxis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0) if _decades(ax) < 3 else (1.0,)))
-            ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
-            ax.xaxis.set_minor_formatter(ticker.NullFormatter())
-        ax.set(xlabel=label, ylabel="fraction of episodes")
-        ax.grid(alpha=0.3)
-        ax.legend(handles=[h for h in ax.get_lines() if h.get_label().startswith("success")], fontsize=8)
-    # the laws once, below the panels, where they hide no bar
-    handles, labels = axes[0].get_legend_handles_labels()
-    laws = [(h, lab) for h, lab in zip(handles, labels) if not lab.startswith("success")]
-    fig.legend([h for h, _ in laws], [lab for _, lab in laws], loc="lower center", ncol=min(len(laws), 4), fontsize=9,
-               frameon=False)  # fmt: skip
-    fig.tight_layout(rect=(0, 0.06 * ((len(laws) + 3) // 4), 1, 1))
+            bottom.set_xlim(min(bins[0], thr) / 1.2, max(bins[-1], thr) * 1.2)
+            subs = (1.0, 2.0, 5.0) if _decades(bottom) < 3 else (1.0,)
+            bottom.xaxis.set_major_locator(ticker.LogLocator(base=10, subs=subs))
+            bottom.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+            bottom.xaxis.set_minor_formatter(ticker.NullFormatter())
+    for row, name in enumerate(names):
+        b = batches[name]
+        n = int(np.size(b.is_success))
+        share = f"{np.mean(b.is_success):.3f}"
+        share = share[:-1] if share.endswith("0") else share  # 0.995, 1.00, 0.74: as the tables print it
+        axes[row, 0].set_ylabel(f"{name}\n{n} ep., success {share}" if n else name, fontsize=9,
+                                rotation=0, ha="right", va="center")  # fmt: skip
+    fig.suptitle((title + "\n" if title else "") + "bar heights: the fraction of each law's own episodes", fontsize=11)
+    fig.tight_layout()
     return fig
 
 

@@ -24,6 +24,7 @@ from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.guidance.law import GuidanceLaw, Measurement, check_law, check_retargets
 from rventry_env.physics.model import EntryModel
 from rventry_env.task import SCALAR_FIELDS, Dispersion, EntryTask
+from rventry_env.task.starts import StartStates
 
 
 @dataclass
@@ -104,6 +105,7 @@ def rollout(
     model: EntryModel | None = None,
     max_episode_steps: int | None = None,
     record_history: bool = False,
+    starts: StartStates | None = None,
 ) -> EpisodeBatch:
     """Run ``n_episodes`` episodes of ``policy`` side by side; episode i uses seed ``seed + i``.
 
@@ -116,6 +118,8 @@ def rollout(
     :param model: the force model (default :class:`EntryModel`).
     :param max_episode_steps: time limit in steps (default the registration's).
     :param record_history: keep the state and action of every step (for plots).
+    :param starts: start states that replace the task's initial state (a rung of the ladder such as
+        ``late``, :mod:`rventry_env.evaluation.rungs`); None: the task's own start.
     """
     if seeds is None:
         if n_episodes is None or n_episodes < 1:
@@ -131,7 +135,7 @@ def rollout(
     # one episode per copy: an ended copy stays frozen (no autoreset), so the law's memory and
     # time for it stand still too
     venv = RvEntryVectorEnv(num_envs=n, task=task, model=model, dispersion=dispersion,
-                            autoreset_mode=AutoresetMode.DISABLED, **kwargs)  # fmt: skip
+                            autoreset_mode=AutoresetMode.DISABLED, starts=starts, **kwargs)  # fmt: skip
     check_retargets(check_law(policy), venv.task)
     obs, info = venv.reset(seed=seeds)
     policy.reset(n)
@@ -146,7 +150,7 @@ def rollout(
     lengths = np.zeros(n, int)
     navigation = np.full((n, 3), np.nan)
     hist_t, hist_x, hist_a = [], [], []
-    time_s = np.zeros(n)
+    time_s = np.array(info["time_s"], dtype=float)  # 0, or a start state's time
     while not done.all():
         state = venv.state
         # what the law is given: the navigation state and the sensors, never the truth or the draw

@@ -10,7 +10,7 @@ transcription, built once per process, serves every solve. Between solves, TV-LQ
 (:mod:`rventry_env.guidance.tvlqr`) tracks the current plan, with gains computed along it
 for the estimated model, and a feedforward on any change of the estimate since the plan.
 
-Design, each choice measured (``scripts/bench_mpc.py``, numbers in the README):
+Design, each choice measured (``scripts/bench_mpc.py``, numbers in the manual's guidance results):
 
 * **Warm start.** A solve starts from the previous plan shifted in time (and its
   multipliers); the first one of an episode from a nominal plan solved once per process

@@ -113,6 +113,9 @@ def _solve(args) -> int:
         return 1
     npz, js = save_reference(rs, out)
     print(f"wrote {npz} and {js}")
+    from rventry_env.task.glossary import terms_line
+
+    print(terms_line(["J*", "mesh error", "max violation"]))
     return 0
 
 
@@ -130,6 +133,9 @@ def _show(args) -> int:
         print(f"{'diagnostics.' + k:28s} {v}")
     if args.json is not None:
         print(f"wrote {write_json(args.json, s, indent=2)}")
+    from rventry_env.task.glossary import terms_line
+
+    print(terms_line(["J*", "mesh error", "max violation"]))
     return 0
 
 

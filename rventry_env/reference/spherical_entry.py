@@ -3,7 +3,7 @@
 States ``r, lon, lat, v, gamma, psi, alpha, mu`` (psi the azimuth from north
 toward east, mu the *conventional* bank angle: 0 lift up, positive to the right),
 controls ``u_alpha, u_mu``. Rotating spherical Earth, point-mass gravity (Vinh,
-Busemann & Culp, *Hypersonic and Planetary Entry Flight Mechanics*, 1980, Ch. 2):
+Busemann & Culp, *Hypersonic and Planetary Entry Flight Mechanics*, 1980, Ch. 2)::
 
     dr/dt     = v sin(gamma)
     dlon/dt   = v cos(gamma) sin(psi) / (r cos(lat))

@@ -41,6 +41,9 @@ def _command(args: argparse.Namespace) -> int:
     if args.plots:
         for path in plot_results(runs_1000, report["results"], orbit, Path(args.plots)):
             print(f"wrote {path}")
+    from rventry_env.task.glossary import terms_line
+
+    print(terms_line(["e_r,max"]))
     return 0
 
 

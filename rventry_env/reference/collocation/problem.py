@@ -6,7 +6,8 @@ expressions, so physics written for :mod:`rventry_env.core.backend` plugs in
 unchanged. Nothing is transcribed here; :mod:`.solver` does that.
 
 Minimise  mayer(x(t0), x(tf), t0, tf) + integral_{t0}^{tf} lagrange(x, u, t) dt
-subject to
+subject to::
+
     dx/dt = dynamics(x, u, t),
     state / control bounds, bounds on x(t0) and x(tf), t0 fixed, tf in [tf_lower, tf_upper],
     path constraints lower <= c(x, u, t) <= upper at every collocation point,

@@ -1,0 +1,49 @@
+"""Attitude commands: a policy that asks for an angle of attack and a bank angle, flown by a one-step tracker.
+
+The environment's action is a pair of *rates* (fractions of the rate limits). A policy that
+outputs rates must integrate them into the attitude it wants, and its exploration noise
+integrates too: white noise of 0.1 on the bank rate is a random walk of 3 deg per second of
+bank, 30 deg over 100 s, which moves the impact by hundreds of kilometres. A policy that
+outputs the *attitude* it wants explores around it without drift, and its noise costs only the
+rates that jitter needs. DeepMimic's policies output PD targets for the same reason.
+
+:func:`command_rates` turns a command into the environment's action from what the vehicle
+measures (the observation): alpha_cmd = (c0 + 1) / 2 alpha_max, and the conventional bank
+mu_cmd = c1 pi (0 = lift up, positive = lift to the right of the flight direction), each reached
+in one control step where the rate limits allow, the bank the short way round. The map is part
+of the policy: training flies it inside the environment step, evaluation inside the law, with
+the same code for NumPy and JAX (``xp`` is ``numpy`` or ``jax.numpy``).
+"""
+
+from __future__ import annotations
+
+import math
+
+from rventry_env.envs.observation import feature_index
+from rventry_env.task import EntryTask
+
+ACTIONS = ("rates", "commands")  # what a policy outputs: the environment's own rates, or attitude commands
+_ALPHA, _LIFT_UP, _LIFT_RIGHT = (feature_index(n) for n in ("alpha", "lift_up", "lift_right"))
+
+
+def command_rates(observation, command, task: EntryTask, xp):
+    """The environment's actions (rate fractions in [-1, 1], (..., 2)) that fly ``command`` (..., 2) in
+    [-1, 1] from the attitude in ``observation`` (..., 26) within one control step."""
+    p, dt = task.problem, task.dt
+    c = xp.clip(command, -1.0, 1.0)
+    alpha = 0.5 * (observation[..., _ALPHA] + 1.0) * p.alpha_max
+    mu = xp.arctan2(observation[..., _LIFT_RIGHT], observation[..., _LIFT_UP])
+    alpha_cmd = 0.5 * (c[..., 0] + 1.0) * p.alpha_max
+    turn = c[..., 1] * math.pi - mu
+    turn = xp.arctan2(xp.sin(turn), xp.cos(turn))  # the short way round
+    return xp.stack([xp.clip((alpha_cmd - alpha) / (dt * p.u_alpha_max), -1.0, 1.0),
+                     xp.clip(turn / (dt * p.u_sigma_max), -1.0, 1.0)], axis=-1)  # fmt: skip
+
+
+def check_actions(actions: str) -> str:
+    if actions not in ACTIONS:
+        raise ValueError(f"actions must be one of {ACTIONS}, got {actions!r}")
+    return actions
+
+
+__all__ = ["ACTIONS", "command_rates", "check_actions"]

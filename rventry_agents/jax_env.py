@@ -1,0 +1,165 @@
+"""The functional ``RvEntry`` as a JAX learner sees it: its actions, its evaluation and its export.
+
+:class:`TrainingEnv` is a gymnax environment around
+:class:`~rventry_env.envs.functional.RvEntryFunctional` that takes the policy's actions, the
+environment's rates or attitude commands (:mod:`rventry_agents.commands`, flown from the
+observation the policy saw, which the state carries). It also flies a learner's deterministic
+policy on a batch of episodes (:meth:`TrainingEnv.evaluator`) and exports its actor for
+:class:`~rventry_agents.jax_policy.JaxPolicy` (:meth:`TrainingEnv.export`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rventry_agents.commands import check_actions, command_rates
+
+OUTCOME_KEYS = ("is_success", "miss_km", "vertical_error_deg", "speed_error_mps", "constraint_violation", "status")
+
+
+def make_training_env(cfg, task, starts, shaping):
+    """The training environment of a :class:`~rventry_agents.scratch_config.ScratchConfig`."""
+    from rventry_env.envs.functional import RvEntryFunctional
+
+    base = RvEntryFunctional(
+        task=task, dispersion=_rung_dispersion(cfg.env.rung), max_episode_steps=cfg.env.max_episode_steps,
+        dtype=cfg.env.dtype, reward=cfg.reward, starts=starts, shaping=shaping,
+        time_limit_is_failure=cfg.env.time_limit_is_failure,
+    )  # fmt: skip
+    return TrainingEnv(base, cfg.env.actions)
+
+
+def _rung_dispersion(name: str) -> str:
+    from rventry_env.evaluation.rungs import rung
+
+    return rung(name).dispersion
+
+
+def _environment_base():
+    from gymnax.environments import environment
+
+    return environment.Environment
+
+
+class TrainingEnv(_environment_base()):
+    """The functional environment with the policy's actions (see the module docstring).
+
+    Its state is the environment's and the observation of it (what attitude commands are
+    flown from); gymnax's autoreset keeps the two together.
+    """
+
+    def __init__(self, base, actions: str = "rates"):
+        super().__init__()
+        self.base = base
+        self.actions = check_actions(actions)
+
+    def __hash__(self):  # gymnax jits step and reset with ``self`` static
+        return hash((type(self), self.base, self.actions))
+
+    def __eq__(self, other):
+        return isinstance(other, TrainingEnv) and (self.base, self.actions) == (other.base, other.actions)
+
+    @property
+    def default_params(self):
+        return self.base.default_params
+
+    def env_action(self, obs, action):
+        """The environment's action for the policy's ``action`` taken on ``obs``."""
+        import jax.numpy as jnp
+
+        if self.actions == "commands":
+            return command_rates(obs, action, self.base.task, jnp)
+        return jnp.clip(action, -1.0, 1.0)
+
+    def reset_env(self, key, params):
+        obs, state = self.base.reset_env(key, params)
+        return obs, (state, obs)
+
+    def step_env(self, key, state, action, params):
+        inner, obs = state
+        obs, inner, reward, done, info = self.base.step_env(key, inner, self.env_action(obs, action), params)
+        return obs, (inner, obs), reward, done, info
+
+    def observation_space(self, params=None):
+        return self.base.observation_space(params)
+
+    def action_space(self, params=None):
+        return self.base.action_space(params)
+
+    @property
+    def name(self) -> str:
+        return f"{self.base.name} ({self.actions})"
+
+    @property
+    def num_actions(self) -> int:
+        return 2
+
+    # ------------------------------------------------------------------ evaluation and export
+    def mean_action(self, algo, ts, obs):
+        """The deterministic policy's action for one observation: the actor's mean, on the
+        observation normalized as in training."""
+        import jax.numpy as jnp
+
+        z = algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
+        mean = algo.actor.apply(ts.actor_ts.params, z[None], method=lambda m, o: m.action_mean(m.features(o)))
+        return jnp.clip(mean[0], -1.0, 1.0)
+
+    def evaluator(self, algo, episodes: int):
+        """A compiled ``evaluate(ts, params, key) -> dict``: ``episodes`` episodes (one each, no
+        autoreset) of ``params`` flown by the deterministic policy of the training state ``ts``."""
+        import jax
+        import jax.numpy as jnp
+
+        @jax.jit
+        def run(ts, params, key):
+            def one(k):
+                obs, state = self.reset(k, params)
+                _, _, _, _, info0 = self.step_env(k, state, jnp.zeros(2), params)  # the info's structure
+
+                def fly(c):
+                    obs, state, _, ret, info = c
+                    obs, state, r, done, info = self.step_env(k, state, self.mean_action(algo, ts, obs), params)
+                    return obs, state, done, ret + r, info
+
+                c = jax.lax.while_loop(lambda c: jnp.logical_not(c[2]), fly,
+                                       (obs, state, jnp.array(False), jnp.zeros((), obs.dtype), info0))  # fmt: skip
+                return c[3], {k: c[4][k] for k in OUTCOME_KEYS}
+
+            return jax.vmap(one)(jax.random.split(key, episodes))
+
+        def evaluate(ts, params, key) -> dict:
+            ret, o = jax.device_get(run(ts, params, key))
+            return summarize_outcomes(o, ret, self.base.task)
+
+        return evaluate
+
+    def export(self, path: str | Path, algo, ts) -> Path:
+        """Write the actor of ``ts`` for :class:`~rventry_agents.jax_policy.JaxPolicy`."""
+        from rventry_agents.jax_policy import export_actor
+
+        rms = ts.obs_rms_state
+        activation = algo.actor.activation.__name__
+        return export_actor(path, ts.actor_ts.params, rms.mean, rms.var, activation, self.actions)
+
+
+def summarize_outcomes(o: dict, ret, task) -> dict:
+    """The task metrics of a batch of episodes' outcomes (arrays by :data:`OUTCOME_KEYS`): the
+    success rate, the median miss and vertical error, and how often each success condition held."""
+    from rventry_env.envs.propagation import IMPACT
+
+    s = task.success
+    miss, vertical = np.asarray(o["miss_km"], float), np.asarray(o["vertical_error_deg"], float)
+    return {
+        "success_rate": float(np.mean(o["is_success"])), "miss_km_p50": float(np.median(miss)),
+        "vertical_error_deg_p50": float(np.median(vertical)), "impact_rate": float(np.mean(o["status"] == IMPACT)),
+        "miss_within_rate": float(np.mean(miss <= s.miss_km)),
+        "vertical_within_rate": float(np.mean(vertical <= s.vertical_error_deg)),
+        "speed_within_rate": float(np.mean(np.abs(o["speed_error_mps"]) <= s.speed_error_mps)),
+        "violation_rate": float(np.mean(o["constraint_violation"])), "mean_return": float(np.mean(ret)),
+        "episodes": int(miss.size),
+    }  # fmt: skip
+
+
+__all__ = ["TrainingEnv", "make_training_env", "summarize_outcomes", "OUTCOME_KEYS"]

@@ -1,0 +1,317 @@
+"""Reinforcement learning from scratch: rejax PPO on the functional ``RvEntry``, with a reverse curriculum.
+
+No teacher, no demonstrations, no optimizer in the loop and no reference in the observation:
+the policy sees the environment's 26 features and is paid the environment's reward. What helps
+it is where its training episodes start. ``[curriculum]`` starts most of them on the shipped
+reference trajectory (perturbed, inside the path bounds), first in the last minute before
+impact, then further back each time the policy lands from there (a reverse curriculum); the
+others start as the rung does. Optional: attitude commands instead of rates
+(:mod:`rventry_agents.commands`), potential-based shaping (:mod:`rventry_env.envs.shaping`).
+Every setting is in one config file (:mod:`rventry_agents.scratch_config`,
+``rventry_agents/ppo_scratch.toml``).
+
+The environment and the learner are compiled together (rejax: rollouts, advantages and updates
+in one XLA program). Training goes in chunks of ``chunk_timesteps``; the curriculum's window is
+data, so every chunk runs the first one's program. After each chunk the run:
+
+* moves the curriculum's window back where the policy lands from its frontier;
+* flies the deterministic policy on ``select_episodes`` of the rung's own episodes (JAX, keys
+  from ``select_seed``) and keeps the best by the task metric as ``policy.npz``;
+* writes ``checkpoint/`` whole (the training state, the curriculum, the history), from which
+  ``resume=True`` goes on after an interruption.
+
+A run writes into its output directory ``policy.npz`` (the selected actor,
+:class:`~rventry_agents.jax_policy.JaxPolicy` flies it), ``evaluations.json``,
+``learning_curve.png``, ``config.json`` and ``metadata.json`` (provenance, the task, steps,
+wall time, env-steps/s, the device, the curriculum's history).
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+import shutil
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from rventry_agents.scratch_config import ScratchConfig, load_config
+from rventry_env.util.files import write_json
+
+FRONTIER_DEPTH = 0.85  # the frontier: starts between this share of the window and all of it
+
+
+def make_task(cfg: ScratchConfig):
+    from rventry_env.task import EntryTask
+
+    return EntryTask()
+
+
+def make_shaping(cfg: ScratchConfig):
+    """The shaping the config asks for (None: none)."""
+    if cfg.shaping.potential == "none":
+        return None
+    from rventry_env.envs.shaping import PotentialShaping
+
+    if cfg.shaping.potential == "range":
+        return PotentialShaping("range", cfg.ppo.gamma, cfg.shaping.weight)
+    from rventry_env.reference.shaping import energy_range_profile
+
+    energies, ranges = energy_range_profile()
+    return PotentialShaping("energy", cfg.ppo.gamma, cfg.shaping.weight, energies=energies, ranges=ranges)
+
+
+class Curriculum:
+    """Where training episodes start: the window of the reverse curriculum, as start states."""
+
+    def __init__(self, cfg: ScratchConfig, window_s: float | None = None):
+        from rventry_env.evaluation.rungs import rung
+        from rventry_env.reference import load_reference
+
+        self.cfg, self.c = cfg, cfg.curriculum
+        self.rung = rung(cfg.env.rung)
+        ref = load_reference()
+        # how far back the window may go: the rung's own earliest start, or the reference's entry
+        self.limit = float(self.rung.before_impact_s[1]) if self.rung.before_impact_s else math.floor(ref.tf - ref.t0)
+        first = self.limit if self.c.kind == "uniform" else min(self.c.first_window_s, self.limit)
+        self.window = first if window_s is None else float(window_s)
+
+    @property
+    def active(self) -> bool:
+        return self.c.kind != "none"
+
+    @property
+    def complete(self) -> bool:
+        return self.window >= self.limit
+
+    def starts(self, window: float | None = None, probability: float | None = None):
+        """Start states of the window (or another ``window``): None without a curriculum."""
+        from rventry_env.reference.starts import reference_starts
+
+        if not self.active:
+            return self.rung.starts()
+        w = self.window if window is None else window
+        # a rung with start states of its own is all start states: its episodes come from the window
+        p = 1.0 if self.rung.before_impact_s else self.c.probability
+        lo = min(self.c.latest_s, w)
+        return reference_starts((lo, w), p if probability is None else probability, far_weight=self.c.far_weight,
+                                **self.c.perturbations())  # fmt: skip
+
+    def frontier(self):
+        """Start states near the window's far end, every episode from them."""
+        return self.starts_between(FRONTIER_DEPTH * self.window, self.window)
+
+    def starts_between(self, lo: float, hi: float):
+        from rventry_env.reference.starts import reference_starts
+
+        return reference_starts((max(lo, 1.0), hi), 1.0, **self.c.perturbations())
+
+    def advance(self, frontier_success: float) -> bool:
+        """Move the window back where the policy lands from its frontier; whether it moved."""
+        if self.c.kind != "reverse" or self.complete or frontier_success < self.c.advance_at:
+            return False
+        self.window = min(self.window * self.c.growth, self.limit)
+        return True
+
+
+def ppo_class(resets: int):
+    """rejax's PPO, stepping its environments with :func:`~rventry_env.envs.functional.step_batch`'s
+    optimistic autoreset (``resets`` fresh starts a step) where ``resets`` > 0, with gymnax's own else."""
+    from rejax import PPO
+
+    if resets <= 0:
+        return PPO
+    from rventry_env.envs.functional import step_batch
+
+    class OptimisticResetPPO(PPO):
+        @property
+        def vmap_step(self):
+            return lambda keys, states, actions, params: step_batch(self.env, keys, states, actions, params, resets)
+
+    return OptimisticResetPPO
+
+
+def _agent(cfg: ScratchConfig, env, params, chunk: int):
+    """rejax PPO for ``env`` (its evaluation replaced: the run evaluates between chunks)."""
+    p = cfg.ppo
+    algo = ppo_class(cfg.env.resets).create(
+        env=env, env_params=params, num_envs=cfg.env.num_envs, num_steps=p.num_steps, num_epochs=p.num_epochs,
+        num_minibatches=p.num_minibatches, learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda,
+        clip_eps=p.clip_eps, ent_coef=p.ent_coef, vf_coef=p.vf_coef, max_grad_norm=p.max_grad_norm,
+        normalize_observations=True, normalize_rewards=True, reward_normalization_discount=p.gamma,
+        total_timesteps=chunk, eval_freq=chunk, skip_initial_evaluation=True,
+        agent_kwargs={"hidden_layer_sizes": tuple(p.hidden_layer_sizes), "activation": p.activation},
+    )  # fmt: skip
+    return algo.replace(eval_callback=lambda algo, ts, rng: ())
+
+
+def _initial_state(algo, cfg: ScratchConfig, seed: int):
+    import jax
+    import jax.numpy as jnp
+
+    from rventry_agents.jax_ppo import settled_state
+
+    ts = algo.init_state(jax.random.PRNGKey(seed))
+    params = jax.tree_util.tree_map(lambda v: v, ts.actor_ts.params)
+    params["params"]["action_log_std"] = jnp.full_like(params["params"]["action_log_std"], cfg.ppo.log_std_init)
+    return settled_state(ts.replace(actor_ts=ts.actor_ts.replace(params=params)))
+
+
+class Trainer:
+    """One run: the environment, the learner, the curriculum and the evaluations (see the module docstring)."""
+
+    def __init__(self, cfg: ScratchConfig, out: Path, seed: int):
+        import jax
+
+        from rventry_agents.jax_env import make_training_env
+
+        self.cfg, self.out, self.seed = cfg, out, seed
+        self.task = make_task(cfg)
+        self.curriculum = Curriculum(cfg)
+        self.env = make_training_env(cfg, self.task, self.curriculum.starts(), make_shaping(cfg))
+        base = self.env.base
+        self.params = base.make_params(dispersion=self.curriculum.rung.dispersion, seed=seed)
+        chunk = cfg.train.chunk_timesteps
+        self.algo = _agent(cfg, self.env, self.params, chunk)
+        self.traces = []
+
+        def train_chunk(algo, ts):
+            self.traces.append(1)  # one entry per trace of the training program: each is a compilation
+            return algo.train(train_state=ts)[0]
+
+        self._train = jax.jit(train_chunk)
+        # compiled once each: a new evaluator would be a new program to compile
+        self.selection = self.env.evaluator(self.algo, cfg.train.select_episodes)
+        self.frontier_eval = self.env.evaluator(self.algo, cfg.curriculum.frontier_episodes)
+        # the rung's own episodes (its start states, or none), the selection pool's seed apart from training's
+        self.select_params = base.make_params(dispersion=self.curriculum.rung.dispersion, seed=cfg.train.select_seed,
+                                              starts=self.curriculum.rung.starts())  # fmt: skip
+
+    def with_window(self) -> None:
+        """The learner's environment params with the curriculum's current window (no recompilation)."""
+        starts = self.curriculum.starts()
+        params = self.params if starts is None else self.params._replace(starts=self.env.base.start_params(starts))
+        self.algo = self.algo.replace(env_params=params)
+
+    def chunk(self, ts):
+        import jax
+
+        ts = self._train(self.algo, ts)
+        jax.block_until_ready(ts)
+        return ts
+
+    def frontier(self, ts, key) -> dict:
+        params = self.params._replace(starts=self.env.base.start_params(self.curriculum.frontier()))
+        return self.frontier_eval(ts, params, key)
+
+    def probe(self, ts, lo: float, hi: float, key) -> dict:
+        """The deterministic policy from the reference ``lo``-``hi`` s before impact (the frontier's episodes)."""
+        params = self.params._replace(starts=self.env.base.start_params(self.curriculum.starts_between(lo, hi)))
+        return self.frontier_eval(ts, params, key)
+
+    def select(self, ts) -> dict:
+        import jax
+
+        return self.selection(ts, self.select_params, jax.random.PRNGKey(self.cfg.train.select_seed))
+
+
+def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int | None = None,
+                  timesteps: int | None = None, max_wall_s: float | None = None, resume: bool = False,
+                  progress=print) -> dict:  # fmt: skip
+    """Train as the config says (default ``rventry_agents/ppo_scratch.toml``); see the module docstring.
+
+    :param timesteps: override ``[train] total_timesteps``; :param seed: ``[train] seed``;
+    :param max_wall_s: stop after the chunk that ends past this wall time (s), everything written
+        (``[train] max_wall_s``); a resumed run counts its earlier segments' time.
+    :param resume: go on with the interrupted run in ``out`` from its last checkpoint.
+    """
+    from rventry_agents.scratch_state import Checkpoint, check_out, plot_learning_curve, record_chunk
+
+    cfg = load_config(config)
+    changes = {k: v for k, v in (("seed", seed), ("total_timesteps", timesteps), ("max_wall_s", max_wall_s)) if v is not None}
+    if changes:
+        cfg = cfg.replace(train=replace(cfg.train, **changes))
+    out = Path(out)
+    check_out(out, cfg, resume)
+    from rventry_env.core.backend import prefer_fused_cpu_runtime
+
+    prefer_fused_cpu_runtime()
+    import jax
+
+    trainer = Trainer(cfg, out, cfg.train.seed)
+    point = Checkpoint.read(out, cfg) if resume else None
+    if point is None:
+        ts = _initial_state(trainer.algo, cfg, cfg.train.seed)
+        history, wall_before, steps = [], 0.0, 0
+        write_json(out / "config.json", cfg.to_dict())
+    else:
+        ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, cfg, cfg.train.seed))
+        trainer.curriculum.window = point.window
+    trainer.with_window()
+    t0, rates = time.perf_counter(), []
+    best = max(history, key=_rank) if history else None
+    while steps < cfg.train.total_timesteps:
+        c0 = time.perf_counter()
+        ts = trainer.chunk(ts)
+        dt = time.perf_counter() - c0
+        done = int(ts.global_step)
+        if history or point is not None:  # the first chunk of a segment includes the compilation
+            rates.append((done - steps) / dt)
+        steps = done
+        rec = record_chunk(trainer, ts, steps, wall_before + time.perf_counter() - t0, dt)
+        history.append(rec)
+        if best is None or _rank(rec) > _rank(best):
+            best = rec
+            rec["best"] = True
+            trainer.env.export(out / "policy.npz", trainer.algo, ts)
+        progress(_line(rec))
+        write_json(out / "evaluations.json", history)
+        Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps)
+        budget = cfg.train.max_wall_s
+        if budget is not None and rec["wall_s"] >= budget:
+            break
+    meta = _metadata(cfg, trainer, history, best, rates, steps)
+    write_json(out / "metadata.json", meta)
+    plot_learning_curve(history, out / "learning_curve.png", f"PPO from scratch (rejax) on the {cfg.env.rung} rung")
+    return meta
+
+
+def _rank(rec: dict) -> tuple:
+    """How a selection evaluation ranks: success rate, then a smaller median miss."""
+    from rventry_env.evaluation.summary import task_metric_key
+
+    return task_metric_key(rec["select"]["success_rate"], rec["select"]["miss_km_p50"])
+
+
+def _line(rec: dict) -> str:
+    s, c = rec["select"], rec.get("curriculum") or {}
+    front = f"  window {c['window_s']:5.0f} s frontier {c['frontier_success']:.2f}" if c else ""
+    front += "  probes " + " ".join(f"{k}:{v:.2f}" for k, v in rec.get("probes", {}).items())
+    return (f"{rec['timesteps']:>12,d} steps {rec['wall_s']:7.0f} s  success {s['success_rate']:.2f}  miss p50 "
+            f"{s['miss_km_p50']:7.1f} km  vertical p50 {s['vertical_error_deg_p50']:5.1f} deg{front}"
+            + ("  *best*" if rec.get("best") else ""))  # fmt: skip
+
+
+def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, rates: list, steps: int) -> dict:
+    import jax
+
+    from rventry_env import __version__
+
+    rate = float(np.median(rates)) if rates else None
+    return {
+        "command": " ".join(shlex.quote(a) for a in sys.argv), "config": cfg.to_dict(), "task": trainer.task.record(),
+        "actions": cfg.env.actions, "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": steps,
+        "wall_s": history[-1]["wall_s"] if history else 0.0, "env_steps_per_s": rate, "device": str(jax.devices()[0]),
+        "train_compilations": len(trainer.traces), "package_version": __version__,
+        "provenance": {"algorithm": "PPO (rejax), from scratch", "start": "scratch",
+                       "curriculum": cfg.curriculum.kind, "shaping": cfg.shaping.potential, "actions": cfg.env.actions,
+                       "rung": cfg.env.rung, "timesteps": steps, "selected_at_timesteps": best["timesteps"] if best else None,
+                       "seed": cfg.train.seed},
+        "best_evaluation": best, "final_window_s": trainer.curriculum.window,
+    }  # fmt: skip
+
+
+__all__ = ["train_scratch", "Curriculum", "Trainer", "make_shaping"]

@@ -1,0 +1,173 @@
+"""The configuration of ``rventry train ppo-scratch``: reinforcement learning from scratch, as typed sections.
+
+A config file has the sections ``[env]`` (the rung trained on and how the policy acts),
+``[reward]`` (optional overrides of :class:`~rventry_env.envs.reward.RewardWeights`),
+``[curriculum]`` (start states along the shipped reference), ``[shaping]`` (a potential-based
+shaping of the reward), ``[ppo]`` (rejax PPO's settings and the network) and ``[train]`` (budget,
+chunks, seed, selection). :meth:`ScratchConfig.load` reads one and checks every key before
+anything runs; ``rventry_agents/ppo_scratch.toml`` is the shipped policy's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from rventry_agents.config import ConfigError, Section, setting, widths
+from rventry_env.envs.reward import RewardWeights
+
+DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo_scratch.toml"
+
+
+def _rung(name: str) -> None:
+    from rventry_env.evaluation.rungs import rung
+
+    rung(name)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EnvSection(Section):
+    """``[env]``: the task the policy learns and how it acts.
+
+    :param rung: the ladder rung trained and selected on (:mod:`rventry_env.evaluation.rungs`);
+        the JAX learner flies the fixed target, so not ``footprint``.
+    :param actions: ``"rates"``: the environment's own action; ``"commands"``: attitude commands
+        flown by a one-step tracker (:mod:`rventry_agents.commands`).
+    :param time_limit_is_failure: charge a time-limit cut like a failure (training only).
+    :param resets: fresh starts drawn per step for the episodes that end (an optimistic autoreset,
+        :func:`~rventry_env.envs.functional.step_batch`); 0: gymnax's autoreset, a full reset per
+        episode per step.
+    """
+
+    rung: str = setting("standard", check=_rung)
+    actions: Literal["rates", "commands"] = "commands"
+    num_envs: int = setting(512, ge=1)
+    max_episode_steps: int = setting(2000, ge=1)
+    dtype: Literal["float32", "float64"] = "float32"
+    time_limit_is_failure: bool = True
+    resets: int = setting(32, ge=0)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.resets > self.num_envs:
+            raise ConfigError(f"[env] resets ({self.resets}) cannot exceed num_envs ({self.num_envs})")
+        if self.rung == "footprint":
+            raise ConfigError("[env] rung = 'footprint' draws a target per episode, which the JAX environment does "
+                              "not fly; train on a fixed-target rung")  # fmt: skip
+
+
+@dataclass(frozen=True, kw_only=True)
+class CurriculumSection(Section):
+    """``[curriculum]``: episodes started on the shipped reference (reference-state initialisation).
+
+    ``kind = "reverse"`` starts them within ``latest_s`` .. W seconds before the reference's impact,
+    W growing by ``growth`` (up to the rung's own earliest start) whenever the deterministic policy
+    lands ``advance_at`` of ``frontier_episodes`` started near W (a reverse curriculum, Florensa et
+    al. 2017); ``"uniform"`` starts them anywhere up to the rung's earliest start at once (DeepMimic's
+    reference-state initialisation); ``"none"``: only the rung's own starts. ``probability`` is the
+    share of training episodes started this way; the others start as the rung does. ``far_weight``
+    k makes the start density grow as (s - latest_s)^k toward the window's far end, where the
+    frontier is (:class:`~rventry_env.task.starts.StartStates`). Selection and evaluation always fly
+    the rung's own starts.
+    """
+
+    kind: Literal["none", "reverse", "uniform"] = "reverse"
+    probability: float = setting(0.9, gt=0, le=1)
+    first_window_s: float = setting(60.0, gt=0)
+    latest_s: float = setting(20.0, ge=1)
+    growth: float = setting(1.25, gt=1)
+    advance_at: float = setting(0.5, gt=0, le=1)
+    frontier_episodes: int = setting(128, ge=1)
+    far_weight: float = setting(0.0, ge=0)
+    altitude_m: float = setting(300.0, ge=0)
+    speed_mps: float = setting(20.0, ge=0)
+    flight_path_deg: float = setting(0.2, ge=0)
+    heading_deg: float = setting(0.2, ge=0)
+    alpha_deg: float = setting(1.0, ge=0)
+    sigma_deg: float = setting(5.0, ge=0)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.latest_s > self.first_window_s:
+            raise ConfigError(f"[curriculum] latest_s ({self.latest_s:g}) must not exceed first_window_s "
+                              f"({self.first_window_s:g})")  # fmt: skip
+
+    def perturbations(self) -> dict:
+        return {k: getattr(self, k) for k in ("altitude_m", "speed_mps", "flight_path_deg", "heading_deg", "alpha_deg",
+                                              "sigma_deg")}  # fmt: skip
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShapingSection(Section):
+    """``[shaping]``: potential-based shaping (:mod:`rventry_env.envs.shaping`), ``"none"`` to leave the
+    reward as it is; ``weight`` is the reward per km of the potential."""
+
+    potential: Literal["none", "range", "energy"] = "none"
+    weight: float = setting(0.2, gt=0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PPOSection(Section):
+    """``[ppo]``: rejax PPO's settings and the networks (actor and critic alike)."""
+
+    num_steps: int = setting(64, ge=1)
+    num_minibatches: int = setting(8, ge=1)
+    num_epochs: int = setting(4, ge=1)
+    learning_rate: float = setting(3e-4, gt=0)
+    gamma: float = setting(0.999, gt=0, le=1)
+    gae_lambda: float = setting(0.95, ge=0, le=1)
+    clip_eps: float = setting(0.2, gt=0)
+    ent_coef: float = setting(0.0, ge=0)
+    vf_coef: float = setting(0.5, ge=0)
+    max_grad_norm: float = setting(0.5, gt=0)
+    hidden_layer_sizes: tuple[int, ...] = widths((64, 64))
+    activation: Literal["tanh", "relu"] = "tanh"
+    log_std_init: float = setting(-1.0, lt=2)
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainSection(Section):
+    """``[train]``: the budget, its chunks (one compiled program, called again), the seed and the
+    selection set: after each chunk the deterministic policy flies ``select_episodes`` of the rung's
+    own episodes (keys from ``select_seed``, never the evaluation's seeds) and the best by the task
+    metric (success rate, then median miss) is kept."""
+
+    total_timesteps: int = setting(200_000_000, ge=1)
+    chunk_timesteps: int = setting(4_194_304, ge=1)
+    seed: int = setting(0, ge=0)
+    select_episodes: int = setting(256, ge=1)
+    select_seed: int = setting(100_000, ge=0)
+    max_wall_s: float | None = setting(None, gt=0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScratchConfig(Section):
+    """A whole ``ppo-scratch`` config (see the module docstring)."""
+
+    env: EnvSection = EnvSection()
+    reward: RewardWeights = RewardWeights()
+    curriculum: CurriculumSection = CurriculumSection()
+    shaping: ShapingSection = ShapingSection()
+    ppo: PPOSection = PPOSection()
+    train: TrainSection = TrainSection()
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.train.chunk_timesteps < self.env.num_envs * self.ppo.num_steps:
+            raise ConfigError(f"[train] chunk_timesteps ({self.train.chunk_timesteps:,}) is shorter than one rollout "
+                              f"(num_envs x num_steps = {self.env.num_envs * self.ppo.num_steps:,})")  # fmt: skip
+        if (self.env.num_envs * self.ppo.num_steps) % self.ppo.num_minibatches:
+            raise ConfigError(f"[ppo] num_minibatches ({self.ppo.num_minibatches}) must divide a rollout's "
+                              f"{self.env.num_envs * self.ppo.num_steps:,} steps")  # fmt: skip
+
+
+def load_config(path: str | Path | dict | None = None) -> ScratchConfig:
+    """The config at ``path`` (default :data:`DEFAULT_CONFIG`), or from a dict, checked."""
+    if isinstance(path, dict):
+        return ScratchConfig.from_dict(path)
+    return ScratchConfig.load(DEFAULT_CONFIG if path is None else path)
+
+
+__all__ = ["ScratchConfig", "EnvSection", "CurriculumSection", "ShapingSection", "PPOSection", "TrainSection",
+           "DEFAULT_CONFIG", "load_config"]  # fmt: skip

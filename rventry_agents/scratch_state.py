@@ -1,0 +1,148 @@
+"""A from-scratch run's records: its output folder, its per-chunk evaluations, its checkpoint and its plot."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from rventry_agents.config import ConfigError
+from rventry_env.util.files import atomic_write, save_figure, write_json
+
+CHECKPOINT = "checkpoint"
+# windows (s before impact) whose success is recorded after each chunk: where along the flight the policy lands from
+PROBES = ((30.0, 60.0), (150.0, 200.0), (450.0, 550.0))
+
+
+def check_out(out: Path, cfg, resume: bool) -> None:
+    """Refuse an output that cannot hold this run, before anything is written or compiled."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file; give a directory for the run")
+    started = (out / "config.json").is_file()
+    if resume:
+        if not (out / CHECKPOINT / "state.json").is_file():
+            raise ValueError(f"cannot resume {out}: it has no {CHECKPOINT}/ (a run writes one after each chunk)")
+        recorded = _resumable(json.loads((out / "config.json").read_text())) if started else {}
+        now = _resumable(json.loads(json.dumps(cfg.to_dict())))
+        if recorded != now:
+            diff = sorted(k for k in set(now) | set(recorded) if recorded.get(k) != now.get(k))
+            raise ValueError(f"cannot resume {out}: the config differs from the one it started with (sections {diff}); "
+                             "only the budget ([train] total_timesteps, max_wall_s) may change")  # fmt: skip
+    elif started:
+        raise ValueError(f"{out} already holds a run; give another --out, or --resume to go on with it")
+    out.mkdir(parents=True, exist_ok=True)
+
+
+def _resumable(config: dict) -> dict:
+    """What a resumed run must share with the run it resumes: all but the budget."""
+    train = {k: v for k, v in config.get("train", {}).items() if k not in ("total_timesteps", "max_wall_s")}
+    return {**config, "train": train}
+
+
+def record_chunk(trainer, ts, steps: int, wall_s: float, chunk_s: float) -> dict:
+    """After a chunk: move the curriculum, fly the selection set; the chunk's record."""
+    import jax
+
+    rec = {"timesteps": steps, "wall_s": wall_s, "chunk_s": chunk_s,
+           "exploration_std": np.exp(np.asarray(ts.actor_ts.params["params"]["action_log_std"])).tolist()}  # fmt: skip
+    c = trainer.curriculum
+    if c.c.kind == "reverse":
+        front = trainer.frontier(ts, jax.random.PRNGKey(steps))
+        window = c.window
+        moved = c.advance(front["success_rate"])
+        if moved:
+            trainer.with_window()
+        rec["curriculum"] = {"window_s": window, "frontier_success": front["success_rate"], "frontier": front,
+                             "next_window_s": c.window}  # fmt: skip
+    rec["select"] = trainer.select(ts)
+    rec["probes"] = {f"{lo:g}-{hi:g}": trainer.probe(ts, lo, hi, jax.random.PRNGKey(steps + 1))["success_rate"]
+                     for lo, hi in PROBES}  # fmt: skip
+    return rec
+
+
+class Checkpoint:
+    """``checkpoint/``: the training state (flax's msgpack), the curriculum's window and the history,
+    written whole after each chunk (a new folder renamed over the old)."""
+
+    def __init__(self, out: Path, window: float, history: list, wall_s: float, steps: int):
+        self.out, self.window, self.history, self.wall_s, self.steps = out, window, history, wall_s, steps
+
+    @staticmethod
+    def write(out: Path, ts, window: float, history: list, wall_s: float, steps: int) -> None:
+        from flax import serialization
+
+        tmp, final, old = out / f"{CHECKPOINT}.tmp", out / CHECKPOINT, out / f"{CHECKPOINT}.old"
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        atomic_write(tmp / "train_state.msgpack", serialization.to_bytes(ts))
+        write_json(tmp / "state.json", {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history})
+        shutil.rmtree(old, ignore_errors=True)
+        if final.exists():
+            final.rename(old)
+        tmp.rename(final)
+        shutil.rmtree(old, ignore_errors=True)
+
+    @classmethod
+    def read(cls, out: Path, cfg) -> "Checkpoint":
+        path = out / CHECKPOINT / "state.json"
+        try:
+            s = json.loads(path.read_text())
+            return cls(out, float(s["window_s"]), list(s["history"]), float(s["wall_s"]), int(s["timesteps"]))
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ConfigError(f"cannot resume {out}: {path} is not a checkpoint ({type(exc).__name__}: {exc})") from None
+
+    def restore(self, template):
+        """(training state, history, wall time, steps) from the checkpoint; ``template`` a fresh
+        training state of the same config (its structure)."""
+        from flax import serialization
+
+        path = self.out / CHECKPOINT / "train_state.msgpack"
+        try:
+            ts = serialization.from_bytes(template, path.read_bytes())
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ConfigError(f"cannot resume {self.out}: {path} does not hold this config's training state "
+                              f"({type(exc).__name__}: {exc})") from None  # fmt: skip
+        return ts, self.history, self.wall_s, self.steps
+
+
+def plot_learning_curve(history: list[dict], path: Path, title: str) -> Path | None:
+    """Success rate and median miss of the selection set, and the curriculum's window, against steps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rventry_env.util.files import plain_log_labels
+
+    if not history:
+        return None
+    steps = np.array([h["timesteps"] for h in history]) / 1e6
+    sel = [h["select"] for h in history]
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.6))
+    ax[0].plot(steps, [s["success_rate"] for s in sel], "o-", ms=3, label="success")
+    ax[0].plot(steps, [s["miss_within_rate"] for s in sel], "-", lw=1, label="miss <= 5 km")
+    ax[0].plot(steps, [s["vertical_within_rate"] for s in sel], "-", lw=1, label="vertical <= 5 deg")
+    ax[0].set(xlabel="environment steps (M)", ylabel="share of selection episodes", ylim=(-0.02, 1.02))
+    ax[0].legend(fontsize=7, loc="upper left")
+    ax[1].semilogy(steps, [max(s["miss_km_p50"], 1e-2) for s in sel], "o-", ms=3)
+    ax[1].set(xlabel="environment steps (M)", ylabel="median miss (km)")
+    plain_log_labels(ax[1])
+    windows = [h.get("curriculum", {}).get("window_s") for h in history]
+    if any(w is not None for w in windows):
+        ax[2].plot(steps, [np.nan if w is None else w for w in windows], "o-", ms=3)
+        ax[2].set(xlabel="environment steps (M)", ylabel="curriculum window (s before impact)")
+    else:
+        ax[2].plot(steps, [h["exploration_std"][0] for h in history], "o-", ms=3, label="alpha")
+        ax[2].plot(steps, [h["exploration_std"][1] for h in history], "o-", ms=3, label="bank")
+        ax[2].set(xlabel="environment steps (M)", ylabel="exploration std")
+        ax[2].legend(fontsize=7)
+    for a in ax:
+        a.grid(alpha=0.3)
+    n = sel[-1]["episodes"]
+    fig.suptitle(f"{title}: deterministic policy on {n} selection episodes after each chunk")
+    return save_figure(fig, path)
+
+
+__all__ = ["CHECKPOINT", "Checkpoint", "check_out", "record_chunk", "plot_learning_curve"]

@@ -1,0 +1,108 @@
+"""Potential-based reward shaping: a training aid that leaves every optimal policy unchanged.
+
+With a potential Phi over states and the learner's discount gamma, each step also pays
+F = gamma Phi(s') - Phi(s), with Phi = 0 at a terminal state (Ng, Harada & Russell 1999).
+Along any episode that terminates, the discounted sum of F telescopes to -Phi(s_0): the shaped
+return of every policy is its own return less the same constant, so the ordering of policies,
+and with it every optimal policy, is unchanged. What changes is what a critic must learn: it
+now learns V(s) - Phi(s), which is easy where Phi is close to V. A potential is a prior for the
+critic, not a new objective.
+
+An episode cut by the time limit is not terminal (the state has a future): it pays gamma
+Phi(s') - Phi(s) like any other step, so a learner that bootstraps the cut (Gymnasium's
+semantics) sees the same telescoping sum. Where training charges the cut as a failure
+(``time_limit_is_failure``), the cut is terminal and Phi(s') = 0.
+
+Potentials (:data:`POTENTIALS`), each evaluated on the true state (the reward is a training
+signal; a guidance law never sees it) and written once for floats, NumPy and JAX:
+
+* ``"range"``: -w * (great-circle range to go, km), w the reward's miss weight. It says nothing
+  of energy: a vehicle gains potential by closing range however it spends its energy (an early
+  plunge pays as well as a glide).
+* ``"energy"``: -w * |range to go - R(e)| (km), the range the vehicle is off the profile R(e)
+  of range to go against specific energy e = v^2/2 + mu/R - mu/r that a trajectory of the task
+  flies (``energies`` and ``ranges``; :func:`rventry_env.reference.shaping.energy_range_profile`
+  gives the shipped reference's). It is the classical entry-guidance
+  prediction of the miss: at a given energy, the range the vehicle can still cover is about the
+  profile's, so a vehicle short of energy for its range (a plunge) or with energy to spare
+  loses potential, and one that keeps range and energy in step keeps it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rventry_env.core.targeting import specific_energy, surface_angle, target_in_a
+
+POTENTIALS = ("range", "energy")
+
+
+@dataclass(frozen=True, eq=False)
+class PotentialShaping:
+    """Potential-based shaping (see the module docstring).
+
+    :param potential: one of :data:`POTENTIALS`.
+    :param gamma: the learner's discount (the shaping is policy-invariant only with it).
+    :param weight: reward per km of the potential's range (default 0.2, the reward's miss weight).
+    :param energies: ``"energy"``: the profile's specific energies (J/kg), increasing.
+    :param ranges: ``"energy"``: the range to go (m) at each of them.
+    """
+
+    potential: str
+    gamma: float
+    weight: float = 0.2
+    energies: np.ndarray | None = None
+    ranges: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.potential not in POTENTIALS:
+            raise ValueError(f"shaping potential must be one of {POTENTIALS}, got {self.potential!r}")
+        g = self.gamma
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not 0 < g <= 1:
+            raise ValueError(f"shaping gamma must be the learner's discount, in (0, 1], got {g!r}")
+        w = self.weight
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w <= 0:
+            raise ValueError(f"shaping weight must be a finite number > 0 (reward per km), got {w!r}")
+        if self.potential == "energy":
+            e, r = (np.asarray(a, dtype=float) if a is not None else None for a in (self.energies, self.ranges))
+            if e is None or r is None or e.ndim != 1 or e.shape != r.shape or e.size < 2:
+                raise ValueError("the 'energy' potential needs energies and ranges: two 1-D arrays of one length >= 2")
+            if not (np.all(np.isfinite(e)) and np.all(np.isfinite(r)) and np.all(np.diff(e) > 0) and np.all(r >= 0)):
+                raise ValueError("the 'energy' potential's energies must increase strictly and its ranges be >= 0, all finite")
+            e.setflags(write=False)
+            r.setflags(write=False)
+            object.__setattr__(self, "energies", e)
+            object.__setattr__(self, "ranges", r)
+        object.__setattr__(self, "gamma", float(g))
+        object.__setattr__(self, "weight", float(w))
+
+    def phi(self, x, c_ae, target_e, mu: float, radius: float, ns):
+        """The potential of states ``x`` (components; C_AE at them ``c_ae``) flying to ``target_e``."""
+        range_to_go_m = radius * surface_angle(target_in_a(c_ae, target_e), ns)
+        if self.potential == "range":
+            return -self.weight * range_to_go_m / 1000.0
+        e = specific_energy(x, mu, radius)
+        profile = ns.interp(e, self.energies, self.ranges)
+        return -self.weight * ns.fabs(range_to_go_m - profile) / 1000.0
+
+    def reward(self, phi_before, phi_after, terminal, ns):
+        """F = gamma Phi(s') - Phi(s), with Phi(s') = 0 where the step ended the episode for good."""
+        return self.gamma * ns.where(terminal, 0.0, phi_after) - phi_before
+
+    def describe(self) -> dict:
+        out = {"potential": self.potential, "gamma": self.gamma, "weight_per_km": self.weight}
+        if self.energies is not None:
+            out["profile_points"] = int(self.energies.size)
+        return out
+
+
+def check_shaping(shaping) -> PotentialShaping | None:
+    if shaping is None or isinstance(shaping, PotentialShaping):
+        return shaping
+    raise TypeError(f"shaping must be a PotentialShaping (rventry_env.envs.shaping) or None, got {type(shaping).__name__}")
+
+
+__all__ = ["POTENTIALS", "PotentialShaping", "check_shaping"]

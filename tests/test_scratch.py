@@ -1,0 +1,141 @@
+"""PPO from scratch: its config, its attitude commands, a short run end to end, its export and its resume."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from rventry_agents.commands import command_rates
+from rventry_agents.config import ConfigError
+from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config
+from rventry_env.envs.observation import feature_index
+from rventry_env.task import EntryTask
+
+TASK = EntryTask()
+
+
+def test_the_shipped_config_loads_and_a_misspelled_key_is_refused_by_name(tmp_path):
+    cfg = load_config()
+    assert cfg.env.rung == "standard" and cfg.curriculum.kind == "reverse"
+    text = DEFAULT_CONFIG.read_text().replace("first_window_s", "first_windw_s")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    with pytest.raises(ConfigError, match="first_windw_s"):
+        load_config(bad)
+    with pytest.raises(ConfigError, match="footprint"):
+        load_config({"env": {"rung": "footprint"}})
+    with pytest.raises(ConfigError, match="no rung 'tall'"):
+        load_config({"env": {"rung": "tall"}})
+    with pytest.raises(ConfigError, match="shorter than one rollout"):
+        load_config({"train": {"chunk_timesteps": 1000}})
+    with pytest.raises(ConfigError, match="latest_s"):
+        load_config({"curriculum": {"latest_s": 100.0, "first_window_s": 60.0}})
+
+
+def _obs(alpha_deg, mu_deg, gamma_deg=0.0):
+    obs = np.zeros((np.size(alpha_deg), 26))
+    obs[:, feature_index("alpha")] = 2.0 * np.radians(alpha_deg) / TASK.problem.alpha_max - 1.0
+    cg = np.cos(np.radians(gamma_deg))
+    obs[:, feature_index("lift_up")] = np.cos(np.radians(mu_deg)) * cg
+    obs[:, feature_index("lift_right")] = np.sin(np.radians(mu_deg)) * cg
+    return obs
+
+
+def test_attitude_commands_fly_the_asked_attitude_within_the_rate_limits():
+    p = TASK.problem
+    # holding the attitude: the command equal to it asks no rate
+    alpha, mu = np.array([11.86, 5.0]), np.array([30.0, -120.0])
+    hold = np.stack([2 * np.radians(alpha) / p.alpha_max - 1, np.radians(mu) / math.pi], axis=1)
+    assert np.allclose(command_rates(_obs(alpha, mu), hold, TASK, np), 0.0, atol=1e-12)
+    # a small change is made in one step; a large one at the rate limit
+    small = command_rates(_obs([10.0], [0.0]), np.array([[2 * np.radians(12.0) / p.alpha_max - 1, 10 / 180]]), TASK, np)
+    assert small[0, 0] == pytest.approx(np.radians(2.0) / p.u_alpha_max)
+    assert small[0, 1] == pytest.approx(np.radians(10.0) / p.u_sigma_max)
+    big = command_rates(_obs([0.0], [0.0]), np.array([[1.0, 0.5]]), TASK, np)
+    assert np.allclose(big, [[1.0, 1.0]])
+    # the bank turns the short way round: from 170 deg to -170 deg is +20 deg, not -340
+    wrap = command_rates(_obs([11.86], [170.0]), np.array([[2 * np.radians(11.86) / p.alpha_max - 1, -170 / 180]]),
+                         TASK, np)  # fmt: skip
+    assert wrap[0, 1] == pytest.approx(np.radians(20.0) / p.u_sigma_max)
+
+
+def test_numpy_and_jax_fly_the_same_commands():
+    jnp = pytest.importorskip("jax.numpy")
+    rng = np.random.default_rng(0)
+    obs = _obs(rng.uniform(0, 25, 50), rng.uniform(-180, 180, 50), rng.uniform(-80, 80, 50))
+    cmd = rng.uniform(-1.2, 1.2, (50, 2))
+    a = command_rates(obs, cmd, TASK, np)
+    b = np.asarray(command_rates(jnp.asarray(obs), jnp.asarray(cmd), TASK, jnp))
+    assert np.allclose(a, b, atol=1e-6)
+    assert np.all(np.abs(a) <= 1.0)
+
+
+SMALL = {"env": {"rung": "late", "num_envs": 32}, "ppo": {"num_steps": 32, "num_minibatches": 4, "hidden_layer_sizes": [16, 16]},
+         "curriculum": {"kind": "reverse", "first_window_s": 40.0, "frontier_episodes": 8},
+         "shaping": {"potential": "energy"},
+         "train": {"total_timesteps": 2048, "chunk_timesteps": 1024, "select_episodes": 8}}  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
+    """A few thousand steps of a small config end to end: records written, the exported policy flies what
+    the training state's deterministic policy flies, evaluation of it is deterministic, an interrupted
+    run resumes where it stopped, and a changed config is refused on resume."""
+    pytest.importorskip("rejax")
+    import jax
+
+    from rventry_agents.jax_policy import JaxPolicy
+    from rventry_agents.scratch import Trainer, _initial_state, train_scratch
+    from rventry_env.evaluation.agents import load_agent
+    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.evaluation.rungs import rung_starts
+
+    out = tmp_path / "run"
+    half = json.loads(json.dumps(SMALL))
+    meta = train_scratch(SMALL, out=out, timesteps=1024, progress=lambda s: None)
+    assert meta["timesteps"] == 1024 and meta["train_compilations"] == 1
+    for name in ("policy.npz", "evaluations.json", "config.json", "metadata.json", "learning_curve.png"):
+        assert (out / name).is_file(), name
+    assert meta["provenance"]["start"] == "scratch" and meta["task"] == TASK.record()
+    # resume to the full budget: the history goes on from the first chunk
+    meta = train_scratch(half, out=out, timesteps=2048, resume=True, progress=lambda s: None)
+    hist = json.loads((out / "evaluations.json").read_text())
+    assert [h["timesteps"] for h in hist] == [1024, 2048] and meta["timesteps"] == 2048
+    with pytest.raises(ValueError, match="already holds a run"):
+        train_scratch(SMALL, out=out, progress=lambda s: None)
+    changed = json.loads(json.dumps(SMALL))
+    changed["ppo"]["learning_rate"] = 1e-3
+    with pytest.raises(ValueError, match=r"config differs .*ppo"):
+        train_scratch(changed, out=out, timesteps=4096, resume=True, progress=lambda s: None)
+    # the export flies what the training state's deterministic policy flies
+    cfg = load_config(SMALL)
+    trainer = Trainer(cfg, out, 0)
+    ts = _initial_state(trainer.algo, cfg, 3)
+    trainer.env.export(tmp_path / "p.npz", trainer.algo, ts)
+    law = JaxPolicy(tmp_path / "p.npz")
+    obs, state = jax.vmap(trainer.env.reset, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(0), 16),
+                                                                 trainer.params)  # fmt: skip
+    want = jax.vmap(lambda o: trainer.env.env_action(o, trainer.env.mean_action(trainer.algo, ts, o)))(obs)
+    assert np.allclose(law.actions(np.asarray(obs)), np.asarray(want), atol=2e-5)
+    # the run's policy is an agent: flown twice on the same seeds, the same episodes
+    agent = load_agent(str(out))
+    a = rollout(agent, 4, seed=0, starts=rung_starts("late"))
+    b = rollout(agent, 4, seed=0, starts=rung_starts("late"))
+    assert np.array_equal(a.miss_km, b.miss_km) and np.array_equal(a.cost, b.cost)
+
+
+def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
+    from rventry_agents.jax_policy import JaxPolicy, load_saved
+
+    junk = tmp_path / "policy.npz"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="is not an exported policy"):
+        JaxPolicy(junk)
+    np.savez(tmp_path / "p2.npz", obs_mean=np.zeros(26))
+    with pytest.raises(ValueError, match="lacks"):
+        JaxPolicy(tmp_path / "p2.npz")
+    with pytest.raises(ValueError, match="not a policy trained in JAX"):
+        load_saved(str(tmp_path / "nothing_here"))

@@ -1,0 +1,127 @@
+"""Potential-based shaping changes no optimal decision: the shaped return is the return less Phi(s_0)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rventry_env.envs.rv_entry import RvEntryEnv
+from rventry_env.envs.shaping import PotentialShaping
+from rventry_env.envs.vector import RvEntryVectorEnv
+from rventry_env.evaluation.rungs import rung_starts
+from rventry_env.reference.shaping import energy_range_profile
+
+GAMMA = 0.99
+
+
+def _shapings():
+    e, r = energy_range_profile()
+    return [PotentialShaping("range", GAMMA), PotentialShaping("energy", GAMMA, 0.5, energies=e, ranges=r)]
+
+
+def _discounted(rewards, gamma=GAMMA):
+    return float(sum(gamma**k * r for k, r in enumerate(rewards)))
+
+
+@pytest.mark.parametrize("shaping", _shapings(), ids=lambda s: s.potential)
+def test_the_shaped_return_is_the_return_less_the_starting_potential(shaping):
+    """Any actions, any start: sum_k gamma^k (r_k + F_k) - sum_k gamma^k r_k = -Phi(s_0) on an episode that
+    terminates, so every policy's return moves by the same constant and no decision changes."""
+    starts = rung_starts("late")
+    shaped, plain = RvEntryEnv(starts=starts, shaping=shaping), RvEntryEnv(starts=starts)
+    rng = np.random.default_rng(0)
+    for seed in range(4):
+        shaped.reset(seed=seed)
+        plain.reset(seed=seed)
+        phi0 = shaped._phi
+        a, b = [], []
+        while True:
+            act = rng.uniform(-0.5, 0.5, 2)
+            _, ra, term, trunc, _ = shaped.step(act)
+            _, rb, term_b, _, _ = plain.step(act)
+            a.append(ra)
+            b.append(rb)
+            assert term == term_b
+            if term or trunc:
+                break
+        assert term  # impact or failure: a terminal state, potential 0
+        assert _discounted(a) - _discounted(b) == pytest.approx(-phi0, rel=1e-9, abs=1e-9)
+        assert phi0 < 0  # the potential is a (negative) predicted penalty
+
+
+def test_a_cut_episode_keeps_its_last_potential_and_the_vector_env_shapes_alike():
+    """A time-limit cut is not terminal: the sum telescopes to gamma^T Phi(s_T) - Phi(s_0). The vector env
+    pays each copy what the single env pays it."""
+    shaping = _shapings()[1]
+    n, limit = 4, 12
+    vec = RvEntryVectorEnv(n, starts=rung_starts("late"), shaping=shaping, max_episode_steps=limit)
+    vec.reset(seed=20)
+    rows = np.array([vec.step(np.zeros((n, 2)))[1] for _ in range(limit)]).T
+    for i in range(n):
+        shaped = RvEntryEnv(starts=rung_starts("late"), shaping=shaping, max_episode_steps=limit)
+        plain = RvEntryEnv(starts=rung_starts("late"), max_episode_steps=limit)
+        shaped.reset(seed=20 + i)
+        plain.reset(seed=20 + i)
+        phi0 = shaped._phi
+        a, b = [], []
+        for _ in range(limit):
+            _, ra, term, trunc, _ = shaped.step(np.zeros(2))
+            a.append(ra)
+            b.append(plain.step(np.zeros(2))[1])
+        assert trunc and not term
+        assert _discounted(a) - _discounted(b) == pytest.approx(GAMMA**limit * shaped._phi - phi0, rel=1e-9)
+        assert np.allclose(rows[i], a, rtol=1e-12, atol=1e-12)
+
+
+def test_the_functional_env_shapes_as_the_numpy_env_does_and_charges_a_cut_as_a_failure():
+    jax = pytest.importorskip("jax")
+    import jax.numpy as jnp
+
+    from rventry_env.envs.functional import RvEntryFunctional
+    from rventry_env.envs.outcome import TerminalMetrics, time_limit_penalty
+    from rventry_env.core.backend import NUMPY
+
+    shaping = _shapings()[1]
+    starts = rung_starts("late")
+    plain = RvEntryFunctional(starts=starts, dtype="float64", max_episode_steps=12)
+    shaped = RvEntryFunctional(starts=starts, dtype="float64", max_episode_steps=12, shaping=shaping,
+                               time_limit_is_failure=True)  # fmt: skip
+    key = jax.random.PRNGKey(5)
+    _, sa = shaped.reset(key, shaped.default_params)
+    _, sb = plain.reset(key, plain.default_params)
+    phi0 = float(sa.potential)
+    ra, rb = [], []
+    for k in range(12):
+        _, sa, r1, d1, info = shaped.step_env(key, sa, jnp.zeros(2), shaped.default_params)
+        _, sb, r2, d2, _ = plain.step_env(key, sb, jnp.zeros(2), plain.default_params)
+        ra.append(float(r1))
+        rb.append(float(r2))
+    assert bool(info["truncated"]) and not bool(info["terminated"])
+    m = TerminalMetrics(*(np.asarray(float(info[k])) for k in TerminalMetrics._fields))
+    charged = float(time_limit_penalty(m, shaped.reward, NUMPY))
+    assert charged > shaped.reward.failure
+    # the cut is final there (Phi = 0) and charged: the difference telescopes to -Phi(s_0) - gamma^(T-1) charge
+    diff = _discounted(ra) - _discounted(rb)
+    assert diff == pytest.approx(-phi0 - GAMMA**11 * charged, rel=1e-9)
+
+
+def test_bad_shaping_settings_are_refused_with_their_name():
+    with pytest.raises(ValueError, match="potential must be one of"):
+        PotentialShaping("height", 0.99)
+    with pytest.raises(ValueError, match="gamma must be the learner's discount"):
+        PotentialShaping("range", 1.5)
+    with pytest.raises(ValueError, match="weight must be a finite number > 0"):
+        PotentialShaping("range", 0.99, float("nan"))
+    with pytest.raises(ValueError, match="needs energies and ranges"):
+        PotentialShaping("energy", 0.99)
+    with pytest.raises(ValueError, match="increase strictly"):
+        PotentialShaping("energy", 0.99, energies=[2.0, 1.0], ranges=[0.0, 1.0])
+    with pytest.raises(TypeError, match="PotentialShaping"):
+        RvEntryEnv(shaping="range")
+
+
+def test_the_energy_profile_runs_from_the_target_to_the_entry():
+    e, r = energy_range_profile()
+    assert np.all(np.diff(e) > 0)
+    assert r[0] < 1.0 and 2.7e6 < r[-1] < 2.9e6  # impact at the target; entry 2800 km out
+    assert e[0] == pytest.approx(0.5 * 1219.0**2, rel=0.15)  # the impact speed's energy, on the surface
