@@ -108,3 +108,44 @@ def test_the_jax_vector_env_pickles_mid_episode_and_flies_the_same_episodes(disp
     copy = pickle.loads(pickle.dumps(env))
     np.testing.assert_array_equal(copy.unwrapped.state, env.unwrapped.state)
     _fly_pair(env, copy, actions, vector=True)
+
+
+def test_envs_with_start_states_and_shaping_pickle_and_fly_the_same_episodes():
+    """A training env (start states drawn from the reference, potential shaping) ships as well."""
+    from rventry_env.envs.shaping import PotentialShaping
+    from rventry_env.reference.starts import reference_starts
+
+    kw = {"starts": reference_starts((30.0, 200.0), altitude_m=400.0, probability=0.5),
+          "shaping": PotentialShaping("range", 0.99), "dispersion": "standard"}  # fmt: skip
+    single = gym.make("RvEntry-v0", **kw)
+    single.reset(seed=21)
+    _fly_pair(single, pickle.loads(pickle.dumps(single)), _actions(3, None), vector=False)
+    vec = gym.make_vec("RvEntry-v0", num_envs=3, vectorization_mode="vector_entry_point", **kw)
+    vec.reset(seed=22)
+    _fly_pair(vec, pickle.loads(pickle.dumps(vec)), _actions(4, 3), vector=True)
+
+
+def test_the_functional_env_its_params_and_state_pickle_and_step_alike():
+    pytest.importorskip("gymnax")
+    import jax
+
+    from rventry_env.envs.functional import RvEntryFunctional
+
+    env = RvEntryFunctional(dispersion="standard", dtype="float64")
+    params = env.default_params
+    _, state = env.reset(jax.random.PRNGKey(0), params)
+    copy, copy_params, copy_state = pickle.loads(pickle.dumps((env, params, state)))
+    step = jax.jit(env.step_env)
+    copy_step = jax.jit(copy.step_env)
+    actions = _actions(5, None)
+    for k in range(3000):
+        a = next(actions)
+        key = jax.random.PRNGKey(k)
+        one = step(key, state, a, params)
+        two = copy_step(key, copy_state, a, copy_params)
+        for x, y in zip(jax.tree.leaves(one), jax.tree.leaves(two)):
+            np.testing.assert_array_equal(x, y)
+        state, copy_state = one[1], two[1]
+        if bool(one[3]):
+            break
+    assert bool(one[3]) and k > 10

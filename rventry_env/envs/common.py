@@ -119,12 +119,19 @@ def real_actions(actions, shape: tuple, what: str) -> np.ndarray:
     return a
 
 
-def check_max_steps(max_episode_steps) -> int | None:
-    """A time limit in control steps: a positive integer, or None for none."""
-    if max_episode_steps is None:
+# the longest time limit: what the compiled steps' step counter (int32) holds, 2**31 - 1 control steps
+MAX_STEPS_BOUND = 2**31 - 1
+
+
+def check_max_steps(max_episode_steps, name: str = "max_episode_steps", optional: bool = True) -> int | None:
+    """A time limit in control steps: an integer in [1, :data:`MAX_STEPS_BOUND`], or (``optional``) None for none."""
+    if max_episode_steps is None and optional:
         return None
-    if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
-        raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
+    if (isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer))
+            or not 1 <= max_episode_steps <= MAX_STEPS_BOUND):  # fmt: skip
+        none = " or None" if optional else " (this environment needs a time limit)"
+        raise ValueError(f"{name} must be a positive integer <= {MAX_STEPS_BOUND} (what the step counter, int32, "
+                         f"holds){none}, got {max_episode_steps!r}")  # fmt: skip
     return int(max_episode_steps)
 
 
