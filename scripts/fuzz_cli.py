@@ -6,15 +6,18 @@ output paths that are folders, that run through a file, or whose names are longe
 system allows; input files that are missing, empty, folders or random bytes; unknown options,
 missing required ones, extra positionals. Every command is covered: ``orbit``, ``reference``
 (``solve``, ``show``, ``export``), ``evaluate``, ``compare``, ``oracle``, ``identify``,
-``simulate-record`` and ``train`` (``ppo``, ``dagger``, ``ship``).
+``simulate-record``, ``glossary`` and ``train`` (``ppo`` and its modes, ``jax-ppo``, ``ppo-scratch``,
+``dagger``, ``ship``).
 
 Each case runs in this process (``rventry_env.cli.main``) under a time limit: a case that is
 not refused within it has been accepted and runs, and is counted so. A case passes when the
 command exits 2, its message names the argument (the option, or the file), it prints no
-traceback, the report written before it is untouched, and it leaves no new file or folder.
+traceback, the report written before it is untouched, and it leaves no new file or folder (cases
+run in the fixtures' folder, so a default output path written is seen too).
 
     python scripts/fuzz_cli.py                      # the whole corpus, a table of the figures
     python scripts/fuzz_cli.py --json out/fuzz_cli.json --limit 60
+    python scripts/fuzz_cli.py --only "train ppo-scratch" --only glossary
 """
 
 from __future__ import annotations
@@ -260,13 +263,29 @@ def corpus(f: Fixtures) -> list[Case]:
     numbers("train dagger", dag, "--seed", ["-1", "abc"])
     add("train dagger", dag, "--config", [(f.missing, "missing.npz"), (str(f.bad_toml), "bad.toml")])
     add("train dagger", dag, "--out", [(str(f.a_file), "a_file")])
+    for algo in ("ppo-residual", "ppo-finetune", "ppo-plain", "recurrent-ppo-plain", "sac-plain"):
+        mode = ["train", algo, "--out", str(f.tmp / f"run_{algo}"), "--no-progress"]
+        numbers(f"train {algo}", mode, "--timesteps", ["0", "-1", "abc"])
+        add(f"train {algo}", mode, "--config", [(f.missing, "missing.npz"), (str(f.bad_toml), "bad.toml")])
+        add(f"train {algo}", mode, "--out", [(str(f.a_file), "a_file")])
+    for algo in ("jax-ppo", "ppo-scratch"):  # the [jax] extra's trainers
+        jx = ["train", algo, "--out", str(f.tmp / f"run_{algo}")]
+        numbers(f"train {algo}", jx, "--timesteps", ["0", "-1", "1.5", "9" * 5000])
+        numbers(f"train {algo}", jx, "--seed", ["-1", "abc"])
+        numbers(f"train {algo}", jx, "--max-wall-s", ["0", *BAD_FLOATS])
+        add(f"train {algo}", jx, "--config", [(f.missing, "missing.npz"), (str(f.bad_toml), "bad.toml"),
+                                              (str(f.a_dir), "a_dir")])  # fmt: skip
+        add(f"train {algo}", jx, "--out", [(str(f.a_file), "a_file")])
+    cases.append(Case(("train", "ppo-scratch", "--out", str(f.tmp / "no_scratch_run"), "--resume"), "no_scratch_run",
+                      "train ppo-scratch"))  # fmt: skip
+    cases.append(Case(("glossary", "no-such-word"), "no-such-word", "glossary"))
     cases.append(Case(("train", "ship", str(f.tmp / "no_run")), "no_run", "train ship"))
     cases.append(Case(("train", "ship", str(f.a_file)), "a_file", "train ship"))
 
     # the command line itself
     cases += [
         Case(("bogus-command",), "bogus-command", "rventry"),
-        Case(("evaluate", "--agent", "reference"), "--json", "evaluate"),
+        Case(("evaluate", "--json", f.json), "--agent", "evaluate"),
         Case(("evaluate", "--agent", "reference", "--json", f.json, "--bogus-option", "1"), "--bogus-option", "evaluate"),
         Case(("evaluate", "--agent", "reference", "--json", f.json, "extra"), "extra", "evaluate"),
         Case(("evaluate", "--agent"), "--agent", "evaluate"),
@@ -316,7 +335,8 @@ def run_case(case: Case, f: Fixtures, limit_s: float = 120.0) -> tuple[str, str]
     signal.setitimer(signal.ITIMER_REAL, limit_s)
     verdict, detail = None, ""
     try:
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        # in the fixtures' folder: a default output path (out/..., runs/...) left behind is seen
+        with contextlib.chdir(f.tmp), contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
             try:
                 code = main(list(case.argv))
             except SystemExit as exc:
@@ -360,7 +380,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--limit", type=positive_float, default=120.0, help="seconds a case may run before it counts as "
                    "accepted [120]")  # fmt: skip
-    p.add_argument("--only", help="run the cases of this command only (say 'evaluate')")
+    p.add_argument("--only", action="append", metavar="COMMAND",
+                   help="run the cases of this command only (say 'evaluate'; repeat it for several)")  # fmt: skip
     p.add_argument("--first", type=positive_int, help="run the first N cases only")
     p.add_argument("--json", help="write the figures and every failure here")
     args = p.parse_args(argv)
@@ -370,7 +391,7 @@ def main(argv=None) -> int:
     t0 = time.time()
     with tempfile.TemporaryDirectory(prefix="rventry-fuzz-") as tmp:
         f = Fixtures(Path(tmp))
-        cases = [c for c in corpus(f) if args.only is None or c.command == args.only][: args.first]
+        cases = [c for c in corpus(f) if args.only is None or c.command in args.only][: args.first]
         for i, case in enumerate(cases):
             verdict, detail = run_case(case, f, args.limit)
             results.append((case, verdict, detail))

@@ -228,7 +228,9 @@ class RvEntryFunctional(environment.Environment):
             raise ValueError("the model's structure differs from the environment's: make a new environment for it")
         dispersion = self.dispersion if dispersion is None else Dispersion.parse(dispersion)
         self.task.check_dispersion(dispersion)
-        steps = self.max_episode_steps if max_episode_steps is None else common.check_max_steps(max_episode_steps, optional=False)
+        steps = self.max_episode_steps
+        if max_episode_steps is not None:
+            steps = common.check_max_steps(max_episode_steps, optional=False)
         seed = _check_seed(seed)
         x0 = self._nominal if nominal is None else common.check_state(nominal, model.planet.radius, self.task)
         if _flight_grade(dispersion) and not self.flight_grade:
