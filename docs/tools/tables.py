@@ -299,22 +299,6 @@ def observation_bounds_table(doc: dict) -> str:
                       source(OBSERVATION_BOUNDS, command=command)])  # fmt: skip
 
 
-FUZZ_CLI = "docs/results/fuzz_cli.json"
-
-
-def fuzz_cli_table(doc: dict) -> str:
-    """The malformed-invocation corpus: cases refused cleanly, by command, and every failure."""
-    rows = [[f"`rventry {name}`", f"{c['ok']} / {c['cases']}"] for name, c in sorted(doc["by_command"].items())]
-    rows.append(["**all**", f"**{doc['refused_cleanly']} / {doc['cases']}**"])
-    parts = [md(["command", "refused cleanly"], rows), ""]
-    for f in doc["failures"]:
-        parts.append(f"- not refused ({f['verdict']}): `rventry {' '.join(f['argv'])}` {f['detail']}".rstrip())
-    if doc["failures"]:
-        parts.append("")
-    parts.append(source(FUZZ_CLI, command=f"python scripts/fuzz_cli.py --json {FUZZ_CLI}"))
-    return "\n".join(parts)
-
-
 # ------------------------------------------------------------------ the registry
 README = "README.md"
 TABLES: tuple[Table, ...] = (
