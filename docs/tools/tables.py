@@ -555,6 +555,35 @@ IDENTIFY_TABLES = {
 }
 
 
+OBSERVATION_BOUNDS = "docs/results/observation_bounds.json"
+
+
+def observation_bounds_table(doc: dict) -> str:
+    """Where flown observations lie against the observation Box: the steps the env clipped, per set and law."""
+    import statistics
+
+    rows = []
+    for key, m in doc.items():
+        names = [n for i, n in enumerate(m["names"]) if m["below"][i] or m["above"][i]]
+        lowest, errors = "", ""
+        if m["clipped_steps"]:
+            i = m["names"].index("altitude") if "altitude" in m["names"] else None
+            if i is not None and m["below"][i]:
+                lowest = f"{m['min'][i]:.4f} ({m['min'][i] * 40:.2f} km)"
+            e = m["nav_vertical_error_m"]
+            if e:
+                errors = f"{min(e):.0f} to {max(e):.0f}, median {statistics.median(e):.0f}"
+        rows.append([key.replace("/", " / "), f"{m['episodes']:,}", f"{m['clipped_steps']:,} of {m['steps']:,}",
+                     f"{m['clipped_episodes']:,}", ", ".join(names) or "none", lowest, errors])  # fmt: skip
+    header = ["set / law", "episodes", "clipped steps", "episodes with one", "features outside the Box",
+              "altitude feature, lowest (navigated altitude)", "navigation's vertical error there (m)"]  # fmt: skip
+    command = ("nice -n 19 python scripts/bench_observation_bounds.py --sets flight standard --laws reference zero "
+               "--episodes 1000 --json docs/results/observation_bounds.json")  # fmt: skip
+    return "\n".join([md(header, rows), "", "Seeds 0-999 per set and law, vector env, the features before clipping; "
+                      "`zero`: zero rates (alpha and bank held where they start).", "",
+                      source(OBSERVATION_BOUNDS, command=command)])  # fmt: skip
+
+
 # ------------------------------------------------------------------ the registry
 README = "README.md"
 TABLES: tuple[Table, ...] = (
@@ -585,6 +614,7 @@ TABLES: tuple[Table, ...] = (
     Table("scratch-runs", ("docs/results/scratch_runs.json",), scratch_runs_table, ("docs/design-log/index.md",)),
     *(Table(name, paths, identify_table(paths), ("docs/benchmarks/identification.md",))
       for name, paths in IDENTIFY_TABLES.items()),
+    Table("observation-bounds", (OBSERVATION_BOUNDS,), observation_bounds_table, ("docs/benchmarks/environment.md",)),
 )  # fmt: skip
 
 

@@ -46,10 +46,32 @@ def _py_when(flag, fn):
     return fn() if flag else None
 
 
-def _array_namespace(xp, name: str, index_dtype=np.intp, **control) -> SimpleNamespace:
+class Namespace(SimpleNamespace):
+    """A math namespace. It pickles as a reference to the library's one namespace (an environment
+    holding one pickles: its lambdas are never pickled, and the copy gets this process's namespace)."""
+
+    def __reduce__(self):
+        return _namespace, (self.key,)
+
+
+def _namespace(key):
+    """The namespace ``key`` names: ``"numpy"``, ``"math"``, ``"casadi"`` or ``"jax-float64"`` / ``"jax-float32"``."""
+    if key == "numpy":
+        return NUMPY
+    if key == "math":
+        return MATH
+    if key == "casadi":
+        return casadi_ns()
+    if key.startswith("jax-"):
+        return jax_ns(key[4:])
+    raise ValueError(f"no math namespace {key!r}")
+
+
+def _array_namespace(xp, name: str, index_dtype=np.intp, key: str | None = None, **control) -> Namespace:
     """The namespace of an array library with NumPy's API (NumPy itself, ``jax.numpy``)."""
-    return SimpleNamespace(
+    return Namespace(
         name=name,
+        key=key or name,
         sqrt=xp.sqrt,
         exp=xp.exp,
         log=xp.log,
@@ -111,8 +133,9 @@ def _atan2(y, x):
     return float(_np_atan2(y, x))
 
 
-MATH = SimpleNamespace(
+MATH = Namespace(
     name="math",
+    key="math",
     sqrt=math.sqrt,  # correctly rounded in both
     exp=_exp,
     log=_log,
@@ -136,11 +159,12 @@ MATH = SimpleNamespace(
 )
 
 
-def _casadi_namespace() -> SimpleNamespace:
+def _casadi_namespace() -> Namespace:
     import casadi as ca
 
-    return SimpleNamespace(
+    return Namespace(
         name="casadi",
+        key="casadi",
         sqrt=ca.sqrt,
         exp=ca.exp,
         log=ca.log,
@@ -166,7 +190,7 @@ def casadi_ns() -> SimpleNamespace:
     return _CASADI
 
 
-def _jax_namespace(dtype) -> SimpleNamespace:
+def _jax_namespace(dtype) -> Namespace:
     import jax
     import jax.numpy as jnp
 
@@ -178,7 +202,7 @@ def _jax_namespace(dtype) -> SimpleNamespace:
     def take_rows(values, i):  # values[n, i[n]] for each row n of an (N, K) table
         return jnp.take_along_axis(values, i[:, None], axis=1)[:, 0]
 
-    return _array_namespace(jnp, "jax", index_dtype=jnp.int32, float_dtype=dtype, known=lambda flag: False,
+    return _array_namespace(jnp, "jax", index_dtype=jnp.int32, key=f"jax-{jnp.dtype(dtype).name}", float_dtype=dtype, known=lambda flag: False,
                             while_loop=jax.lax.while_loop, when=when, take_rows=take_rows)  # fmt: skip
 
 

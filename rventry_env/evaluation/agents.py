@@ -99,6 +99,20 @@ def agent_names() -> list[str]:
     return [*BUILTIN, *sorted(set(plugin_agents()) - set(BUILTIN))]
 
 
+def check_agent(spec: str) -> None:
+    """Refuse at once, loading nothing, an agent that is neither a known name nor an existing path.
+
+    :raises ValueError: an unknown name. :raises FileNotFoundError: a path that does not exist.
+    """
+    if spec in BUILTIN or spec in plugin_agents():
+        return
+    path = Path(spec)
+    if not (path.suffix or path.exists() or "/" in spec):
+        raise ValueError(f"unknown agent {spec!r}: choose one of {', '.join(agent_names())}, or give a saved model's path")
+    if not path.exists():
+        raise FileNotFoundError(f"no saved policy at {path}")
+
+
 def load_agent(spec: str, task: EntryTask | None = None, **options):
     """The guidance law called ``spec``, or the saved policy at the path ``spec``.
 
@@ -115,11 +129,8 @@ def load_agent(spec: str, task: EntryTask | None = None, **options):
     plugins = plugin_agents()
     if spec in plugins:
         return plugins[spec].load()(spec, task)
+    check_agent(spec)
     path = Path(spec)
-    if not (path.suffix or path.exists() or "/" in spec):
-        raise ValueError(f"unknown agent {spec!r}: choose one of {', '.join(agent_names())}, or give a saved model's path")
-    if not path.exists():
-        raise FileNotFoundError(f"no saved policy at {path}")
     loaders = sorted(entry_points(group=FILE_GROUP), key=lambda e: e.name)
     if not loaders:
         raise ValueError(f"no installed package reads saved policies such as {path} (entry-point group {FILE_GROUP})")
@@ -132,4 +143,4 @@ def load_agent(spec: str, task: EntryTask | None = None, **options):
     raise ValueError(f"cannot load a policy from {path}: " + "; ".join(errors))
 
 
-__all__ = ["AGENT_GROUP", "FILE_GROUP", "BUILTIN", "agent_names", "load_agent", "plugin_agents"]
+__all__ = ["AGENT_GROUP", "FILE_GROUP", "BUILTIN", "agent_names", "check_agent", "load_agent", "plugin_agents"]

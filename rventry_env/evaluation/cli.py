@@ -132,18 +132,25 @@ def available_memory() -> float | None:
     return free
 
 
-def check_memory(episodes: int, history: bool, option: str = "--episodes") -> None:
-    """Refuse at once a request whose episodes will not fit in memory, rather than after hours or at the kernel's hand."""
+def check_memory(episodes: int, history: bool, option: str = "--episodes", per_episode: float | None = None,
+                 unit: str = "episode") -> None:  # fmt: skip
+    """Refuse at once a request whose episodes will not fit in memory, rather than after hours or at the kernel's hand.
+
+    :param per_episode: bytes per episode (default: the evaluation's, :data:`EPISODE_BYTES` or
+        :data:`EPISODE_HISTORY_BYTES` with ``history``); ``unit`` names an episode in the message.
+    """
     free = available_memory()
-    per = EPISODE_HISTORY_BYTES if history else EPISODE_BYTES
-    need = episodes * per
-    if free is None or need <= 0.8 * free:
+    per = per_episode if per_episode is not None else EPISODE_HISTORY_BYTES if history else EPISODE_BYTES
+    if free is None:
         return
     fits = max(1, int(0.8 * free // per))
+    if episodes <= fits:
+        return
+    need = f"about {episodes * per / 1e9:.3g} GB of memory" if episodes < 1e20 else "more memory than any machine has"
     raise ValueError(
-        f"{option} {episodes} needs about {need / 1e9:.3g} GB of memory ({per / 1e3:.0f} kB per episode"
+        f"{option} {episodes} needs {need} ({per / 1e3:.0f} kB per {unit}"
         f"{' with --plots' if history else ''}), more than the {free / 1e9:.3g} GB available now; run it in parts of "
-        f"at most {fits} episodes with --seed S, S + {fits}, ..." + (", or without --plots" if history else "")
+        f"at most {fits} {unit}s with --seed S, S + {fits}, ..." + (", or without --plots" if history else "")
     )
 
 
@@ -214,10 +221,14 @@ def _evaluate(args) -> int:
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.reference import load_reference
 
+    from rventry_env.evaluation.agents import check_agent
+
+    # every argument first: a refused command creates nothing
     rung = getattr(args, "rung", None)
     dispersion = dispersion_name(args) if rung is None or args.dispersion or args.dispersed else ladder_rung(rung).dispersion
     if rung is not None and ladder_rung(rung).targets != "fixed" and args.targets == "fixed":
         args.targets = ladder_rung(rung).targets
+    check_agent(args.agent)
     if args.json is None:
         args.json = default_report(args.agent, dispersion if rung is None else f"{rung}_{dispersion}")
     check_writable(args.json, folders=(args.plots,) if args.plots else ())
@@ -265,10 +276,12 @@ def _compare(args) -> int:
     from rventry_env.evaluation.summary import summarize
     from rventry_env.reference import load_reference
 
+    from rventry_env.evaluation.agents import agent_names, check_agent
+
     dispersion = dispersion_name(args)
+    check_agent(args.agent)
     check_writable(args.json, folders=(args.plots,))
     t0 = time.time()
-    from rventry_env.evaluation.agents import agent_names
 
     label = _label(args.agent)
     known = set(agent_names())

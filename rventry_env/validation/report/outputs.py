@@ -15,7 +15,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from rventry_env.util.files import OutputError, _umask, atomic_write, dumps_json
+from rventry_env.util.files import OutputError, _umask, atomic_write, dumps_json, temp_prefix
 
 
 class OutputSet:
@@ -35,7 +35,7 @@ class OutputSet:
             raise OutputError(f"{dest} is a directory, not a file")
         try:
             dest.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=dest.suffix, dir=dest.parent)
+            fd, tmp = tempfile.mkstemp(prefix=temp_prefix(dest, dest.suffix), suffix=dest.suffix, dir=dest.parent)
         except OSError as exc:
             raise OutputError(f"cannot write {dest}: {exc.strerror or exc}") from None
         os.close(fd)
@@ -52,7 +52,7 @@ class OutputSet:
                 os.chmod(tmp, dest.stat().st_mode & 0o777 if dest.exists() else 0o666 & ~_umask())
                 backup = None
                 if dest.exists():
-                    fd, name = tempfile.mkstemp(prefix=f".{dest.name}.old.", dir=dest.parent)
+                    fd, name = tempfile.mkstemp(prefix=temp_prefix(dest, ".old"), suffix=".old", dir=dest.parent)
                     os.close(fd)
                     backup = Path(name)
                     try:

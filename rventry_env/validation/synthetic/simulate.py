@@ -268,13 +268,22 @@ def simulate_record(
     )  # fmt: skip
     # a time-tag offset: the row of time t holds the state at t + dt_tag (started that much later)
     t_true = t + dt_tag
+
+    def fly(times):
+        try:
+            return truth.fly(world, r0, v0, sc.controls, times)
+        except (OverflowError, RuntimeError) as exc:  # an effect so strong the flight leaves floating point
+            given = ", ".join(f"{k}={v}" for k, v in effects.items()) or "none"
+            raise ValueError(f"--effect {given}: the truth flight cannot be flown with these effects ({exc}); "
+                             "choose values nearer the defaults") from None  # fmt: skip
+
     if dt_tag:
         t_fly = np.concatenate([[0.0], t_true]) if t_true[0] > 0 else t_true
-        r, v = truth.fly(world, r0, v0, sc.controls, t_fly)
+        r, v = fly(t_fly)
         if t_true[0] > 0:
             r, v = r[1:], v[1:]
     else:
-        r, v = truth.fly(world, r0, v0, sc.controls, t)
+        r, v = fly(t)
     h = np.linalg.norm(r, axis=1) - world.radius
     if np.any(h < 0):
         t_ground = t[np.argmax(h < 0)]
