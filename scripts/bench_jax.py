@@ -31,6 +31,7 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -225,10 +226,11 @@ def scratch_ppo_speed(timesteps: int, config: str | None = None) -> dict:
     code = (
         "from rventry_agents.scratch import train_scratch\n"
         "from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config\n"
-        f"cfg = load_config({config!r} or DEFAULT_CONFIG)\n"
-        "chunk = cfg.train.chunk_timesteps\n"
-        f"train_scratch(cfg, out={str(out)!r}, timesteps=max({timesteps}, 3 * chunk), progress=lambda s: None)\n"
+        f"path = {config!r} or str(DEFAULT_CONFIG)\n"
+        "chunk = load_config(path).train.chunk_timesteps\n"
+        f"train_scratch(path, out={str(out)!r}, timesteps=max({timesteps}, 3 * chunk), progress=lambda s: None)\n"
     )
+    shutil.rmtree(out, ignore_errors=True)  # a fresh run, not a resumed one
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-c", code], check=True)
     meta = json.loads((out / "metadata.json").read_text())

@@ -75,7 +75,7 @@ READING_ERROR = {"altitude_m": 1000.0, "speed_mps": 100.0}  # the digitisation's
 
 
 def read_digitised(path: str | Path) -> np.ndarray:
-    """The numeric rows of a digitised Tacode reference file (``zone ... f=point`` data), ``(n, columns)``."""
+    """The numeric rows of a digitised Tacode reference file (its ``zone`` and ``f=point`` data), ``(n, columns)``."""
     rows = []
     for line in Path(path).read_text().splitlines():
         fields = line.split()
