@@ -141,9 +141,7 @@ class TrainingEnv(_environment_base()):
 
     def export(self, path: str | Path, algo, ts) -> Path:
         """Write the actor of ``ts`` for :class:`~rventry_agents.jax_policy.JaxPolicy`."""
-        from rventry_agents.jax_policy import export_actor
-
-        from rventry_agents.jax_policy import NORM_EPS
+        from rventry_agents.jax_policy import NORM_EPS, export_actor
 
         activation = algo.actor.activation.__name__
         if algo.normalize_observations:

@@ -119,14 +119,17 @@ def _sb3(args) -> None:
 
 
 def _run_metadata(folder: Path) -> dict:
-    """A from-scratch run's metadata, or for a run stopped before its end (no metadata.json), the same
-    fields from its config and its last chunk's record."""
-    if (folder / "metadata.json").is_file():
-        return json.loads((folder / "metadata.json").read_text())
-    config = json.loads((folder / "config.json").read_text())
+    """A from-scratch run's metadata (for a run stopped before its end, no metadata.json: the same
+    fields from its config and its last chunk's record), with the window its curriculum had reached."""
     last = json.loads((folder / "evaluations.json").read_text())[-1]
-    return {"seed": config["train"]["seed"], "timesteps": last["timesteps"], "wall_s": last["wall_s"],
-            "rung": config["env"]["rung"], "config": config, "stopped_early": True}
+    if (folder / "metadata.json").is_file():
+        meta = json.loads((folder / "metadata.json").read_text())
+    else:
+        config = json.loads((folder / "config.json").read_text())
+        meta = {"seed": config["train"]["seed"], "timesteps": last["timesteps"], "wall_s": last["wall_s"],
+                "rung": config["env"]["rung"], "config": config, "stopped_early": True}
+    meta["window_s"] = last["curriculum"]["window_s"] if last.get("curriculum") else None
+    return meta
 
 
 def _jax(args) -> None:
@@ -140,7 +143,7 @@ def _jax(args) -> None:
             runs.append({"seed": meta["seed"], "timesteps": meta["timesteps"], "wall_s": meta["wall_s"],
                          "trained_on": meta["rung"], "folder": str(folder), "evaluation": ev,
                          "env_steps_per_s": meta.get("env_steps_per_s"), "device": meta.get("device"),
-                         "curriculum_window_s": (meta.get("history") or [{}])[-1].get("curriculum", {}).get("window_s")})  # fmt: skip
+                         "curriculum_window_s": meta["window_s"]})  # fmt: skip
         c = metas[0]["config"]
         settings = {"algorithm": "PPO (rejax), from scratch", "curriculum": c["curriculum"]["kind"],
                     "shaping": c.get("shaping", {}).get("potential", "none"), "actions": c["env"]["actions"],
@@ -169,6 +172,7 @@ def history(folder: Path) -> dict:
     """What a from-scratch run reached as it trained: from its config and ``evaluations.json`` (a run
     stopped before its end has no metadata, but every chunk's record)."""
     from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config
+    from rventry_env.evaluation.summary import task_metric_key
 
     config = json.loads((folder / "config.json").read_text())
     hist = json.loads((folder / "evaluations.json").read_text())
@@ -177,7 +181,7 @@ def history(folder: Path) -> dict:
     reached = {}
     for w, steps in windows:
         reached.setdefault(f"{w:.0f}", steps)
-    best = max(hist, key=lambda h: (h["select"]["success_rate"], -h["select"]["miss_km_p50"]))
+    best = max(hist, key=lambda h: task_metric_key(h["select"]["success_rate"], h["select"]["miss_km_p50"]))  # as training selects
     load_config(config)  # checked: a run of this trainer
     return {"run": folder.name, "changed": _changed(config, load_config(DEFAULT_CONFIG).to_dict()),
             "timesteps": last["timesteps"], "wall_s": last["wall_s"],

@@ -224,10 +224,11 @@ def _evaluate(args) -> int:
     from rventry_env.evaluation.agents import check_agent
 
     # every argument first: a refused command creates nothing
-    rung = getattr(args, "rung", None)
-    dispersion = dispersion_name(args) if rung is None or args.dispersion or args.dispersed else ladder_rung(rung).dispersion
-    if rung is not None and ladder_rung(rung).targets != "fixed" and args.targets == "fixed":
-        args.targets = ladder_rung(rung).targets
+    rung = args.rung
+    on = None if rung is None else ladder_rung(rung)
+    dispersion = on.dispersion if on is not None and not (args.dispersion or args.dispersed) else dispersion_name(args)
+    if on is not None and on.targets != "fixed" and args.targets == "fixed":
+        args.targets = on.targets
     check_agent(args.agent)
     if args.json is None:
         args.json = default_report(args.agent, dispersion if rung is None else f"{rung}_{dispersion}")
