@@ -22,6 +22,7 @@ source serves eager NumPy and traced JAX:
 
 from __future__ import annotations
 
+import contextlib
 import math
 from types import SimpleNamespace
 
@@ -255,6 +256,25 @@ def jax_ns(dtype: str = "float64") -> SimpleNamespace:
     return _JAX[dtype]
 
 
+@contextlib.contextmanager
+def jax_x64(enabled: bool):
+    """JAX's 64-bit mode set to ``enabled`` inside the block and restored after it.
+
+    The mode is one switch for the whole process, and :func:`jax_ns` turns it on for the float64
+    backend. A float32 learner (rejax) must run with it off: with it on, JAX's default float is
+    float64 and rejax's running statistics change type inside its training loop, which
+    ``lax.scan`` refuses.
+    """
+    import jax
+
+    before = bool(jax.config.jax_enable_x64)
+    jax.config.update("jax_enable_x64", bool(enabled))
+    try:
+        yield
+    finally:
+        jax.config.update("jax_enable_x64", before)
+
+
 def dot3(a, b):
     """a . b for 3-tuples of components."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -281,4 +301,4 @@ def sparse_dot(a, nz: tuple):
     return out
 
 
-__all__ = ["NUMPY", "MATH", "casadi_ns", "jax_ns", "dot3", "sparse", "sparse_dot", "is_zero"]
+__all__ = ["NUMPY", "MATH", "casadi_ns", "jax_ns", "jax_x64", "dot3", "sparse", "sparse_dot", "is_zero"]
