@@ -12,7 +12,9 @@ Prints, on the default JAX device (say which in the output: CPU, or a GPU where 
   difference;
 * float32's impact-position error against float64 (same seed, same actions);
 * PPO env-steps/s during training: rejax PPO on the functional env (``baselines/jax_ppo.toml``),
-  its compile time, and stable-baselines3 PPO (``baselines/ppo.toml``) on the same machine.
+  its compile time, the from-scratch learner as it trains (``ppo_scratch.toml``: attitude
+  commands, curriculum starts, optimistic autoreset), and stable-baselines3 PPO
+  (``baselines/ppo.toml``) in the same run.
 
 Run: ``python benchmarks/jax_backend.py [--json PATH] [--quick]``
 
@@ -29,6 +31,7 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -93,16 +96,18 @@ def numpy_substeps_speed(n: int, rounds: int = 3, steps: int = 10) -> dict:
 
 
 def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: str = "standard",
-                     parts: bool = False) -> dict:  # fmt: skip
+                     parts: bool = False, resets: int = 0) -> dict:  # fmt: skip
     """Vehicle-steps/s of the functional env: lax.scan over vmap-ed gymnax steps (autoreset), all compiled.
 
     With ``parts``, also the same scan over ``step_env`` alone (no autoreset) and over ``reset_env``
     alone (the reset that gymnax's autoreset draws for every vehicle at every step): where the time goes.
+    With ``resets`` > 0, also the scan over :func:`~rventry_env.envs.functional.step_batch`, the
+    optimistic autoreset that draws ``resets`` fresh starts a step.
     """
     import jax
     import jax.numpy as jnp
 
-    from rventry_env.envs.functional import RvEntryFunctional
+    from rventry_env.envs.functional import RvEntryFunctional, step_batch
 
     env = RvEntryFunctional(dispersion=dispersion, dtype=dtype, substeps=substeps)
     p = env.default_params
@@ -111,6 +116,10 @@ def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: 
 
     def step(s, k):
         _, s, r, _, _ = jax.vmap(env.step, in_axes=(0, 0, 0, None))(jax.random.split(k, n), s, a, p)
+        return s, r
+
+    def optimistic(s, k):
+        _, s, r, _, _ = step_batch(env, jax.random.split(k, n), s, a, p, resets)
         return s, r
 
     def step_env(s, k):
@@ -135,6 +144,9 @@ def functional_speed(n: int, dtype: str, steps: int, substeps: int, dispersion: 
 
     out = {"dtype": dtype, "dispersion": dispersion, "num_envs": n, "steps": steps}
     out["vehicle_steps_per_s"], out["first_call_s"] = rate(step)
+    if resets > 0:
+        out["resets"] = resets
+        out["optimistic_vehicle_steps_per_s"], _ = rate(optimistic)
     if parts:
         out["step_env_only_per_s"], _ = rate(step_env)
         out["reset_env_only_per_s"], _ = rate(reset_env)
@@ -203,6 +215,30 @@ def jax_ppo_speed(timesteps: int, config: str | None = None) -> dict:
             "device": meta["device"]}  # fmt: skip
 
 
+def scratch_ppo_speed(timesteps: int, config: str | None = None) -> dict:
+    """The from-scratch learner (``rventry train ppo-scratch``, default its shipped config) as it
+    trains: rejax PPO with attitude commands, the reverse curriculum's starts and the optimistic
+    autoreset, evaluations excluded; env-steps/s is the median over the chunks after the first
+    (which compiles). In a fresh process, for the same reason as :func:`jax_ppo_speed`."""
+    import subprocess
+
+    out = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_ppo_scratch"
+    code = (
+        "from rventry_agents.scratch import train_scratch\n"
+        "from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config\n"
+        f"path = {config!r} or str(DEFAULT_CONFIG)\n"
+        "chunk = load_config(path).train.chunk_timesteps\n"
+        f"train_scratch(path, out={str(out)!r}, timesteps=max({timesteps}, 3 * chunk), progress=lambda s: None)\n"
+    )
+    shutil.rmtree(out, ignore_errors=True)  # a fresh run, not a resumed one
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], check=True)
+    meta = json.loads((out / "metadata.json").read_text())
+    return {"env_steps_per_s": meta["env_steps_per_s"], "timesteps": meta["timesteps"], "wall_s": time.perf_counter() - t0,
+            "num_envs": meta["config"]["env"]["num_envs"], "resets": meta["config"]["env"]["resets"],
+            "config": config or "rventry_agents/ppo_scratch.toml", "device": meta["device"]}  # fmt: skip
+
+
 def sb3_ppo_speed(timesteps: int) -> dict:
     """stable-baselines3 PPO with the plain baseline's config (baselines/ppo.toml): env-steps/s of ``learn``."""
     import torch
@@ -231,12 +267,16 @@ def main():
     ap.add_argument("--functional-steps", type=int, help="steps of each functional run (default 50, 12 with --quick)")
     ap.add_argument("--functional-parts", action="store_true",
                     help="also time step_env alone and reset_env alone (where an autoreset step's time goes)")
+    ap.add_argument("--functional-resets", type=int, default=0,
+                    help="also time the optimistic autoreset with this many fresh starts a step (e.g. N / 16)")
     ap.add_argument("--functional-dispersions", nargs="+", default=["standard"], help="sets the functional env flies")
     ap.add_argument("--ppo-config", help="the JAX PPO run's config (default rventry_agents/baselines/jax_ppo.toml; "
                     "rventry_agents/baselines/jax_ppo_gpu.toml on a GPU)")  # fmt: skip
     ap.add_argument("--ppo-timesteps", type=int, help="JAX PPO steps timed (default 2M, at least 3 chunks)")
+    ap.add_argument("--scratch-config", help="the from-scratch learner's config (default rventry_agents/ppo_scratch.toml)")
+    ap.add_argument("--scratch-timesteps", type=int, help="from-scratch steps timed (default 4 chunks)")
     ap.add_argument("--skip", nargs="*", default=[],
-                    choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo", "sb3"])  # fmt: skip
+                    choices=["accuracy", "speed", "numpy-substeps", "functional", "agreement", "ppo", "scratch", "sb3"])  # fmt: skip
     args = ap.parse_args()
     start_run()
 
@@ -293,7 +333,7 @@ def main():
             for n in args.functional_sizes or [args.num_envs]:
                 for d in ("float64", "float32"):
                     f = functional_speed(n, d, args.functional_steps or max(5, int(50 * q)), task.substeps, disp,
-                                         args.functional_parts)
+                                         args.functional_parts, min(args.functional_resets, n))
                     res["functional"].append(f)
                     save()
                     ratio = f" ({f['vehicle_steps_per_s'] / numpy:.2f}x the NumPy vector env above)" if numpy else ""
@@ -301,6 +341,10 @@ def main():
                           f"run), {disp}, {d}, N = {n:,}: {f['vehicle_steps_per_s']:,.0f} vehicle-steps/s{ratio}"
                           + ("  (target >= 5e6 on two cores)" if d == "float32" else "")
                           + f"; compile {f['first_call_s']:.1f} s", flush=True)  # fmt: skip
+                    if "optimistic_vehicle_steps_per_s" in f:
+                        print(f"  with the optimistic autoreset ({f['resets']:,} fresh starts a step): "
+                              f"{f['optimistic_vehicle_steps_per_s']:,.0f} vehicle-steps/s "
+                              f"({f['optimistic_vehicle_steps_per_s'] / f['vehicle_steps_per_s']:.2f}x gymnax's)", flush=True)  # fmt: skip
                     if args.functional_parts:
                         print(f"  its parts: step_env alone (no autoreset) {f['step_env_only_per_s']:,.0f}/s, "
                               f"reset_env alone {f['reset_env_only_per_s']:,.0f}/s", flush=True)  # fmt: skip
@@ -313,17 +357,26 @@ def main():
               f"final position, float64 vs NumPy {a['impact_position_error_float64_vs_numpy_m']:.2g} m; "
               f"float32 vs float64: median {a['float32_end_position_error_m']['median']:.3g} m, max "
               f"{a['float32_end_position_error_m']['max']:.3g} m, same ending in {a['float32_same_ending']}/{a['episodes']}")  # fmt: skip
+    res["ppo"] = {}
     if "ppo" not in args.skip:
         j = jax_ppo_speed(args.ppo_timesteps or int(2_000_000 * q), args.ppo_config)
-        res["ppo"] = {"jax": j}
+        res["ppo"]["jax"] = j
         save()
         print(f"PPO training: rejax on the functional env ({j['num_envs']:,} envs, {j['device']}) "
               f"{j['env_steps_per_s']:,.0f} env-steps/s (compile {j['compile_s']:.0f} s)", flush=True)  # fmt: skip
-        if "sb3" not in args.skip:
-            s3 = sb3_ppo_speed(int(200_000 * q))
-            res["ppo"]["sb3"] = s3
-            print(f"PPO training: SB3 {s3['env_steps_per_s']:,.0f} env-steps/s: rejax "
-                  f"{j['env_steps_per_s'] / s3['env_steps_per_s']:.1f}x (target >= 3x)")  # fmt: skip
+    if "scratch" not in args.skip:
+        sc = scratch_ppo_speed(args.scratch_timesteps or 0, args.scratch_config)
+        res["ppo"]["scratch"] = sc
+        save()
+        print(f"PPO training from scratch (rejax, {sc['num_envs']:,} envs, {sc['resets']} fresh starts a step, "
+              f"{sc['device']}): {sc['env_steps_per_s']:,.0f} env-steps/s", flush=True)  # fmt: skip
+    if "sb3" not in args.skip:
+        s3 = sb3_ppo_speed(int(200_000 * q))
+        res["ppo"]["sb3"] = s3
+        save()
+        ratios = "; ".join(f"{name} {res['ppo'][key]['env_steps_per_s'] / s3['env_steps_per_s']:.1f}x"
+                           for key, name in (("jax", "rejax baseline"), ("scratch", "from scratch")) if key in res["ppo"])
+        print(f"PPO training: SB3 {s3['env_steps_per_s']:,.0f} env-steps/s in the same run: {ratios} (target >= 5x)")  # fmt: skip
     res["machine"]["load_average_end"] = os.getloadavg()
     print(f"load average (1, 5, 15 min) at the end: {', '.join(f'{v:.1f}' for v in os.getloadavg())} on "
           f"{os.cpu_count()} CPUs (figures taken on a busy machine are noisy: compare only those of one run)")

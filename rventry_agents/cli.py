@@ -71,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     jx.add_argument("--seed", type=seed, help="random seed (default: the config's)")
     jx.add_argument("--out", default="runs/jax_ppo", help="output directory (default runs/jax_ppo)")
     jx.add_argument("--config", help="TOML config (default rventry_agents/baselines/jax_ppo.toml)")
-    jx.add_argument("--max-wall-s", type=float, help="stop after the chunk that ends past this wall time (s)")
+    jx.add_argument("--max-wall-s", type=positive_float, help="stop after the chunk that ends past this wall time (s)")
     jx.set_defaults(func=_run_jax_ppo)
     sc = algos.add_parser("ppo-scratch", help=("PPO from scratch with a reverse curriculum: rejax PPO end to end in "
                                                "JAX, no teacher (the [jax] extra; ships as the agent ppo-scratch)"))

@@ -9,10 +9,13 @@ rates that jitter needs. DeepMimic's policies output PD targets for the same rea
 
 :func:`command_rates` turns a command into the environment's action from what the vehicle
 measures (the observation): alpha_cmd = (c0 + 1) / 2 alpha_max, and the conventional bank
-mu_cmd = c1 pi (0 = lift up, positive = lift to the right of the flight direction), each reached
-in one control step where the rate limits allow, the bank the short way round. The map is part
-of the policy: training flies it inside the environment step, evaluation inside the law, with
-the same code for NumPy and JAX (``xp`` is ``numpy`` or ``jax.numpy``).
+mu_cmd = c1 pi (0 = lift up, positive = lift to the right of the flight direction), approached
+at the rate (command - attitude) / tau within the rate limits, the bank the short way round.
+With tau = dt the command is reached in one step where the limits allow; a longer tau turns the
+exploration noise of a command into a smaller rate, which the paper's cost charges (the noise's
+cost falls as 1 / tau^2), at the price of a slower response. The map is part of the policy:
+training flies it inside the environment step, evaluation inside the law, with the same code for
+NumPy and JAX (``xp`` is ``numpy`` or ``jax.numpy``).
 """
 
 from __future__ import annotations
@@ -26,10 +29,12 @@ ACTIONS = ("rates", "commands")  # what a policy outputs: the environment's own 
 _ALPHA, _LIFT_UP, _LIFT_RIGHT = (feature_index(n) for n in ("alpha", "lift_up", "lift_right"))
 
 
-def command_rates(observation, command, task: EntryTask, xp):
+def command_rates(observation, command, task: EntryTask, xp, tau: float | None = None):
     """The environment's actions (rate fractions in [-1, 1], (..., 2)) that fly ``command`` (..., 2) in
-    [-1, 1] from the attitude in ``observation`` (..., 26) within one control step."""
-    p, dt = task.problem, task.dt
+    [-1, 1] from the attitude in ``observation`` (..., 26), approached with time constant ``tau``
+    (s; default and at least the control step)."""
+    p = task.problem
+    dt = task.dt if tau is None else max(float(tau), task.dt)
     c = xp.clip(command, -1.0, 1.0)
     alpha = 0.5 * (observation[..., _ALPHA] + 1.0) * p.alpha_max
     mu = xp.arctan2(observation[..., _LIFT_RIGHT], observation[..., _LIFT_UP])

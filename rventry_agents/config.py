@@ -323,8 +323,13 @@ def _build(cls, data: dict, path: tuple, where: str):
             kind = known[name].metadata.get("what") or describe(hints[name])
             raise ConfigError(f"{_where(where, path)}{name} must be {kind}, got {_shown(value)}", located=True) from None
     try:
+        if not issubclass(cls, Section):  # a library dataclass: the keys as written checked first, then its own checks
+            given = types.SimpleNamespace(**values)
+            for f in _fields(cls):
+                if f.name in values:
+                    check_field(given, f, hints[f.name])
         made = cls(**values)
-        if not issubclass(cls, Section):  # a library dataclass: its own checks ran, and these
+        if not issubclass(cls, Section):  # and its defaults, as its own checks left them
             for f in _fields(cls):
                 check_field(made, f, hints[f.name])
         return made

@@ -28,7 +28,7 @@ def make_training_env(cfg, task, starts, shaping):
         dtype=cfg.env.dtype, reward=cfg.reward, starts=starts, shaping=shaping,
         time_limit_is_failure=cfg.env.time_limit_is_failure,
     )  # fmt: skip
-    return TrainingEnv(base, cfg.env.actions)
+    return TrainingEnv(base, cfg.env.actions, cfg.env.command_time_s)
 
 
 def _rung_dispersion(name: str) -> str:
@@ -50,16 +50,20 @@ class TrainingEnv(_environment_base()):
     flown from); gymnax's autoreset keeps the two together.
     """
 
-    def __init__(self, base, actions: str = "rates"):
+    def __init__(self, base, actions: str = "rates", command_time_s: float | None = None):
         super().__init__()
         self.base = base
         self.actions = check_actions(actions)
+        self.command_time_s = base.task.dt if command_time_s is None else float(command_time_s)
+
+    def _key(self):
+        return (type(self), self.base, self.actions, self.command_time_s)
 
     def __hash__(self):  # gymnax jits step and reset with ``self`` static
-        return hash((type(self), self.base, self.actions))
+        return hash(self._key())
 
     def __eq__(self, other):
-        return isinstance(other, TrainingEnv) and (self.base, self.actions) == (other.base, other.actions)
+        return isinstance(other, TrainingEnv) and self._key() == other._key()
 
     @property
     def default_params(self):
@@ -70,7 +74,7 @@ class TrainingEnv(_environment_base()):
         import jax.numpy as jnp
 
         if self.actions == "commands":
-            return command_rates(obs, action, self.base.task, jnp)
+            return command_rates(obs, action, self.base.task, jnp, self.command_time_s)
         return jnp.clip(action, -1.0, 1.0)
 
     def reset_env(self, key, params):
@@ -137,11 +141,15 @@ class TrainingEnv(_environment_base()):
 
     def export(self, path: str | Path, algo, ts) -> Path:
         """Write the actor of ``ts`` for :class:`~rventry_agents.jax_policy.JaxPolicy`."""
-        from rventry_agents.jax_policy import export_actor
+        from rventry_agents.jax_policy import NORM_EPS, export_actor
 
-        rms = ts.obs_rms_state
         activation = algo.actor.activation.__name__
-        return export_actor(path, ts.actor_ts.params, rms.mean, rms.var, activation, self.actions)
+        if algo.normalize_observations:
+            mean, var = ts.obs_rms_state.mean, ts.obs_rms_state.var
+        else:  # the features as they are: a scale of exactly sqrt(var + eps) = 1
+            n = self.observation_space().shape[0]
+            mean, var = np.zeros(n), np.full(n, 1.0 - NORM_EPS)
+        return export_actor(path, ts.actor_ts.params, mean, var, activation, self.actions, self.command_time_s)
 
 
 def summarize_outcomes(o: dict, ret, task) -> dict:

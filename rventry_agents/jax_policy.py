@@ -23,9 +23,11 @@ ACTIVATIONS = {"tanh": np.tanh, "relu": lambda z: np.maximum(z, 0.0)}
 NORM_EPS = 1e-8  # rejax's observation normalization: (obs - mean) / sqrt(var + 1e-8)
 
 
-def export_actor(path: str | Path, actor_params: dict, obs_mean, obs_var, activation: str, actions: str = "rates") -> Path:
+def export_actor(path: str | Path, actor_params: dict, obs_mean, obs_var, activation: str, actions: str = "rates",
+                 command_time_s: float = 1.0) -> Path:  # fmt: skip
     """Write the actor of a rejax PPO training state (its ``actor_ts.params``) to ``path`` (.npz), whole or
-    not at all; ``actions`` says what its outputs are (:data:`~rventry_agents.commands.ACTIONS`)."""
+    not at all; ``actions`` says what its outputs are (:data:`~rventry_agents.commands.ACTIONS`), and
+    ``command_time_s`` the attitude commands' time constant."""
     from rventry_env.util.files import atomic_write
 
     p = actor_params["params"]
@@ -40,7 +42,7 @@ def export_actor(path: str | Path, actor_params: dict, obs_mean, obs_var, activa
         mean_kernel=np.asarray(p["action_mean"]["kernel"], np.float64),
         mean_bias=np.asarray(p["action_mean"]["bias"], np.float64),
         log_std=np.asarray(p["action_log_std"], np.float64), activation=np.array(activation),
-        actions=np.array(check_actions(actions)), **layers,
+        actions=np.array(check_actions(actions)), command_time_s=np.array(float(command_time_s)), **layers,
     )  # fmt: skip
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f:  # a file object: np.savez would add .npz to a bare path
@@ -71,11 +73,12 @@ class JaxPolicy(Law):
                 data = {k: z[k] for k in z.files}
         except (OSError, ValueError, EOFError) as exc:
             raise ValueError(f"{path} is not an exported policy ({type(exc).__name__}: {exc})") from None
+        self.task = EntryTask() if task is None else task
         self.layers, self.obs_mean, self.obs_scale, self.head, self.act = _network(data, path)
         self.outputs = str(data["actions"]) if "actions" in data else "rates"
+        self.command_time_s = float(data["command_time_s"]) if "command_time_s" in data else self.task.dt
         if self.outputs not in ACTIONS:
             raise ValueError(f"{path}: unknown actions {self.outputs!r}; known: {ACTIONS}")
-        self.task = EntryTask() if task is None else task
         meta = folder / "metadata.json"
         self.metadata = _read_json(meta) if meta.is_file() else {}
         trained = self.metadata.get("task")
@@ -92,7 +95,7 @@ class JaxPolicy(Law):
             z = self.act(z @ kernel + bias)
         out = np.clip(z @ self.head[0] + self.head[1], -1.0, 1.0)
         if self.outputs == "commands":
-            out = command_rates(obs, out, self.task, np)
+            out = command_rates(obs, out, self.task, np, self.command_time_s)
         return out.astype(np.float32)
 
     def __call__(self, m: Measurement) -> np.ndarray:

@@ -17,6 +17,8 @@ It writes into its output directory:
 
 from __future__ import annotations
 
+import math
+
 import shlex
 import sys
 import time
@@ -129,12 +131,21 @@ def train_jax_ppo(config=None, timesteps: int | None = None, seed: int | None = 
     :param max_wall_s: stop after the first chunk that ends past this wall time (s), with
         everything written: a run's budget ("the steps reached in two hours").
     """
-    from rventry_env.core.backend import prefer_fused_cpu_runtime
+    from rventry_env.core.backend import jax_x64, prefer_fused_cpu_runtime
+    from rventry_env.util.files import check_writable
 
+    if max_wall_s is not None and not (isinstance(max_wall_s, (int, float)) and 0 < max_wall_s < math.inf):
+        raise ValueError(f"max_wall_s must be a finite number of seconds > 0 or None, got {max_wall_s!r}")
+    check_writable(folders=(out,))  # a file in the way is named before anything runs
     prefer_fused_cpu_runtime()
+    cfg = load_config(config)
+    with jax_x64(cfg["env"].get("dtype", "float32") == "float64"):
+        return _train(cfg, timesteps, seed, out, progress, max_wall_s)
+
+
+def _train(cfg: dict, timesteps, seed, out, progress, max_wall_s) -> dict:
     import jax
 
-    cfg = load_config(config)
     t = cfg["train"]
     total = int(timesteps if timesteps is not None else t["total_timesteps"])
     seed = int(seed if seed is not None else t["seed"])

@@ -141,7 +141,7 @@ def _agent(cfg: ScratchConfig, env, params, chunk: int):
         env=env, env_params=params, num_envs=cfg.env.num_envs, num_steps=p.num_steps, num_epochs=p.num_epochs,
         num_minibatches=p.num_minibatches, learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda,
         clip_eps=p.clip_eps, ent_coef=p.ent_coef, vf_coef=p.vf_coef, max_grad_norm=p.max_grad_norm,
-        normalize_observations=True, normalize_rewards=True, reward_normalization_discount=p.gamma,
+        normalize_observations=p.normalize_observations, normalize_rewards=True, reward_normalization_discount=p.gamma,
         total_timesteps=chunk, eval_freq=chunk, skip_initial_evaluation=True,
         agent_kwargs={"hidden_layer_sizes": tuple(p.hidden_layer_sizes), "activation": p.activation},
     )  # fmt: skip
@@ -228,7 +228,8 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
         (``[train] max_wall_s``); a resumed run counts its earlier segments' time.
     :param resume: go on with the interrupted run in ``out`` from its last checkpoint.
     """
-    from rventry_agents.scratch_state import Checkpoint, check_out, plot_learning_curve, record_chunk
+    from rventry_agents.scratch_state import check_out
+    from rventry_env.core.backend import jax_x64, prefer_fused_cpu_runtime
 
     cfg = load_config(config)
     changes = {k: v for k, v in (("seed", seed), ("total_timesteps", timesteps), ("max_wall_s", max_wall_s)) if v is not None}
@@ -236,10 +237,15 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
         cfg = cfg.replace(train=replace(cfg.train, **changes))
     out = Path(out)
     check_out(out, cfg, resume)
-    from rventry_env.core.backend import prefer_fused_cpu_runtime
-
     prefer_fused_cpu_runtime()
+    with jax_x64(cfg.env.dtype == "float64"):
+        return _train(cfg, out, resume, progress)
+
+
+def _train(cfg: ScratchConfig, out: Path, resume: bool, progress) -> dict:
     import jax
+
+    from rventry_agents.scratch_state import Checkpoint, plot_learning_curve, record_chunk
 
     trainer = Trainer(cfg, out, cfg.train.seed)
     point = Checkpoint.read(out, cfg) if resume else None

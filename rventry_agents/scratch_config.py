@@ -33,7 +33,7 @@ class EnvSection(Section):
     :param rung: the ladder rung trained and selected on (:mod:`rventry_env.evaluation.rungs`);
         the JAX learner flies the fixed target, so not ``footprint``.
     :param actions: ``"rates"``: the environment's own action; ``"commands"``: attitude commands
-        flown by a one-step tracker (:mod:`rventry_agents.commands`).
+        flown by a tracker with time constant ``command_time_s`` (:mod:`rventry_agents.commands`).
     :param time_limit_is_failure: charge a time-limit cut like a failure (training only).
     :param resets: fresh starts drawn per step for the episodes that end (an optimistic autoreset,
         :func:`~rventry_env.envs.functional.step_batch`); 0: gymnax's autoreset, a full reset per
@@ -42,6 +42,7 @@ class EnvSection(Section):
 
     rung: str = setting("standard", check=_rung)
     actions: Literal["rates", "commands"] = "commands"
+    command_time_s: float = setting(1.0, gt=0, le=60)
     num_envs: int = setting(512, ge=1)
     max_episode_steps: int = setting(2000, ge=1)
     dtype: Literal["float32", "float64"] = "float32"
@@ -124,6 +125,7 @@ class PPOSection(Section):
     hidden_layer_sizes: tuple[int, ...] = widths((64, 64))
     activation: Literal["tanh", "relu"] = "tanh"
     log_std_init: float = setting(-1.0, lt=2)
+    normalize_observations: bool = True
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -166,3 +166,11 @@ def test_the_glossary_page_is_the_glossarys():
     from rventry_env.task.glossary import glossary_markdown
 
     assert (ROOT / "docs" / "reference" / "glossary.md").read_text() == glossary_markdown()
+
+
+def test_the_records_page_lists_every_record():
+    """Each file or folder of docs/results/ is named on its page with the command that wrote it."""
+    page = (ROOT / "docs" / "results" / "README.md").read_text()
+    unlisted = [p.name for p in sorted((ROOT / "docs" / "results").iterdir())
+                if p.name != "README.md" and f"`{p.name}" not in page]  # fmt: skip
+    assert unlisted == [], f"docs/results/README.md does not name {unlisted}"

@@ -205,6 +205,7 @@ def test_density_knots_go_as_fine_as_the_record_resolves():
     from rventry_env.validation.search.effects import knot_counts
 
     dense = np.linspace(60e3, 40e3, 3001)
-    assert max(knot_counts(dense)) == 16  # 20 km: knots 1.3 km apart (24 would be 0.87 km)
-    assert max(knot_counts(dense[::60])) == 4  # 51 samples: at most 5 knots, 10 samples each
+    assert max(knot_counts(dense)) == 21  # 20 km: knots 1 km apart, the finest the record resolves
+    assert 16 in knot_counts(dense) and 24 not in knot_counts(dense)  # 24 would be 0.87 km apart
+    assert max(knot_counts(dense[::60])) == 5  # 51 samples: at most 5 knots, 10 samples each
     assert knot_counts(np.full(100, 50e3)) == (2,)  # a level flight resolves no shape

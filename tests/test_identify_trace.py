@@ -7,6 +7,7 @@ scatters by kilometres.
 """
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -77,8 +78,9 @@ def test_a_scattered_start_is_accepted_with_a_warning_and_a_wider_prior(tmp_path
 
 
 def test_a_grossly_wrong_sidecar_is_refused_naming_the_field(tmp_path):
-    with pytest.raises(RecordError, match=r"entry_state\.altitude_m.*scatter of those samples"):
-        identify_record(_scattered(tmp_path, 12000.0), max_effects=0)
+    # 30 km is beyond any altitude reference (21.4 km, the WGS-84 flattening): not an offset to fit
+    with pytest.raises(RecordError, match=r"entry_state\.altitude_m.*scatter of those samples.*beyond 21385 m"):
+        identify_record(_scattered(tmp_path, 30000.0), max_effects=0)
 
 
 # ------------------------------------------------------------------ the trace, one record per channel
@@ -124,7 +126,9 @@ def test_a_side_force_is_traced_across_the_lift(tmp_path):
     rep = identify_record(_record(tmp_path, ["side_force=0.02"])).report
     assert rep["unexplained"]
     (a,) = rep["attribution"]
-    assert a["channel"] == "lateral_lift" and a["size"] == pytest.approx(0.02, abs=0.006)
+    # the lift rotated out of its plane by g: a force across it of sin(g) L/D drags, the side force's 0.02
+    assert a["channel"] == "lateral_lift" and a["across_over_drag"] == pytest.approx(0.02, abs=0.006)
+    assert a["bank_offset_deg"] == pytest.approx(math.degrees(a["size"]))
     assert any("side force" in p for p in rep["trace"]["points_to"])
 
 

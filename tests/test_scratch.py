@@ -60,6 +60,10 @@ def test_attitude_commands_fly_the_asked_attitude_within_the_rate_limits():
     wrap = command_rates(_obs([11.86], [170.0]), np.array([[2 * np.radians(11.86) / p.alpha_max - 1, -170 / 180]]),
                          TASK, np)  # fmt: skip
     assert wrap[0, 1] == pytest.approx(np.radians(20.0) / p.u_sigma_max)
+    # a time constant of 5 s approaches the command at a fifth of the difference per second
+    slow = command_rates(_obs([10.0], [0.0]), np.array([[2 * np.radians(12.0) / p.alpha_max - 1, 10 / 180]]), TASK,
+                         np, tau=5.0)  # fmt: skip
+    assert np.allclose(slow, small / 5.0)
 
 
 def test_numpy_and_jax_fly_the_same_commands():
@@ -83,9 +87,16 @@ SMALL = {"env": {"rung": "late", "num_envs": 32}, "ppo": {"num_steps": 32, "num_
 def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     """A few thousand steps of a small config end to end: records written, the exported policy flies what
     the training state's deterministic policy flies, evaluation of it is deterministic, an interrupted
-    run resumes where it stopped, and a changed config is refused on resume."""
+    run resumes where it stopped, and a changed config is refused on resume. The float64 backend is
+    loaded first, as any other part of a process may have done: it turns on ``jax_enable_x64``, and the
+    float32 learner must still train."""
     pytest.importorskip("rejax")
     import jax
+
+    from rventry_env.core.backend import jax_ns, jax_x64
+
+    jax_ns("float64")
+    assert jax.config.jax_enable_x64
 
     from rventry_agents.jax_policy import JaxPolicy
     from rventry_agents.scratch import Trainer, _initial_state, train_scratch
@@ -112,13 +123,15 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
         train_scratch(changed, out=out, timesteps=4096, resume=True, progress=lambda s: None)
     # the export flies what the training state's deterministic policy flies
     cfg = load_config(SMALL)
-    trainer = Trainer(cfg, out, 0)
-    ts = _initial_state(trainer.algo, cfg, 3)
-    trainer.env.export(tmp_path / "p.npz", trainer.algo, ts)
+    with jax_x64(False):  # as the trainer runs its float32 learner
+        trainer = Trainer(cfg, out, 0)
+        ts = _initial_state(trainer.algo, cfg, 3)
+        trainer.env.export(tmp_path / "p.npz", trainer.algo, ts)
+        obs, state = jax.vmap(trainer.env.reset, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(0), 16),
+                                                                     trainer.params)  # fmt: skip
+        want = jax.vmap(lambda o: trainer.env.env_action(o, trainer.env.mean_action(trainer.algo, ts, o)))(obs)
+    assert jax.config.jax_enable_x64  # restored
     law = JaxPolicy(tmp_path / "p.npz")
-    obs, state = jax.vmap(trainer.env.reset, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(0), 16),
-                                                                 trainer.params)  # fmt: skip
-    want = jax.vmap(lambda o: trainer.env.env_action(o, trainer.env.mean_action(trainer.algo, ts, o)))(obs)
     assert np.allclose(law.actions(np.asarray(obs)), np.asarray(want), atol=2e-5)
     # the run's policy is an agent: flown twice on the same seeds, the same episodes
     agent = load_agent(str(out))
@@ -139,3 +152,12 @@ def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
         JaxPolicy(tmp_path / "p2.npz")
     with pytest.raises(ValueError, match="not a policy trained in JAX"):
         load_saved(str(tmp_path / "nothing_here"))
+
+
+@pytest.mark.parametrize("name", ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml"])
+def test_every_shipped_scratch_config_loads_and_round_trips(name):
+    path = DEFAULT_CONFIG.parent / name
+    cfg = load_config(path)
+    assert load_config(cfg.to_dict()) == cfg
+    assert sorted(p.name for p in DEFAULT_CONFIG.parent.glob("ppo_scratch*.toml")) == ["ppo_scratch.toml", "ppo_scratch_gpu.toml",
+                                                                                 "ppo_scratch_late.toml"]

@@ -17,12 +17,24 @@ from pathlib import Path
 
 
 def walk(parser: argparse.ArgumentParser, path: tuple[str, ...] = ("rventry",)):
-    """Yield (command path, parser) for the parser and every subcommand below it, depth first."""
+    """Yield (command path, parser) for the parser and every subcommand below it, depth first; a
+    subcommand's aliases (:func:`aliases`) are not walked again."""
     yield path, parser
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
-            for name, child in action.choices.items():
-                yield from walk(child, (*path, name))
+            for name in _helps(parser):
+                yield from walk(action.choices[name], (*path, name))
+
+
+def aliases(parser: argparse.ArgumentParser) -> dict[str, list[str]]:
+    """Each subcommand's other names (argparse's ``aliases``), by its own name."""
+    out: dict[str, list[str]] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name in _helps(parser):
+                child = action.choices[name]
+                out[name] = [a for a, c in action.choices.items() if c is child and a != name]
+    return out
 
 
 def _helps(parser: argparse.ArgumentParser) -> dict[str, str]:
@@ -102,7 +114,10 @@ def markdown(parser: argparse.ArgumentParser) -> str:
             lines.append("")
         if subcommands:
             lines += ["| subcommand | what it does |", "|---|---|"]
-            lines += [f"| [`{' '.join((*path, n))}`](#{_anchor((*path, n))}) | {_cell(h)} |" for n, h in subcommands.items()]
+            other = aliases(p)
+            for n, h in subcommands.items():
+                also = "".join(f" (also `{' '.join((*path, a))}`)" for a in other[n])
+                lines.append(f"| [`{' '.join((*path, n))}`](#{_anchor((*path, n))}){also} | {_cell(h)} |")
             lines.append("")
         if p.epilog:
             lines += [_cell(p.epilog), ""]

@@ -82,10 +82,34 @@ def md(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(out)
 
 
+# scripts/ split into benchmarks/ (timings against targets) and studies/ (what was measured to choose a
+# setting); a record written before keeps the command it ran, shown under the script's present name
+RENAMED_SCRIPTS = {
+    "scripts/bench_decision.py": "benchmarks/decision_cost.py", "scripts/bench_identify.py": "benchmarks/identify_speed.py",
+    "scripts/bench_jax.py": "benchmarks/jax_backend.py", "scripts/bench_reference.py": "benchmarks/reference_solve.py",
+    "scripts/bench_rhs.py": "benchmarks/rhs_forms.py", "scripts/bench_env.py": "benchmarks/env_speed.py",
+    "scripts/bench_interrupt.py": "benchmarks/interrupt.py", "scripts/bench_baselines.py": "studies/baselines.py",
+    "scripts/choose_q_floor.py": "studies/choose_q_floor.py", "scripts/compare_episodes.py": "studies/compare_episodes.py",
+    "scripts/bench_sets.py": "studies/flight_sets.py", "scripts/bench_mpc.py": "studies/mpc_settings.py",
+    "scripts/bench_random_actions.py": "studies/random_actions.py", "scripts/bench_seeds.py": "studies/seeds.py",
+    "scripts/solve_spherical_singularity.py": "studies/spherical_singularity.py",
+    "scripts/bench_observation_bounds.py": "studies/observation_bounds.py", "scripts/fuzz_cli.py": "studies/fuzz_cli.py",
+    "scripts/ladder.py": "studies/ladder.py",
+}  # fmt: skip
+
+
+def present_command(command: str) -> str:
+    """A record's command with its script under the name it has now (see :data:`RENAMED_SCRIPTS`)."""
+    for old, new in RENAMED_SCRIPTS.items():
+        command = command.replace(old, new)
+    return command
+
+
 def source(*paths: str, command: str | None = None) -> str:
-    """The line under a table: its records, and the command that wrote them where one did."""
+    """The line under a table: its records, and the command that wrote them where one did (its script
+    under its present name)."""
     text = "Records: " + ", ".join(f"`{p}`" for p in paths)
-    return text + (f"; written by `{command}`." if command else ".")
+    return text + (f"; written by `{present_command(command)}`." if command else ".")
 
 
 # ------------------------------------------------------------------ renderers
@@ -270,6 +294,327 @@ def rounds_table(path: str) -> Callable[..., str]:
     return render
 
 
+def _subset_rate(doc: dict, n: int) -> dict:
+    """Success of an evaluation report's first ``n`` episodes (its seeds seed .. seed + n - 1), with its interval."""
+    from rventry_env.evaluation.summary import rate_interval
+
+    hits = [bool(e["success"]) for e in doc["episodes"][:n]]
+    return {"success_rate": sum(hits) / len(hits), "success_rate_ci": rate_interval(hits), "episodes": len(hits)}
+
+
+# the columns of the effects table: (label, record, the law's key in it)
+EFFECT_COLUMNS = (
+    ("`lqr`", "docs/results/bench_effects.json", "lqr"),
+    ("`dagger` (student of `mpc`)", "docs/results/bench_effects.json", "learned"),  # `learned` was `dagger` then
+    ("`dagger-flight`", "docs/results/bench_effects_dagger_flight.json", "dagger-flight"),
+    ("`learned` (`ppo`)", "docs/results/bench_effects_ppo.json", "learned"),
+)
+# the whole `flight` set on the same seeds, from the laws' 200-episode evaluations where one was kept
+EFFECT_WHOLE = {"`dagger-flight`": "docs/results/dagger_flight_flight200.json",
+                "`learned` (`ppo`)": "docs/results/ppo_q_floor/ppo_flight.json"}
+EFFECT_GLOSS = {"entry state, C_L/C_D, mass": "entry state, C_L/C_D 5 %, mass",
+                "NRLMSIS climatology": "NRLMSIS climatology (departure from its mean)"}
+
+
+def effects_records() -> tuple[str, ...]:
+    return (*dict.fromkeys(path for _, path, _ in EFFECT_COLUMNS), *EFFECT_WHOLE.values())
+
+
+def effects_table(*docs) -> str:
+    """Which effect of the ``flight`` set breaks which law: each part alone, success [95 % CI]."""
+    records = dict(zip(effects_records(), docs))
+    effects = list(dict.fromkeys(e for _, path, _ in EFFECT_COLUMNS for e in records[path]["effects"]))
+    n = {records[path]["effects"][e][key]["episodes"] for _, path, key in EFFECT_COLUMNS
+         for e in effects if key in records[path]["effects"].get(e, {})}  # fmt: skip
+    rows = []
+    for e in effects:
+        cells = [ci(records[path]["effects"][e][key]) if key in records[path]["effects"].get(e, {}) else "not flown"
+                 for _, path, key in EFFECT_COLUMNS]  # fmt: skip
+        rows.append([EFFECT_GLOSS.get(e, e), *cells])
+    (episodes,) = n
+    whole = [ci(_subset_rate(records[EFFECT_WHOLE[label]], episodes)) if label in EFFECT_WHOLE else "no record"
+             for label, _, _ in EFFECT_COLUMNS]  # fmt: skip
+    rows.append([f"the whole `flight` set (seeds 0-{episodes - 1} of the 200-episode evaluation)", *whole])
+    header = [f"effect alone ({episodes} episodes, seeds 0-{episodes - 1})", *(label for label, _, _ in EFFECT_COLUMNS)]
+    return "\n".join([md(header, rows), "", source(*effects_records())])
+
+
+def _footprint_cells(r: dict | None) -> list[str]:
+    """A set's two cells of the footprint table: success [95 % CI] (and the precision tier where any met
+    it), miss p50 / p95."""
+    if r is None:
+        return ["not flown", ""]
+    miss = r["miss_m"]
+    unit, scale = ("m", 1.0) if miss["p95"] < 1e3 else ("km", 1e-3)
+    precision = r.get("precision_success_rate") or 0.0
+    return [ci(r) + (f", precision {rate(precision)}" if precision else ""),
+            f"{sig(miss['p50'] * scale, 2)} / {sig(miss['p95'] * scale, 2)} {unit}"]
+
+
+# the footprint table's rows: (label, {set: (record, where the law's figures are in it)}); a set a
+# row does not name was not flown
+FOOTPRINT_ROWS = (
+    ("`mpc`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "mpc")) for s in ("standard", "flight")}),
+    ("`mpc` as it flies today, with the terminal alpha bound",
+     {"standard": ("docs/results/footprint_mpc_standard50.json", None)}),
+    ("`mpc-flight` as it flies today", {"flight": ("docs/results/footprint_mpc_flight_flight50.json", None)}),
+    ("`mpc-flight` before the flight-grade estimator and the 4 % relief",
+     {"flight": ("docs/results/bench_footprint_mpc_flight.json", ("sets", "flight", "laws", "mpc-flight"))}),
+    ("`dagger`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "learned")) for s in ("standard", "flight")}),
+    ("`dagger-flight`", {s: ("docs/results/bench_footprint_dagger_flight.json", ("sets", s, "laws", "dagger-flight"))
+                         for s in ("standard", "flight")}),
+    ("`learned` (`ppo`)", {s: ("docs/results/bench_footprint_ppo.json", ("sets", s, "laws", "learned"))
+                           for s in ("standard", "flight")}),
+    ("`ppo-plain`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "ppo-plain")) for s in ("standard", "flight")}),
+)  # fmt: skip
+
+
+def footprint_records() -> tuple[str, ...]:
+    return tuple(dict.fromkeys(path for _, where in FOOTPRINT_ROWS for path, _ in where.values()))
+
+
+def footprint_table(*docs) -> str:
+    """The laws on the footprint task (a target per episode), on ``standard`` and ``flight``."""
+    records = dict(zip(footprint_records(), docs))
+    refused = sorted({law for doc in records.values() for s in doc.get("sets", {}).values()
+                      for law, r in s["laws"].items() if "refused" in r})  # fmt: skip
+    rows = [[", ".join(f"`{law}`" for law in refused), "refused: cannot re-target", "", "refused", ""]] if refused else []
+    for label, where in FOOTPRINT_ROWS:
+        figures = {s: _dig(records[path], at or ("summary",)) for s, (path, at) in where.items()}
+        n = {r["episodes"] for r in figures.values()}
+        cells = [c for s in ("standard", "flight") for c in _footprint_cells(figures.get(s))]
+        rows.append([f"{label}, {'/'.join(map(str, sorted(n)))} episodes", *cells])
+    header = ["law", "`standard` + footprint: success [95 % CI]", "miss p50 / p95", "`flight` + footprint", "miss p50 / p95"]
+    return "\n".join([md(header, rows), "", source(*footprint_records())])
+
+
+def terminal_alpha_tables(doc: dict, extra: dict) -> str:
+    """``mpc``'s terminal alpha bound: the nominal flight per aim, and 20 standard episodes per aim."""
+    from rventry_env.guidance.replanning import ReplanningSettings
+
+    default = ReplanningSettings().terminal_alpha_deg
+    aims = sorted({r["aim_deg"]: r for r in doc["terminal_alpha"] + extra["terminal_alpha"]}.items())
+
+    def label(aim: float) -> str:
+        return "off" if aim == 0 else f"{aim:g} deg" + (" (the default)" if aim == default else "")
+
+    nominal = [[label(a), f"{r['alpha_final_deg']:.2f} deg", f"{r['vertical_error_deg']:.2f} deg", f"{sig(r['miss_m'])} m",
+                f"{r['cost_ratio']:.3f}"] for a, r in aims]  # fmt: skip
+    rows = []
+    for a, r in aims:
+        x = r.get("dispersed")
+        if not x:
+            continue
+        over = [f"{name} over 2 deg in {x[k]}" for name, k in (("alpha", "alpha_over_tier"), ("vertical", "vertical_over_tier"))
+                if x[k]]  # fmt: skip
+        rows.append([f"terminal alpha {label(a)}" if a == 0 else f"aimed at {label(a)}", rate(x["success_rate"]),
+                     ci(x, "precision_success_rate") + (f" ({', '.join(over)})" if over else ""),
+                     f"{x['alpha_final_deg']['p50']:.2f} / {x['alpha_final_deg']['p95']:.2f} deg",
+                     f"{x['vertical_error_deg']['p50']:.2f} / {x['vertical_error_deg']['p95']:.2f} deg",
+                     f"{x['miss_m_p50']:.0f} m"])  # fmt: skip
+    (x,) = {tuple(r["dispersed"]["seeds"]) for _, r in aims if r.get("dispersed")}
+    episodes = x[1] - x[0] + 1
+    return "\n".join([
+        md(["aiming at", "alpha(t_f)", "vertical-impact error", "miss", "J/J*"], nominal), "",
+        f"On the same {episodes} standard-set episodes per aim (seeds {x[0]}-{x[1]}):", "",
+        md([f"`mpc` on {episodes} standard episodes", "success", "precision [95 % CI]", "\\|alpha(t_f)\\| p50 / p95",
+            "vertical error p50 / p95", "miss p50"], rows), "",
+        source("docs/results/terminal_alpha_standard.json", "docs/results/terminal_alpha_nominal.json")])  # fmt: skip
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "**not met**"
+
+
+def jax_cpu_table(bench: dict, ppo: dict) -> str:
+    """The JAX backend on two CPU cores: speed against NumPy, agreement, and PPO's env-steps/s."""
+    v, a = bench["vector"], bench["agreement"]
+    sps, first = v["vehicle_steps_per_s"], v["first_step_s"]
+    numpy, f64, f32 = sps["numpy"], sps["jax_float64"], sps["jax_float32"]
+    functional = {f["dtype"]: f for f in bench["functional"] if f["dispersion"] == "standard"}
+    n_f = functional["float64"]["num_envs"]
+    jax, sb3 = ppo["ppo"]["jax"], ppo["ppo"]["sb3"]
+    speedup = jax["env_steps_per_s"] / sb3["env_steps_per_s"]
+    rows = [
+        [f"vector env, N = {v['num_envs']:,}: NumPy / JAX float64 / JAX float32",
+         f"{numpy:,.0f} / {f64:,.0f} (**{f64 / numpy:.2f}x**) / {f32:,.0f} ({f32 / numpy:.2f}x) vehicle-steps/s; first step "
+         f"(compilation) {first['jax_float64']:.1f} s / {first['jax_float32']:.1f} s",
+         f"float64 >= 2x NumPy, float32 >= 5M: {_met(f64 >= 2 * numpy and f32 >= 5e6)}"],
+        [f"functional env, N = {n_f:,}, `jit` of `lax.scan` over `vmap`-ed gymnax steps with autoreset (what JAX RL "
+         "libraries run)",
+         f"float64 {functional['float64']['vehicle_steps_per_s']:,.0f} (**{functional['float64']['vehicle_steps_per_s'] / numpy:.2f}x** "
+         f"NumPy), float32 {functional['float32']['vehicle_steps_per_s']:,.0f} "
+         f"({functional['float32']['vehicle_steps_per_s'] / numpy:.2f}x) vehicle-steps/s; compilation "
+         f"{functional['float64']['first_call_s']:.1f} s / {functional['float32']['first_call_s']:.1f} s", ""],
+        [f"JAX float64 vs NumPy, {a['episodes']} whole standard-set episodes, same seed and actions",
+         f"largest observation difference **{a['max_obs_diff_float64']:.1e}**; final positions within "
+         f"{a['impact_position_error_float64_vs_numpy_m']:.1e} m", f"<= 1e-5: {_met(a['max_obs_diff_float64'] <= 1e-5)}"],
+        [f"JAX float32 vs float64, the same {a['episodes']} episodes",
+         f"final position: median {a['float32_end_position_error_m']['median']:.1f} m, largest "
+         f"{a['float32_end_position_error_m']['max'] / 1e3:.2f} km; the same ending in {a['float32_same_ending']}/{a['episodes']}",
+         "stated"],
+        [f"PPO training, env-steps/s: rejax on the functional env ({jax['num_envs']} vehicles, `{jax['config']}`) vs "
+         "stable-baselines3 on the plain baselines' config",
+         f"rejax **{jax['env_steps_per_s']:,.0f}** (after {jax['compile_s']:.0f} s of compilation; "
+         f"{jax['timesteps'] / 1e6:.1f}M steps), SB3 {sb3['env_steps_per_s']:,.0f}: **{speedup:.1f}x**",
+         f">= 3x SB3: {_met(speedup >= 3)}"],
+    ]  # fmt: skip
+    loads = ", ".join(f"{name}: load average {m['load_average'][0]:.1f} at the start and {m['load_average_end'][0]:.1f} "
+                      "at the end" for name, m in (("speed", bench["machine"]), ("PPO", ppo["machine"])))  # fmt: skip
+    machine = bench["machine"]
+    note = (f"{machine['cpus']} CPU cores, jax {machine['jax']}, the default {bench['task']['substeps']} substep "
+            f"of {bench['task']['dt']:g} s; {loads}.")
+    return "\n".join([md(["", "measured", "target"], rows), "", note, "",
+                      source("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json")])
+
+
+BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
+
+
+def ladder_table(doc: dict) -> str:
+    """Each learner on each rung of the ladder: success over training seeds (rliable's IQM), with the
+    steps and wall time a seed took."""
+    header = ["learner", "rung", "seeds", "success per seed", "IQM [95 % CI]", "steps per seed", "wall time per seed"]
+    rows = []
+    for e in doc["entries"]:
+        runs = e["runs"]
+        trained = sorted({r.get("trained_on", e["rung"]) for r in runs})
+        learner = e["learner"] + ("" if trained == [e["rung"]] else f", trained on `{'`, `'.join(trained)}`")
+        walls = [r["wall_s"] / 60 for r in runs]
+        rows.append([learner, f"`{e['rung']}`", str(e["seeds"]), " / ".join(f"{r['evaluation']['success']:.2f}" for r in runs),
+                     f"{e['iqm']:.2f} [{e['iqm_ci'][0]:.2f}, {e['iqm_ci'][1]:.2f}]",
+                     " / ".join(f"{r['timesteps'] / 1e6:.3g}M" for r in runs),
+                     f"{min(walls):.0f}-{max(walls):.0f} min" if len(walls) > 1 else f"{walls[0]:.0f} min"])  # fmt: skip
+    episodes = sorted({r["evaluation"]["episodes"] for e in doc["entries"] for r in e["runs"]})
+    return "\n".join([md(header, rows), "", f"Each success rate over {' or '.join(map(str, episodes))} held-out episodes "
+                      f"(seeds from {doc['evaluation_seed']}); wall times on a shared two-core machine.", "",
+                      source("docs/results/ladder.json", command="python studies/ladder.py")])  # fmt: skip
+
+
+def ladder_summary(doc: dict) -> str:
+    """The ladder at a glance, one line per rung (the README keeps one results table): each learner's
+    success, IQM over its training seeds."""
+    from rventry_env.evaluation.rungs import RUNGS
+
+    by_rung: dict[str, list[str]] = {}
+    for e in doc["entries"]:
+        trained = sorted({r.get("trained_on", e["rung"]) for r in e["runs"]})
+        where = "" if trained == [e["rung"]] else f", trained on `{'`, `'.join(trained)}`"
+        by_rung.setdefault(e["rung"], []).append(f"{e['learner']}{where}: {e['iqm']:.2f} ({e['seeds']} seeds)")
+    lines = [f"- `{r}`: " + "; ".join(by_rung[r]) for r in RUNGS if r in by_rung]
+    return "\n".join([*lines, "", "Success IQM over training seeds on 100 held-out episodes of each rung; every run "
+                       "with its steps and wall time is in [the ladder](docs/benchmarks/learned_policies.md#the-ladder)."])
+
+
+def scratch_runs_table(doc: dict) -> str:
+    """The from-scratch runs as they stood when they stopped: settings changed, window, success."""
+    header = ["run", "settings changed from `ppo_scratch.toml`", "steps", "wall", "window", "frontier", "full task"]
+    rows = []
+    for r in doc["runs"]:
+        changed = ", ".join(f"{k.split('.', 1)[1]} {v}" for k, v in r["changed"].items()
+                            if k not in BUDGET and not (isinstance(v, str) and v.startswith("not in"))) or "none"  # fmt: skip
+        window = "-" if r["window_s"] is None else f"{r['window_s']:.0f} s"
+        front = "-" if r["frontier_success"] is None else f"{r['frontier_success']:.2f}"
+        rows.append([r["run"], changed, f"{r['timesteps'] / 1e6:.1f}M", f"{r['wall_s'] / 60:.0f} min", window, front,
+                     f"{r['select_success']:.2f}"])  # fmt: skip
+    return "\n".join([md(header, rows), "", "Window: how far before impact the curriculum started episodes when the "
+                      "run stopped; frontier: success from the window's far end; full task: the selected policy's "
+                      "success from the task's own initial state.", "",
+                      source("docs/results/scratch_runs.json", command="python studies/ladder.py histories RUN ...")])  # fmt: skip
+
+
+def _identify_row(r: dict, flight: bool) -> list[str]:
+    """One identification: what it found, where the trace points, the residual, the time it took."""
+    found = " + ".join(f"`{e}`" for e in r["effects"]) or "none"
+    if r["unexplained"]:
+        found += " (unexplained)"
+    unit, scale = ("km", 1e3) if flight else ("m", 1.0)
+    rms = f"{sig(r['rms_before'] / scale)} -> {sig(r['rms_after'] / scale)}"
+    if r.get("rms_after_trace") is not None and r.get("trace"):
+        rms += f" ({sig(r['rms_after_trace'] / scale)} after the trace)"
+    name = {"apollo4": "Apollo 4 (`rventry identify apollo4`)",
+            "apollo10": "Apollo 10 (`rventry identify apollo10`)"}.get(r["case"], f"`{r['case']}`")
+    trace = r.get("trace") or "-"
+    if r.get("bank_offset_deg") is not None:
+        trace += f" (a bank offset of {r['bank_offset_deg']:+.2f} deg)"
+    return [name, str(r["samples"]), found, trace, f"{rms} {unit}",
+            f"{r['cpu_s']:.1f} ({r['wall_s']:.0f})"]  # fmt: skip
+
+
+def identify_table(paths: tuple[str, ...]) -> Callable[..., str]:
+    """Identifications benchmarked by ``benchmarks/identify_speed.py``: one row per record, from its ``--json``."""
+
+    def render(*docs) -> str:
+        rows, notes, sources = [], [], []
+        for path, doc in zip(paths, docs):
+            rows += [_identify_row(r, False) for r in doc["cases"]]
+            rows += [_identify_row(doc[k], True) for k in ("apollo4", "apollo10") if doc.get(k)]
+            a10 = doc.get("apollo10")
+            if a10 and a10.get("entry_altitude_offset_m"):
+                off = a10["entry_altitude_offset_m"]
+                by = ", ".join(f"`{x}`" for x in a10.get("entry_offset_explained_by") or []) or "no reference"
+                notes.append(f"Apollo 10: entry altitude offset {off['value']:+.0f} +/- {off['stderr']:.0f} m, "
+                             f"explained by {by}.")  # fmt: skip
+            prov = doc.get("provenance") or {}  # a record written through util.provenance; earlier ones carry the keys
+            machine = prov.get("machine") or {}
+            load, cpus = doc.get("load_average") or [], doc.get("cpus", machine.get("cores"))
+            if machine.get("load_average_start") and machine.get("load_average_end"):
+                load = [machine["load_average_start"][0], machine["load_average_end"][0]]
+            load_text = f", load average {load[0]:.1f} -> {load[1]:.1f} on {cpus} shared cores" if len(
+                load) == 2 and None not in load else ""  # fmt: skip
+            # the command as it ran, writing this record (where it wrote first is not part of the figures)
+            ran = doc.get("command") or prov.get("command")
+            command = present_command(re.sub(r"--json \S+", f"--json {path}", ran)) if ran else None
+            sources.append(f"`{path}`" + (f" (`{command}`{load_text})" if command else ""))
+        header = ["record", "samples", "identified", "trace (size, band)", "rms before -> after",
+                  "CPU s (wall s)"]  # fmt: skip
+        parts = [md(header, rows), ""]
+        if notes:
+            parts += [" ".join(notes), ""]
+        parts.append("Records: " + "; ".join(sources) + ".")
+        return "\n".join(parts)
+
+    return render
+
+
+IDENTIFY_TABLES = {
+    "identify-findings": ("docs/results/bench_identify_bank_bias.json", "docs/results/bench_identify_density_wave.json"),
+    "identify-heldout": ("docs/results/bench_identify_heldout.json",),
+    "identify-flights": ("docs/results/bench_identify_flights.json",),
+}
+
+
+OBSERVATION_BOUNDS = "docs/results/observation_bounds.json"
+
+
+def observation_bounds_table(doc: dict) -> str:
+    """Where flown observations lie against the observation Box: the steps the env clipped, per set and law."""
+    import statistics
+
+    rows = []
+    for key, m in doc.items():
+        if key == "provenance":  # where the record was made, not a set / law
+            continue
+        names = [n for i, n in enumerate(m["names"]) if m["below"][i] or m["above"][i]]
+        lowest, errors = "", ""
+        if m["clipped_steps"]:
+            i = m["names"].index("altitude") if "altitude" in m["names"] else None
+            if i is not None and m["below"][i]:
+                lowest = f"{m['min'][i]:.4f} ({m['min'][i] * 40:.2f} km)"
+            e = m["nav_vertical_error_m"]
+            if e:
+                errors = f"{min(e):.0f} to {max(e):.0f}, median {statistics.median(e):.0f}"
+        rows.append([key.replace("/", " / "), f"{m['episodes']:,}", f"{m['clipped_steps']:,} of {m['steps']:,}",
+                     f"{m['clipped_episodes']:,}", ", ".join(names) or "none", lowest, errors])  # fmt: skip
+    header = ["set / law", "episodes", "clipped steps", "episodes with one", "features outside the Box",
+              "altitude feature, lowest (navigated altitude)", "navigation's vertical error there (m)"]  # fmt: skip
+    command = ("nice -n 19 python studies/observation_bounds.py --sets flight standard --laws reference zero "
+               "--episodes 1000 --json docs/results/observation_bounds.json")  # fmt: skip
+    return "\n".join([md(header, rows), "", "Seeds 0-999 per set and law, vector env, the features before clipping; "
+                      "`zero`: zero rates (alpha and bank held where they start).", "",
+                      source(OBSERVATION_BOUNDS, command=command)])  # fmt: skip
+
+
 # ------------------------------------------------------------------ the registry
 README = "README.md"
 TABLES: tuple[Table, ...] = (
@@ -285,10 +630,22 @@ TABLES: tuple[Table, ...] = (
     *(Table(f"scan-{name}", (f"docs/results/scan_mpc_{name}.json",), scan_table(f"docs/results/scan_mpc_{name}.json"),
             ("docs/benchmarks/guidance.md",))
       for name in ("flight", "aero", "final", "estimator", "split", "dive", "track", "floor")),
+    Table("effects-flight", effects_records(), effects_table, ("docs/benchmarks/flight_grade.md",)),
+    Table("footprint", footprint_records(), footprint_table, ("docs/benchmarks/flight_grade.md",)),
+    Table("terminal-alpha", ("docs/results/terminal_alpha_standard.json", "docs/results/terminal_alpha_nominal.json"),
+          terminal_alpha_tables, ("docs/benchmarks/guidance.md",)),
+    Table("jax-cpu", ("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json"), jax_cpu_table,
+          ("docs/benchmarks/jax.md",)),
     Table("rounds-dagger", ("rventry_agents/data/dagger/rounds.json",), rounds_table("rventry_agents/data/dagger/rounds.json"),
           ("docs/benchmarks/learned_policies.md",)),
     Table("rounds-dagger-flight", ("rventry_agents/data/dagger_flight/rounds.json",),
           rounds_table("rventry_agents/data/dagger_flight/rounds.json"), ("docs/benchmarks/learned_policies.md",)),
+    Table("ladder", ("docs/results/ladder.json",), ladder_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("ladder-summary", ("docs/results/ladder.json",), ladder_summary, (README,)),
+    Table("scratch-runs", ("docs/results/scratch_runs.json",), scratch_runs_table, ("docs/design-log/index.md",)),
+    *(Table(name, paths, identify_table(paths), ("docs/benchmarks/identification.md",))
+      for name, paths in IDENTIFY_TABLES.items()),
+    Table("observation-bounds", (OBSERVATION_BOUNDS,), observation_bounds_table, ("docs/benchmarks/environment.md",)),
 )  # fmt: skip
 
 

@@ -33,6 +33,7 @@ Nothing here changes a process-wide setting when it is imported. :func:`jax_ns` 
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -64,6 +65,7 @@ class MathBackend:
     and the capabilities its callers test (see the module docstring)."""
 
     name: str  # for messages; never compared to choose a path
+    key: str  # the namespace's name in :func:`_namespace`: what a pickle holds
     array: bool  # elementwise on arrays (NumPy, JAX), not one float or one symbol
     concrete: bool  # values known when the call runs (NumPy, floats), not traced (JAX) or symbolic (CasADi)
     symbolic: bool  # CasADi expressions
@@ -78,6 +80,24 @@ class MathBackend:
     fmax: Callable
     fmin: Callable
     where: Callable  # where(cond, a, b)
+
+    def __reduce__(self):
+        """Pickled as a reference to the library's one namespace (an environment holding one pickles:
+        its functions are never pickled, and the copy gets this process's namespace)."""
+        return _namespace, (self.key,)
+
+
+def _namespace(key):
+    """The namespace ``key`` names: ``"numpy"``, ``"math"``, ``"casadi"`` or ``"jax-float64"`` / ``"jax-float32"``."""
+    if key == "numpy":
+        return NUMPY
+    if key == "math":
+        return MATH
+    if key == "casadi":
+        return casadi_ns()
+    if key.startswith("jax-"):
+        return jax_ns(key[4:])
+    raise ValueError(f"no math namespace {key!r}")
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -100,10 +120,12 @@ class StepBackend(MathBackend):
     float_dtype: Any = None  # arrays: the float type of the state
 
 
-def _array_namespace(xp, name: str, concrete: bool, index_dtype=np.intp, **control) -> StepBackend:
+def _array_namespace(xp, name: str, concrete: bool, index_dtype=np.intp, key: str | None = None,
+                     **control) -> StepBackend:  # fmt: skip
     """The namespace of an array library with NumPy's API (NumPy itself, ``jax.numpy``)."""
     return StepBackend(
         name=name,
+        key=key or name,
         array=True,
         concrete=concrete,
         symbolic=False,
@@ -169,6 +191,7 @@ def _atan2(y, x):
 
 MATH = StepBackend(
     name="math",
+    key="math",
     array=False,
     concrete=True,
     symbolic=False,
@@ -199,6 +222,7 @@ def _casadi_namespace() -> MathBackend:
 
     return MathBackend(
         name="casadi",
+        key="casadi",
         array=False,
         concrete=False,
         symbolic=True,
@@ -239,7 +263,7 @@ def _jax_namespace(dtype) -> StepBackend:
     def take_rows(values, i):  # values[n, i[n]] for each row n of an (N, K) table
         return jnp.take_along_axis(values, i[:, None], axis=1)[:, 0]
 
-    return _array_namespace(jnp, "jax", False, index_dtype=jnp.int32, float_dtype=dtype, known=lambda flag: False,
+    return _array_namespace(jnp, "jax", False, index_dtype=jnp.int32, key=f"jax-{jnp.dtype(dtype).name}", float_dtype=dtype, known=lambda flag: False,
                             while_loop=jax.lax.while_loop, when=when, take_rows=take_rows)  # fmt: skip
 
 
@@ -292,6 +316,25 @@ def jax_ns(dtype: str = "float64") -> StepBackend:
     return _JAX[dtype]
 
 
+@contextlib.contextmanager
+def jax_x64(enabled: bool):
+    """JAX's 64-bit mode set to ``enabled`` inside the block and restored after it.
+
+    The mode is one switch for the whole process, and :func:`jax_ns` turns it on for the float64
+    backend. A float32 learner (rejax) must run with it off: with it on, JAX's default float is
+    float64 and rejax's running statistics change type inside its training loop, which
+    ``lax.scan`` refuses.
+    """
+    import jax
+
+    before = bool(jax.config.jax_enable_x64)
+    jax.config.update("jax_enable_x64", bool(enabled))
+    try:
+        yield
+    finally:
+        jax.config.update("jax_enable_x64", before)
+
+
 def dot3(a, b):
     """a . b for 3-tuples of components."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -318,4 +361,4 @@ def sparse_dot(a, nz: tuple):
     return out
 
 
-__all__ = ["MathBackend", "StepBackend", "NUMPY", "MATH", "casadi_ns", "jax_ns", "dot3", "sparse", "sparse_dot", "is_zero"]
+__all__ = ["MathBackend", "StepBackend", "NUMPY", "MATH", "casadi_ns", "jax_ns", "jax_x64", "dot3", "sparse", "sparse_dot", "is_zero"]

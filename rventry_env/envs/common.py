@@ -119,12 +119,19 @@ def real_actions(actions, shape: tuple, what: str) -> np.ndarray:
     return a
 
 
-def check_max_steps(max_episode_steps) -> int | None:
-    """A time limit in control steps: a positive integer, or None for none."""
-    if max_episode_steps is None:
+# the longest time limit: what the compiled steps' step counter (int32) holds, 2**31 - 1 control steps
+MAX_STEPS_BOUND = 2**31 - 1
+
+
+def check_max_steps(max_episode_steps, name: str = "max_episode_steps", optional: bool = True) -> int | None:
+    """A time limit in control steps: an integer in [1, :data:`MAX_STEPS_BOUND`], or (``optional``) None for none."""
+    if max_episode_steps is None and optional:
         return None
-    if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
-        raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
+    if (isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer))
+            or not 1 <= max_episode_steps <= MAX_STEPS_BOUND):  # fmt: skip
+        none = " or None" if optional else " (this environment needs a time limit)"
+        raise ValueError(f"{name} must be a positive integer <= {MAX_STEPS_BOUND} (what the step counter, int32, "
+                         f"holds){none}, got {max_episode_steps!r}")  # fmt: skip
     return int(max_episode_steps)
 
 
@@ -161,6 +168,39 @@ def outer_time_limit(env, own: int | None) -> int | None:
     return min(limits) if limits else None
 
 
+def check_seed(seed) -> int | None:
+    """``reset(seed=...)`` of one episode: None, or an integer >= 0 (a NumPy integer too) as a Python int."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"reset(seed=...) must be an integer >= 0 or None, got {seed!r} ({type(seed).__name__})")
+    return int(seed)
+
+
+def copy_seeds(seed, n: int) -> list[int | None]:
+    """``reset(seed=...)`` of a vector env as one seed per copy, by Gymnasium's rule for vector envs
+    (:class:`gymnasium.vector.SyncVectorEnv`): None seeds none; an integer ``s`` (a NumPy integer
+    too) seeds copy i with ``s + i``; a sequence gives each copy its own, an integer >= 0 or None."""
+    if seed is None:
+        return [None] * n
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
+        first = check_seed(seed)
+        return [first + i for i in range(n)]
+    if isinstance(seed, (str, bytes, dict)) or not hasattr(seed, "__len__") or np.ndim(seed) != 1:
+        raise ValueError(f"reset(seed=...) must be an integer >= 0, one seed per copy ({n}) or None, "
+                         f"got {seed!r:.80} ({type(seed).__name__})")  # fmt: skip
+    if len(seed) != n:
+        raise ValueError(f"reset(seed=...) needs one seed per copy ({n}), got {len(seed)}")
+    out = []
+    for i, s in enumerate(seed):
+        try:
+            out.append(check_seed(s))
+        except ValueError:
+            raise ValueError(f"reset(seed=...): the seed of copy {i} must be an integer >= 0 or None, "
+                             f"got {s!r} ({type(s).__name__})") from None  # fmt: skip
+    return out
+
+
 RESET_OPTIONS = ("dispersion", "state")
 
 
@@ -185,7 +225,7 @@ def make_task(task: EntryTask | None, dt: float | None, substeps: int | None, ta
         raise TypeError(f"task must be an EntryTask, got {type(task).__name__}")
     changes = {}
     if dt is not None:
-        changes["dt"] = float(dt)
+        changes["dt"] = dt  # checked by EntryTask, which names it
     if substeps is not None:
         changes["substeps"] = substeps
     if targets is not None:

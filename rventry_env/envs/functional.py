@@ -50,6 +50,7 @@ environments' code).
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, NamedTuple
 
 import jax
@@ -158,10 +159,9 @@ class RvEntryFunctional(environment.Environment):
                  reward: RewardWeights | None = None, pool_size: int = 256, starts: StartStates | None = None,
                  shaping: PotentialShaping | None = None, time_limit_is_failure: bool = False):  # fmt: skip
         super().__init__()
-        if dtype not in DTYPES:
+        common.check_max_steps(max_episode_steps, optional=False)
+        if not isinstance(dtype, str) or dtype not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
-        if common.check_max_steps(max_episode_steps) is None:
-            raise ValueError("the functional environment needs a time limit (max_episode_steps)")
         self.ns = jax_ns(dtype)
         self.dtype = dtype
         self.model = common.make_model(model)
@@ -189,6 +189,7 @@ class RvEntryFunctional(environment.Environment):
         if not isinstance(time_limit_is_failure, bool):
             raise ValueError(f"time_limit_is_failure must be True or False, got {time_limit_is_failure!r}")
         self.time_limit_is_failure = time_limit_is_failure
+        self._checked = None  # the params reset() last checked
 
     # gymnax's step/reset are jitted with ``self`` static: hash and compare by configuration
     def _key(self):
@@ -223,9 +224,10 @@ class RvEntryFunctional(environment.Environment):
             raise ValueError("the model's structure differs from the environment's: make a new environment for it")
         dispersion = self.dispersion if dispersion is None else Dispersion.parse(dispersion)
         self.task.check_dispersion(dispersion)
-        steps = self.max_episode_steps if max_episode_steps is None else max_episode_steps
-        if common.check_max_steps(steps) is None:
-            raise ValueError("the functional environment needs a time limit (max_episode_steps)")
+        steps = self.max_episode_steps
+        if max_episode_steps is not None:
+            steps = common.check_max_steps(max_episode_steps, optional=False)
+        seed = _check_seed(seed)
         x0 = self._nominal if nominal is None else common.check_state(nominal, model.planet.radius, self.task)
         if _flight_grade(dispersion) and not self.flight_grade:
             raise ValueError(f"the {dispersion.name!r} set's flight-grade errors (profiles, Mach-varying aerodynamics, "
@@ -235,11 +237,77 @@ class RvEntryFunctional(environment.Environment):
         # refuses angles that are undefined at this start
         apply_state_dispersion(x0, np.asarray([dispersion.largest(f) for f in SCALAR_FIELDS]))
         f = self.ns.float_dtype
-        return EnvParams(tuple(jnp.asarray(v, dtype=f) for v in leaves), jnp.asarray(x0, f),
-                         jnp.asarray([*half, dispersion.mass], f), jnp.asarray(dispersion.shape == "gaussian"),
-                         jnp.asarray(dispersion.clip_sigmas, f), jnp.asarray(steps, jnp.int32),
-                         self._pool(model, dispersion, seed) if self.flight_grade else None,
-                         self.start_params(self.starts if starts is ENV_DEFAULT else starts, model))  # fmt: skip
+        params = EnvParams(tuple(jnp.asarray(v, dtype=f) for v in leaves), jnp.asarray(x0, f),
+                           jnp.asarray([*half, dispersion.mass], f), jnp.asarray(dispersion.shape == "gaussian"),
+                           jnp.asarray(dispersion.clip_sigmas, f), jnp.asarray(steps, jnp.int32),
+                           self._pool(model, dispersion, seed) if self.flight_grade else None,
+                           self.start_params(self.starts if starts is ENV_DEFAULT else starts, model))  # fmt: skip
+        self._checked = self.check_params(params)
+        return params
+
+    def check_params(self, params: EnvParams) -> EnvParams:
+        """``params`` checked on the host, each field against this environment: its structure, shapes
+        and dtypes (what the compiled functions were traced for) and its values, naming the field
+        that is wrong. :meth:`make_params` checks what it makes; params built or changed by hand
+        (``params._replace(...)``) can be checked here before a compiled ``reset``/``step`` takes them
+        (values cannot be checked under ``jit``: a NaN parameter there gives NaN observations).
+
+        :return: ``params``, unchanged.
+        :raises ValueError: naming the field and what is wrong with it.
+        """
+        if not isinstance(params, EnvParams):
+            raise ValueError(f"params must be an EnvParams (env.make_params(...)), got {type(params).__name__}")
+        reference = self._reference_params(params)
+        for name in EnvParams._fields:
+            _check_like(f"EnvParams.{name}", getattr(params, name), getattr(reference, name))
+        host = jax.device_get(params)
+        leaves = [np.asarray(v, np.float64) for v in host.model]
+        template = numeric_leaves(self.model)
+        model = with_numeric_leaves(self.model, iter(_host_leaf(v, t) for v, t in zip(leaves, template)))
+        try:
+            rebuilt = _rebuilt(model)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"EnvParams.model: {e}") from None
+        try:
+            x0 = common.check_state(np.asarray(host.nominal, np.float64), rebuilt.planet.radius, self.task)
+        except ValueError as e:
+            raise ValueError(f"EnvParams.nominal: {e}") from None
+        spread = [float(v) for v in np.asarray(host.dispersion, np.float64)]
+        try:  # the Dispersion's own checks, and the make_params' one of the angles at this start
+            d = Dispersion(shape="gaussian" if bool(host.gaussian) else "uniform", clip_sigmas=float(host.clip_sigmas),
+                           mass=spread[-1], **dict(zip(SCALAR_FIELDS, spread[:-1])))  # fmt: skip
+            apply_state_dispersion(x0, np.asarray([d.largest(f) for f in SCALAR_FIELDS]))
+        except ValueError as e:
+            raise ValueError(f"EnvParams.dispersion / clip_sigmas: {e}") from None
+        common.check_max_steps(int(host.max_steps_in_episode), "EnvParams.max_steps_in_episode", optional=False)
+        if host.pool is not None:
+            for name, v in zip(FlightPool._fields, host.pool):
+                if np.asarray(v).dtype.kind == "f" and not np.all(np.isfinite(v)):
+                    raise ValueError(f"EnvParams.pool.{name} contains NaN or inf")
+        if host.starts is not None:
+            _check_start_params(host.starts, rebuilt.planet.radius, self.task)
+        return params
+
+    def _reference_params(self, params: EnvParams) -> EnvParams:
+        """Params of this environment's own structure, to compare a user's against (cached)."""
+        ref = getattr(self, "_reference", None)
+        if ref is None:
+            f = self.ns.float_dtype
+            z = lambda v: jax.ShapeDtypeStruct(np.shape(v), f)  # noqa: E731
+            pool = None
+            if self.flight_grade:
+                pool = jax.eval_shape(lambda: self._pool(self.model, Dispersion.parse("none"), 0))
+            ref = self._reference = EnvParams(
+                tuple(z(v) for v in numeric_leaves(self.model)), jax.ShapeDtypeStruct((12,), f),
+                jax.ShapeDtypeStruct((10,), f), jax.ShapeDtypeStruct((), jnp.bool_), jax.ShapeDtypeStruct((), f),
+                jax.ShapeDtypeStruct((), jnp.int32), pool, None,
+            )  # fmt: skip
+        if params.starts is not None:  # a table of any length: the shapes of its rows and scalars are fixed
+            k = np.shape(params.starts.times)[:1]
+            f = self.ns.float_dtype
+            s = jax.ShapeDtypeStruct
+            ref = ref._replace(starts=StartParams(s(k, f), s(k + (12,), f), s((2,), f), s((), f), s((6,), f), s((), f)))
+        return ref
 
     def start_params(self, starts, model: EntryModel | None = None) -> StartParams | None:
         """Start states as the params' arrays (checked against the model's planet and the task): what a
@@ -270,6 +338,14 @@ class RvEntryFunctional(environment.Environment):
                           a(errs.dv.T))  # fmt: skip
 
     # ------------------------------------------------------------------ gymnax API
+    def reset(self, key, params: EnvParams | None = None):
+        """gymnax's ``reset``; params given outside ``jit`` (concrete arrays) are checked first by
+        :meth:`check_params` (once for the same params object), so that a hand-made NaN or
+        negative parameter is refused naming its field rather than flown into NaN observations."""
+        if params is not None and params is not self._checked and not _traced(params):
+            self._checked = self.check_params(params)
+        return super().reset(key, params)
+
     def reset_env(self, key, params: EnvParams):
         ns = self.ns
         d = dispersion_draw(key, params, ns.float_dtype)
@@ -311,7 +387,8 @@ class RvEntryFunctional(environment.Environment):
         return self.shaping.phi(x, c_ae, self.target, planet.mu, planet.radius, self.ns)
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
-        a = jnp.clip(jnp.asarray(action, dtype=self.ns.float_dtype), -1.0, 1.0)
+        raw = jnp.asarray(check_action(action), dtype=self.ns.float_dtype)
+        a = jnp.clip(raw, -1.0, 1.0)
         model = self._model(params, state.scales, state.errors)
         tr = advance(state.flight, (a[0], a[1]), model, self.prop, params.max_steps_in_episode, self.target)
         obs, clipped, errors = self._observe(key, tr.flight, tr.c_ae, model, params, state.errors, tr.out.elapsed)
@@ -326,7 +403,7 @@ class RvEntryFunctional(environment.Environment):
             reward = reward + self.shaping.reward(state.potential, phi, final, self.ns)
         info = {
             "terminated": tr.terminated, "truncated": tr.truncated, "status": tr.out.status,
-            "observation_clipped": clipped, "time_s": tr.flight.t, "discount": jnp.where(tr.terminated, 0.0, 1.0),
+            "observation_clipped": clipped, "action_clipped": jnp.any((raw < -1.0) | (raw > 1.0)), "time_s": tr.flight.t, "discount": jnp.where(tr.terminated, 0.0, 1.0),
             **o.metrics._asdict(), "constraint_violation": o.constraint_violation, "is_success": o.is_success,
             "terminal_penalty": o.terminal_penalty,
         }  # fmt: skip
@@ -402,8 +479,11 @@ def step_batch(env, keys, states, actions, params, resets: int):
     """
     import jax
 
-    n = actions.shape[0]
-    if not 1 <= resets <= n:
+    n = actions.shape[0] if actions.ndim else 0
+    if actions.shape != (n, 2) or keys.shape[:1] != (n,):
+        raise ValueError(f"step_batch takes actions of shape (N, 2), one [alpha rate, bank rate] per episode, and N keys: "
+                         f"got actions of shape {actions.shape} and keys of shape {keys.shape}")  # fmt: skip
+    if isinstance(resets, bool) or not isinstance(resets, (int, np.integer)) or not 1 <= resets <= n:
         raise ValueError(f"resets must lie in [1, {n}] (the batch), got {resets}")
     obs_st, state_st, reward, done, info = jax.vmap(env.step_env, in_axes=(0, 0, 0, None))(keys, states, actions, params)
     reset_keys = jax.random.split(jax.random.fold_in(keys[0], 0x5EED), resets)
@@ -415,6 +495,95 @@ def step_batch(env, keys, states, actions, params, resets: int):
         return jnp.where(mask, fresh[pick], stepped)
 
     return select(obs_re, obs_st), jax.tree.map(select, state_re, state_st), reward, done, info
+
+
+ACTION_SHAPE = (2,)
+
+
+def check_action(action):
+    """One vehicle's action, checked where ``step_env`` is traced (shapes and dtypes are static under
+    ``jit``): shape (2,), real numbers. Its values cannot be checked there: a NaN action ends the
+    episode as a "non-finite state" failure, and values outside [-1, 1] are clipped and reported
+    (``info["action_clipped"]``).
+
+    :raises ValueError: naming the shape or dtype expected and the one given.
+    """
+    shape, dtype = jnp.shape(action), jnp.result_type(action)
+    if shape != ACTION_SHAPE:
+        batch = " (a batch of actions: jax.vmap the step, or step_batch)" if len(shape) == 2 and shape[-1] == 2 else ""
+        raise ValueError(f"the action must have shape {ACTION_SHAPE} ([alpha rate, bank rate], each in [-1, 1]), got "
+                         f"shape {shape}{batch}")  # fmt: skip
+    if np.dtype(dtype).kind not in "biuf":
+        raise ValueError(f"the action must be real numbers, got dtype {dtype}")
+    return action
+
+
+def _traced(tree) -> bool:
+    return any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves(tree))
+
+
+def _check_seed(seed) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0 (the flight-grade pool's seed), got {seed!r}")
+    return int(seed)
+
+
+def _check_like(name: str, value, ref) -> None:
+    """``value`` has the pytree structure, shapes and kinds of number of ``ref`` (leaves: ShapeDtypeStruct)."""
+    if ref is None:
+        if value is not None:
+            raise ValueError(f"{name} must be None for this environment, got {type(value).__name__}")
+        return
+    if isinstance(ref, tuple):
+        if value is None or not isinstance(value, tuple) or len(value) != len(ref):
+            what = f"a {type(ref).__name__} of {len(ref)}" if hasattr(ref, "_fields") else f"a tuple of {len(ref)} arrays"
+            raise ValueError(f"{name} must be {what} (as make_params makes it), got {type(value).__name__}")
+        parts = ref._fields if hasattr(ref, "_fields") else [f"[{i}]" for i in range(len(ref))]
+        for part, v, r in zip(parts, value, ref):
+            _check_like(f"{name}.{part}" if hasattr(ref, "_fields") else f"{name}{part}", v, r)
+        return
+    try:
+        shape, kind = jnp.shape(value), np.dtype(jnp.result_type(value)).kind
+    except TypeError:
+        raise ValueError(f"{name} must be an array of shape {ref.shape}, got {type(value).__name__}") from None
+    want = np.dtype(ref.dtype).kind
+    if shape != ref.shape or (kind != want and not (want == "f" and kind in "iu")):
+        kinds = {"f": "real numbers", "i": "integers", "b": "booleans"}
+        raise ValueError(f"{name} must have shape {ref.shape} ({kinds.get(want, want)}), got shape {shape} of "
+                         f"{jnp.result_type(value)}")  # fmt: skip
+
+
+def _host_leaf(value: np.ndarray, template):
+    """A params' leaf as the number or array of the model's own leaf (an int stays an int)."""
+    if np.ndim(template) > 0:
+        return value
+    return int(value.item()) if isinstance(template, (int, np.integer)) else float(value.item())
+
+
+def _rebuilt(obj):
+    """``obj`` rebuilt by its parts' constructors, so that their checks run (and name the field)."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return type(obj)(**{f.name: _rebuilt(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.init})
+    return obj
+
+
+def _check_start_params(sp: StartParams, radius: float, task) -> None:
+    """Start-state params as a :class:`~rventry_env.task.starts.StartStates` would be checked."""
+    from rventry_env.task.starts import PERTURBATIONS
+
+    times, states = np.asarray(sp.times, np.float64), np.asarray(sp.states, np.float64)
+    window = np.asarray(sp.window, np.float64)
+    try:
+        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(window))):
+            raise ValueError("times and window must be finite")
+        end, span = times[-1], times[-1] - times[0]
+        before = tuple(float(np.clip(end - w, 0.0, span)) if -1e-3 <= end - w <= span + 1e-3 else float(end - w)
+                       for w in window[::-1])  # fmt: skip
+        starts = StartStates(times, states, before, probability=float(sp.probability), far_weight=float(sp.far_weight),
+                             label="EnvParams.starts", **dict(zip(PERTURBATIONS, (float(v) for v in sp.half_widths))))  # fmt: skip
+        common.check_starts(starts, radius, task)
+    except ValueError as e:
+        raise ValueError(f"EnvParams.starts: {e}") from None
 
 
 def _flight_grade(dispersion: Dispersion) -> bool:
@@ -487,6 +656,6 @@ def _structure(obj):
     return obj
 
 
-__all__ = ["RvEntryFunctional", "EnvParams", "EnvState", "FlightPool", "FlightDraw", "StartParams", "DTYPES", "uniforms",
+__all__ = ["RvEntryFunctional", "EnvParams", "check_action", "ACTION_SHAPE", "EnvState", "FlightPool", "FlightDraw", "StartParams", "DTYPES", "uniforms",
            "step_batch",
            "dispersion_draw", "with_mass_factor"]  # fmt: skip

@@ -59,8 +59,8 @@ def _row_slices(rows) -> dict:
 class _Compiled:
     """The compiled step, restart and view of one model structure (its scalar numbers compiled in)."""
 
-    def __init__(self, env: "RvEntryJaxVectorEnv", template, dynamic: tuple, sensing: bool):
-        self.env, self.template, self.dynamic, self.sensing = env, template, dynamic, sensing
+    def __init__(self, env: "RvEntryJaxVectorEnv", template, dynamic: tuple, sensing: bool, key: tuple):
+        self.env, self.template, self.dynamic, self.sensing, self.key = env, template, dynamic, sensing, key
         leaves = numeric_leaves(template)
         self.scalars = [None if i in dynamic else float(v) for i, v in enumerate(leaves)]
         self.step = jax.jit(self._step)
@@ -161,6 +161,23 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
         self._rows = None  # host: the packed rows of the last step or view
         self._rows_at = _row_slices((("x", 12), *_INFO_ROWS, ("nav", 12)))
 
+    def __getstate__(self) -> dict:
+        """Pickled without its compiled functions: the copy compiles its own (the flights, on the
+        device, travel as arrays)."""
+        state = dict(self.__dict__)
+        fn = state.pop("_fn")
+        state["_compiled"] = {}
+        state["_fn_made_of"] = None if fn is None else (fn.key, fn.template, fn.dynamic, fn.sensing)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        made_of = state.pop("_fn_made_of")
+        self.__dict__.update(state)
+        self._fn = None
+        if made_of is not None:
+            key, template, dynamic, sensing = made_of
+            self._fn = self._compiled[key] = _Compiled(self, template, dynamic, sensing, key)
+
     @property
     def true_forces(self):
         raise NotImplementedError("true_forces is kept by the NumPy backend only (backend='numpy'): the compiled "
@@ -201,7 +218,7 @@ class RvEntryJaxVectorEnv(RvEntryVectorEnv):
                sensing)  # fmt: skip
         fn = self._compiled.get(key)
         if fn is None:
-            fn = self._compiled[key] = _Compiled(self, host, dynamic, sensing)
+            fn = self._compiled[key] = _Compiled(self, host, dynamic, sensing, key)
         f = self._ns.float_dtype
         self._sensor = self._sensor_errors() if sensing else None
         if fn is not self._fn and self._carry is not None:

@@ -1,7 +1,10 @@
 """Observation features and terminal metrics, for one vehicle (floats) or a batch (arrays).
 
-Every feature is bounded by construction or by the episode-end rules, so the Box
-bounds are finite and honest. The table :data:`FEATURES` is the single source of
+Every feature of the true state is bounded by construction or by the episode-end rules,
+so the Box bounds are finite and honest. The observation is built from the *navigated*
+state, which with navigation errors can lie below the ground near impact: the altitude
+feature is then clipped at its low bound and the environments report it
+(``info["observation_clipped"]``; docs/env.md gives how often). The table :data:`FEATURES` is the single source of
 the names and bounds; the environment's docstring reproduces it.
 """
 

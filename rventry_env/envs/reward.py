@@ -7,7 +7,14 @@ and training read them; guidance laws never see them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import numbers
+from dataclasses import dataclass, fields
+
+from rventry_env.physics.checks import check_number
+
+# the largest weight accepted: the defaults are 0.02 to 200, and at this bound the largest terminal
+# penalty (a miss on the far side of the planet, 20,000 km) stays near 1e10, finite in float32
+MAX_WEIGHT = 1e6
 
 
 @dataclass(frozen=True)
@@ -26,6 +33,9 @@ class RewardWeights:
     state, stall). ``success_bonus`` (default 0) is *paid* at a successful impact
     (:class:`SuccessThresholds`): a learner's handle on the threshold-shaped task
     metric, off in the environment's own definition.
+
+    Every weight is a finite number in [0, ``MAX_WEIGHT`` = 1e6]; anything else (NaN, infinity,
+    a negative weight, a string) is refused at construction, naming the field.
     """
 
     miss_per_km: float = 0.2
@@ -37,5 +47,12 @@ class RewardWeights:
     failure: float = 200.0
     success_bonus: float = 0.0
 
+    def __post_init__(self):
+        for f in fields(self):
+            check_number(self, f.name, low=0.0, high=MAX_WEIGHT)
+            value = getattr(self, f.name)
+            if isinstance(value, numbers.Real):
+                object.__setattr__(self, f.name, float(value))
 
-__all__ = ["RewardWeights"]
+
+__all__ = ["RewardWeights", "MAX_WEIGHT"]

@@ -60,9 +60,10 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     info keys are those of the single environment.
 
     Seeding follows :class:`gymnasium.vector.SyncVectorEnv`: ``reset(seed=s)``
-    seeds copy i with ``s + i`` and each copy draws its dispersions from its own
-    generator, so copy i reproduces a single ``RvEntry-v0`` reset with seed
-    ``s + i`` draw for draw.
+    (an integer >= 0, a NumPy integer too) seeds copy i with ``s + i``, a sequence of
+    N seeds (integers or None) seeds each copy with its own, and each copy draws its
+    dispersions from its own generator, so copy i reproduces a single ``RvEntry-v0``
+    reset with seed ``s + i`` draw for draw. Anything else is refused naming the seed.
 
     Infos are dicts of arrays; the terminal keys (``miss_km`` ... ``is_success``)
     come with the usual ``_key`` masks marking the copies whose episode ended.
@@ -142,15 +143,13 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None):
         n = self.num_envs
+        seeds = common.copy_seeds(seed, n)
         if seed is None:
             if self._rngs is None:
                 self._rngs = [seeding.np_random(None)[0] for _ in range(n)]
         else:
-            seeds = [seed + i for i in range(n)] if isinstance(seed, int) else list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"reset(seed=...) needs one seed per copy ({n}), got {len(seeds)}")
             self._rngs = [seeding.np_random(s)[0] for s in seeds]
-        super().reset(seed=seed if isinstance(seed, int) else None)
+        super().reset(seed=seeds[0] if isinstance(seed, (int, np.integer)) else None)
         options = common.reset_options(options)
         # one-off, as in the single env: the episodes started by this reset draw from it,
         # later autoresets from the constructor's dispersion again

@@ -156,6 +156,20 @@ def agent_names() -> list[str]:
     return [*BUILTIN, *sorted(set(plugin_agents()) - set(BUILTIN))]
 
 
+def check_agent(spec: str) -> None:
+    """Refuse at once, loading nothing, an agent that is neither a known name nor an existing path.
+
+    :raises ValueError: an unknown name. :raises FileNotFoundError: a path that does not exist.
+    """
+    if spec in BUILTIN or spec in plugin_agents():
+        return
+    path = Path(spec)
+    if not (path.suffix or path.exists() or "/" in spec):
+        raise ValueError(f"unknown agent {spec!r}: choose one of {', '.join(agent_names())}, or give a saved model's path")
+    if not path.exists():
+        raise FileNotFoundError(f"no saved policy at {path}")
+
+
 def load_agent(spec: str, task: EntryTask | None = None, **options):
     """The guidance law called ``spec``, or the saved policy at the path ``spec``.
 
@@ -172,11 +186,8 @@ def load_agent(spec: str, task: EntryTask | None = None, **options):
     plugins = plugin_agents()
     if spec in plugins:
         return plugins[spec].load()(spec, task)
+    check_agent(spec)
     path = Path(spec)
-    if not (path.suffix or path.exists() or "/" in spec):
-        raise ValueError(f"unknown agent {spec!r}: choose one of {', '.join(agent_names())}, or give a saved model's path")
-    if not path.exists():
-        raise FileNotFoundError(f"no saved policy at {path}")
     loaders = sorted(entry_points(group=FILE_GROUP), key=lambda e: e.name)
     if not loaders:
         raise ValueError(f"no installed package reads saved policies such as {path} (entry-point group {FILE_GROUP})")
@@ -190,4 +201,4 @@ def load_agent(spec: str, task: EntryTask | None = None, **options):
 
 
 __all__ = ["AGENT_GROUP", "FILE_GROUP", "CARD_GROUP", "AgentCard", "BUILTIN", "BUILTIN_CARDS", "agent_cards", "agent_names",
-           "compared_agents", "load_agent", "plugin_agents"]
+           "check_agent", "compared_agents", "load_agent", "plugin_agents"]

@@ -11,6 +11,7 @@ import argparse
 import time
 from pathlib import Path
 
+from rventry_env.evaluation.rungs import RUNGS, rung as ladder_rung
 from rventry_env.task.glossary import terms_line
 from rventry_env.task.benchmark import DISPERSED_SUCCESS_TARGETS, MARGIN_OVER_LQR, NOMINAL_TARGETS, target_checks
 from rventry_env.task.definition import TARGETS
@@ -39,6 +40,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     ev.add_argument("--episodes", type=positive_int, default=1, help="number of episodes (default 1)")
     _dispersion_arguments(ev)
     ev.add_argument("--seed", type=seed, default=0, help="episode i uses seed SEED + i (default 0)")
+    ev.add_argument("--rung", choices=list(RUNGS), default=None,
+                    help="a rung of the training ladder: its episodes start where the rung says (late, half: on the "
+                         "reference before impact) and fly its dispersion set unless --dispersion names another "
+                         "(default: the task's own initial state)")  # fmt: skip
     _targets_argument(ev)
     ev.add_argument("--json", metavar="PATH",
                     help="write the summary and per-episode records here (default out/evaluate_AGENT_DISPERSION.json)")
@@ -123,27 +128,35 @@ def available_memory() -> float | None:
     return free
 
 
-def check_memory(episodes: int, history: bool, option: str = "--episodes") -> None:
-    """Refuse at once a request whose episodes will not fit in memory, rather than after hours or at the kernel's hand."""
+def check_memory(episodes: int, history: bool, option: str = "--episodes", per_episode: float | None = None,
+                 unit: str = "episode") -> None:  # fmt: skip
+    """Refuse at once a request whose episodes will not fit in memory, rather than after hours or at the kernel's hand.
+
+    :param per_episode: bytes per episode (default: the evaluation's, :data:`EPISODE_BYTES` or
+        :data:`EPISODE_HISTORY_BYTES` with ``history``); ``unit`` names an episode in the message.
+    """
     free = available_memory()
-    per = EPISODE_HISTORY_BYTES if history else EPISODE_BYTES
-    need = episodes * per
-    if free is None or need <= 0.8 * free:
+    per = per_episode if per_episode is not None else EPISODE_HISTORY_BYTES if history else EPISODE_BYTES
+    if free is None:
         return
     fits = max(1, int(0.8 * free // per))
+    if episodes <= fits:
+        return
+    need = f"about {episodes * per / 1e9:.3g} GB of memory" if episodes < 1e20 else "more memory than any machine has"
     raise ValueError(
-        f"{option} {episodes} needs about {need / 1e9:.3g} GB of memory ({per / 1e3:.0f} kB per episode"
+        f"{option} {episodes} needs {need} ({per / 1e3:.0f} kB per {unit}"
         f"{' with --plots' if history else ''}), more than the {free / 1e9:.3g} GB available now; run it in parts of "
-        f"at most {fits} episodes with --seed S, S + {fits}, ..." + (", or without --plots" if history else "")
+        f"at most {fits} {unit}s with --seed S, S + {fits}, ..." + (", or without --plots" if history else "")
     )
 
 
 def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bool, workers: int = 1,
-              cluster: str | None = None, progress=None, targets: str = "fixed"):  # fmt: skip
+              cluster: str | None = None, progress=None, targets: str = "fixed", rung: str | None = None):  # fmt: skip
     """Evaluate one agent on the episodes of seeds ``seed`` to ``seed + episodes - 1``; returns (batch, summary).
 
     :param targets: the task's targets (``"fixed"`` or ``"footprint"``); a law that cannot
         re-target is refused here, before any episode flies.
+    :param rung: a rung of the ladder whose start states replace the task's initial state, or None.
     """
     from rventry_env.task import EntryTask
     from rventry_env.evaluation.parallel import EvaluationJob, cached_law, evaluate
@@ -154,12 +167,12 @@ def run_agent(agent: str, episodes: int, dispersion: str, seed: int, history: bo
     task = EntryTask(targets=targets)
     if targets != "fixed":
         check_retargets(cached_law(agent, task), task)
-    job = EvaluationJob(agent, dispersion, task, record_history=history)
+    job = EvaluationJob(agent, dispersion, task, record_history=history, rung=rung)
     batch = evaluate(job, list(range(seed, seed + episodes)), workers=workers, cluster=cluster, progress=progress)
     return batch, summarize(batch, float(load_reference().cost), task)
 
 
-def _document(agent, episodes, dispersion, seed, batch, summary, targets: str = "fixed") -> dict:
+def _document(agent, episodes, dispersion, seed, batch, summary, targets: str = "fixed", rung: str | None = None) -> dict:
     from rventry_env.task import Dispersion
     from rventry_env.reference import load_reference
 
@@ -171,6 +184,7 @@ def _document(agent, episodes, dispersion, seed, batch, summary, targets: str = 
         "dispersion": Dispersion.parse(dispersion).describe(),
         "seed": seed,
         "target_set": targets,
+        "rung": rung,
         "provenance": batch.provenance,
         "reference": {"cost": float(ref.cost), "tf_s": float(ref.tf)},
         "summary": summary,
@@ -203,18 +217,27 @@ def _evaluate(args) -> int:
     from rventry_env.evaluation.plots import plot_outcomes, plot_trajectories
     from rventry_env.reference import load_reference
 
-    dispersion = dispersion_name(args)
+    from rventry_env.evaluation.agents import check_agent
+
+    # every argument first: a refused command creates nothing
+    rung = args.rung
+    on = None if rung is None else ladder_rung(rung)
+    dispersion = on.dispersion if on is not None and not (args.dispersion or args.dispersed) else dispersion_name(args)
+    if on is not None and on.targets != "fixed" and args.targets == "fixed":
+        args.targets = on.targets
+    check_agent(args.agent)
     if args.json is None:
-        args.json = default_report(args.agent, dispersion)
+        args.json = default_report(args.agent, dispersion if rung is None else f"{rung}_{dispersion}")
     check_writable(args.json, folders=(args.plots,) if args.plots else ())
     check_memory(args.episodes, bool(args.plots))
     t0 = time.time()
     with progress_bar() as progress:
-        job = progress.add_task(f"{args.agent}: {args.episodes} episode(s), {dispersion}", total=args.episodes)
+        where = dispersion if rung is None else f"the {rung} rung, {dispersion}"
+        job = progress.add_task(f"{args.agent}: {args.episodes} episode(s), {where}", total=args.episodes)
         batch, summary = run_agent(args.agent, args.episodes, dispersion, args.seed, history=bool(args.plots),
                                    workers=args.workers, cluster=args.cluster,
-                                   progress=lambda n: progress.advance(job, n), targets=args.targets)  # fmt: skip
-    doc = _document(args.agent, args.episodes, dispersion, args.seed, batch, summary, args.targets)
+                                   progress=lambda n: progress.advance(job, n), targets=args.targets, rung=rung)  # fmt: skip
+    doc = _document(args.agent, args.episodes, dispersion, args.seed, batch, summary, args.targets, rung)
     doc["wall_time_s"] = time.time() - t0
     doc["workers"] = None if args.cluster else args.workers
     with output_set():  # the report and its plots: all replaced, or none
@@ -239,13 +262,13 @@ def _compare(args) -> int:
     from rventry_env.evaluation import compare_report as cr
     from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
     from rventry_env.evaluation.summary import summarize
+    from rventry_env.evaluation.agents import agent_cards, check_agent, compared_agents
     from rventry_env.reference import load_reference
 
     dispersion = dispersion_name(args)
+    check_agent(args.agent)
     check_writable(args.json, folders=(args.plots,))
     t0 = time.time()
-    from rventry_env.evaluation.agents import agent_cards, compared_agents
-
     # the columns: the agent given by --agent first, then every law whose card asks to be compared
     label = _label(args.agent)
     agents = ((args.agent, label), *((c.name, c.compare_label) for c in compared_agents() if c.name != args.agent))

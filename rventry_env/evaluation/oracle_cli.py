@@ -8,6 +8,11 @@ import time
 from rventry_env.util.args import positive_int, seed
 from rventry_env.util.files import check_writable, write_json
 
+# the memory a draw holds until the report is written: its record, its call and future in the pool,
+# and its share of the JSON text. Measured with tracemalloc over 20,000 records of the oracle's
+# form: 7.1 kB per draw at the peak, rounded up
+ORACLE_DRAW_BYTES = 8e3
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from rventry_env.evaluation.cli import _parallel_arguments
@@ -24,11 +29,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _oracle(args) -> int:
-    from rventry_env.evaluation.cli import progress_bar
+    from rventry_env.evaluation.cli import check_memory, progress_bar
     from rventry_env.task.glossary import terms_line
     from rventry_env.evaluation.oracle import OracleSettings, oracle
     from rventry_env.task import Dispersion, EntryTask
 
+    check_memory(args.episodes, False, per_episode=ORACLE_DRAW_BYTES, unit="draw")
     check_writable(args.json)
     settings = OracleSettings()
     t0 = time.time()

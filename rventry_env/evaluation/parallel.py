@@ -19,6 +19,7 @@ re-planning law compiles its NLP, about a second).
 
 from __future__ import annotations
 
+import contextlib
 import os
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -71,10 +72,10 @@ def _law(job: EvaluationJob):
 
 def run_task(job: EvaluationJob, seeds: list[int]) -> EpisodeBatch:
     """Fly the episodes of one task (a worker's unit of work)."""
-    from rventry_env.evaluation.rungs import rung_starts
+    from rventry_env.evaluation.rungs import rung
 
     return rollout(_law(job), seeds=seeds, dispersion=job.dispersion, task=job.task, record_history=job.record_history,
-                   starts=None if job.rung is None else rung_starts(job.rung))  # fmt: skip
+                   starts=None if job.rung is None else rung(job.rung).starts())  # fmt: skip
 
 
 def episodes_per_task(job: EvaluationJob, n: int) -> int:
@@ -91,11 +92,33 @@ class WorkerLost(RuntimeError):
 
 
 def _start_worker(parent: int) -> None:
-    """Set up a pool worker: one BLAS thread, and an end of its own when its parent ends."""
+    """Set up a pool worker: one BLAS thread, an end of its own when its parent ends, and Ctrl-C
+    left to the parent (which stops the workers itself, see :func:`map_local`)."""
+    import signal
+
     # before the first task's unpickling imports NumPy in this fresh (spawned) process
     os.environ["OMP_NUM_THREADS"] = "1"
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    # a terminal's Ctrl-C reaches the whole process group: a worker interrupted in its task would
+    # report it and take the next one; the parent cancels and stops them all instead
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     end_with_parent(parent)
+
+
+def _stop_pool(pool, grace_s: float = 2.0) -> None:
+    """Stop a process pool now: queued tasks cancelled, running ones ended with their workers
+    (SIGTERM, then SIGKILL after ``grace_s``), rather than waiting for every queued task."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.join(grace_s)
+            if p.is_alive():
+                p.kill()
+                p.join(grace_s)
 
 
 def end_with_parent(parent: int, poll_s: float = 1.0) -> None:
@@ -146,15 +169,19 @@ def map_local(fn: Callable, calls: list[tuple], workers: int, done: Callable[[in
     # each worker ends with this process: a killed parent leaves no worker behind
     with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=ctx, initializer=_start_worker,
                              initargs=(os.getpid(),)) as pool:  # fmt: skip
-        futures = {pool.submit(fn, *c): i for i, c in enumerate(calls)}
         try:
+            futures = {pool.submit(fn, *c): i for i, c in enumerate(calls)}
             for f in as_completed(futures):
                 done(futures[f], f.result())
         except BrokenProcessPool:
+            _stop_pool(pool)
             raise WorkerLost(
                 "a worker process ended before its task did (killed, or out of memory); the other workers "
                 "were stopped and nothing was written"
             ) from None
+        except BaseException:  # Ctrl-C, or a task that failed: stop now, not after every queued task
+            _stop_pool(pool)
+            raise
 
 
 def evaluate(job: EvaluationJob, seeds: list[int], workers: int = 1, cluster: str | None = None,
@@ -228,11 +255,16 @@ def map_cluster(fn: Callable, calls: list[tuple], address: str, done: Callable[[
     except (OSError, TimeoutError, ValueError) as exc:
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
     keys = keys or [f"rventry-{getattr(fn, '__name__', 'task')}-{i}" for i in range(len(calls))]
+    futures = []
     try:
         futures = [client.submit(fn, *c, pure=False, key=k) for c, k in zip(calls, keys)]
         index = {f.key: i for i, f in enumerate(futures)}
         for f in as_completed(futures):
             done(index[f.key], f.result())
+    except BaseException:  # Ctrl-C, or a task that failed: the cluster's queued and running tasks cancelled
+        with contextlib.suppress(Exception):
+            client.cancel(futures, force=True)
+        raise
     finally:
         client.close()
 

@@ -5,17 +5,17 @@ environment, reward and success definition, with the episodes started later alon
 reference (the easy rungs) or drawn from a harder set. A learner that fails the full task can
 be placed on the ladder: the rung where it stops is where the task's difficulty lies for it.
 
-======== ============================================================================ =========
-rung     episodes start                                                                draws
-======== ============================================================================ =========
-late     on the reference 30-60 s before impact, perturbed: the terminal dive alone    none
-half     on the reference 450-550 s before impact: the last two skips and the dive      none
-nominal  at the paper's initial state: the whole flight                                 none
-standard at the initial state, standard set                                             standard
-wide     at the initial state, wide set                                                 wide
-flight   at the initial state, flight-grade set (profiles, sensors, navigation)         flight
+========= =============================================================================== ========
+rung      episodes start                                                                  draws
+========= =============================================================================== ========
+late      on the reference 30-60 s before impact, perturbed: the terminal dive alone      none
+half      on the reference 450-550 s before impact: the last two skips and the dive       none
+nominal   at the paper's initial state: the whole flight                                  none
+standard  at the initial state, standard set                                              standard
+wide      at the initial state, wide set                                                  wide
+flight    at the initial state, flight-grade set (profiles, sensors, navigation)          flight
 footprint at the initial state, standard set, a target drawn in the footprint per episode standard
-======== ============================================================================ =========
+========= =============================================================================== ========
 
 The late starts are perturbed by 200 m in altitude, 10 m/s in speed, 0.1 deg in flight-path
 angle and heading, 0.5 deg of alpha and 2 deg of bank (uniform half-widths), then held inside the

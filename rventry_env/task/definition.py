@@ -9,6 +9,7 @@ not the task's.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -99,12 +100,27 @@ def footprint_target(problem: EntryProblem, radius: float, downrange_m, crossran
     return np.cos(c) * moved + np.sin(c) * n
 
 
+# The control steps and substeps accepted. A control step of a millisecond is a fast flight-control
+# loop (2000 steps, the default time limit, then fly 2 s); one of 10 minutes is a third of the
+# entry. 1000 substeps of the default 1 s step are 1 ms RK4 steps, whose truncation error (3.7 m at
+# impact in a 112 g dive at 1 substep, falling as h^4: docs/env.md) is then far below the rounding
+# of float64 positions; more only costs time (2**40 substeps would never finish a step).
+DT_RANGE = (1e-3, 600.0)
+MAX_SUBSTEPS = 1000
+
+
+def _real(value) -> bool:
+    """A finite real number (a NumPy one too), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)) and math.isfinite(value)
+
+
 @dataclass(frozen=True)
 class EntryTask:
     """Problem, success thresholds, control step and episode-end rules together.
 
-    :param dt: control step (s); the action is held over it.
-    :param substeps: RK4 substeps per control step. In an aggressive S-turn (bank reversals of
+    :param dt: control step (s), in [0.001, 600] (``DT_RANGE``); the action is held over it.
+    :param substeps: RK4 substeps per control step, an integer in [1, 1000] (``MAX_SUBSTEPS``; a
+        NumPy integer, or a float with an integral value, is taken as that integer). In an aggressive S-turn (bank reversals of
         +-90 deg every 20 s at alpha 20 deg) the position error against a tight DOP853 replay of
         the same controls is 22 m at 1 substep and 1.3 m at 2 (``python benchmarks/env_speed.py``).
     :param ceiling_altitude: skip-out: an episode ends (failure) above this altitude (m).
@@ -130,17 +146,17 @@ class EntryTask:
             raise ValueError(f"targets must be one of {TARGETS}, got {self.targets!r}")
         if not isinstance(self.footprint, Footprint):
             raise ValueError(f"footprint must be a Footprint, got {self.footprint!r}")
-        if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
-        if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, float)) or not (
-            math.isfinite(self.substeps) and int(self.substeps) == self.substeps and self.substeps >= 1
-        ):
-            raise ValueError(f"substeps must be a positive integer, got {self.substeps!r}")
+        lo, hi = DT_RANGE
+        if not (_real(self.dt) and lo <= self.dt <= hi):
+            raise ValueError(f"dt must be a positive number of seconds in [{lo:g}, {hi:g}], got {self.dt!r}")
+        if not (_real(self.substeps) and float(self.substeps).is_integer() and 1 <= self.substeps <= MAX_SUBSTEPS):
+            raise ValueError(f"substeps must be a positive integer <= {MAX_SUBSTEPS} (RK4 substeps per control "
+                             f"step), got {self.substeps!r}")  # fmt: skip
         object.__setattr__(self, "substeps", int(self.substeps))
         object.__setattr__(self, "dt", float(self.dt))
         for name in ("ceiling_altitude", "min_speed"):
             val = getattr(self, name)
-            if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            if not (_real(val) and val > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {val!r}")
         if self.ceiling_altitude <= self.problem.initial_altitude:
             raise ValueError(

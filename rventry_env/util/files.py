@@ -16,6 +16,7 @@ import contextvars
 import json
 import math
 import os
+import stat
 import tempfile
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -71,7 +72,7 @@ def _commit(staged: list[tuple[Path, Path]]) -> None:
         for tmp, dest in staged:
             backup = None
             if dest.exists():
-                fd, name = tempfile.mkstemp(prefix=f".{dest.name}.old.", dir=dest.parent)
+                fd, name = tempfile.mkstemp(prefix=temp_prefix(dest, ".old"), suffix=".old", dir=dest.parent)
                 os.close(fd)
                 backup = Path(name)
                 try:
@@ -106,7 +107,8 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
         writers that look at the extension, such as ``numpy.savez`` or matplotlib, behave).
     """
     path = Path(path)
-    if path.is_dir():
+    _check_names(path)
+    if _kind(path) == "folder":
         raise OutputError(f"{path} is a directory, not a file")
     folder = path.parent
     _check_no_file_in_the_way(folder, path)
@@ -114,7 +116,8 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputError(f"cannot create the folder {folder} for {path.name}: {exc.strerror or exc}") from None
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix if suffix is None else suffix, dir=folder)
+    suffix = path.suffix if suffix is None else suffix
+    fd, tmp = tempfile.mkstemp(prefix=temp_prefix(path, suffix), suffix=suffix, dir=folder)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -215,43 +218,132 @@ def plain_log_labels(ax) -> None:
 def check_writable(*paths: str | Path | None, folders: tuple = ()) -> None:
     """Raise :class:`OutputError` now if a file or folder destination cannot be written later.
 
+    Nothing is created: a missing folder is made when its first file is written, so a command
+    refused after this check (a bad option, an unknown agent) leaves no empty folder behind. A
+    missing folder is checked through the nearest folder above it that exists.
+
     :param paths: output files (``None`` entries are skipped).
-    :param folders: output folders (created if missing).
+    :param folders: output folders.
     """
     for p in paths:
         if p is None:
             continue
         p = Path(p)
-        if p.is_dir():
+        _check_names(p)
+        if _kind(p) == "folder":
             raise OutputError(f"{p} is a directory; give a file name")
         _probe(p.parent, p)
     for d in folders:
         if d is None:
             continue
         d = Path(d)
-        if d.exists() and not d.is_dir():
+        _check_names(d)
+        if _kind(d) == "file":
             raise OutputError(f"{d} exists and is not a folder")
         _probe(d, d)
+
+
+# the longest name (bytes) and path where the file system does not say (POSIX's usual values)
+_NAME_MAX, _PATH_MAX = 255, 4096
+# what a temporary name adds to its prefix: mkstemp's 8 random characters and a margin
+_TEMP_EXTRA = 8 + 4
+
+
+def _limits(path: Path) -> tuple[int, int]:
+    """The longest file name and path (bytes) on the file system holding ``path``'s nearest existing folder."""
+    folder = _existing_folder(path)
+    out = []
+    for name, default in (("PC_NAME_MAX", _NAME_MAX), ("PC_PATH_MAX", _PATH_MAX)):
+        try:
+            out.append(int(os.pathconf(folder, name)) if folder is not None else default)
+        except (OSError, ValueError, AttributeError, TypeError):  # not POSIX, or no limit given
+            out.append(default)
+    return out[0], out[1]
+
+
+def _existing_folder(path: Path) -> Path | None:
+    """The nearest existing folder at or above ``path`` (None if none can be found)."""
+    for part in (path, *path.parents):
+        if _kind(part, strict=False) == "folder":
+            return part
+    return None
+
+
+def _shorten(text: str, part_max: int = 40, whole_max: int = 200) -> str:
+    """``text`` (a path or a name) for a message: each long name shortened to its ends, then the whole."""
+    parts = [p if len(p) <= part_max else f"{p[:20]}...{p[-12:]}" for p in text.split(os.sep)]
+    out = os.sep.join(parts)
+    return out if len(out) <= whole_max else f"{out[: whole_max // 2]}...{out[-whole_max // 3 :]}"
+
+
+def _check_names(path: Path) -> None:
+    """Raise :class:`OutputError` naming it if a name in ``path``, or ``path`` itself, is longer
+    than the file system allows (rather than an ``OSError`` from deep inside a write)."""
+    name_max, path_max = _limits(path)
+    for part in path.parts:
+        n = len(os.fsencode(part))
+        if n > name_max:
+            what = "the file name" if part == path.name else f"the folder name {_shorten(part)}"
+            raise OutputError(f"cannot write {_shorten(str(path))}: {what} is {n} bytes long; the file system "
+                              f"allows at most {name_max}")  # fmt: skip
+    n = len(os.fsencode(str(path)))
+    extra = 2 + _TEMP_EXTRA + len(os.fsencode(path.suffix))  # the temporary file's name is this much longer
+    if n + extra >= path_max:
+        raise OutputError(f"cannot write {_shorten(str(path))}: the path is {n} bytes long; the file system allows "
+                          f"at most {path_max - 1 - extra} for it (with room for a temporary name beside it)")
+
+
+def temp_prefix(path: Path, suffix: str = "") -> str:
+    """The prefix of the temporary file a write of ``path`` stages beside it: ``.<name>.``, the
+    name cut short where the temporary name (prefix, mkstemp's random characters, ``suffix``)
+    would exceed the longest name the file system allows, so any name that fits can be written."""
+    name_max, _ = _limits(path)
+    room = name_max - 2 - _TEMP_EXTRA - len(os.fsencode(suffix))
+    name = path.name
+    while name and len(os.fsencode(name)) > room:
+        name = name[:-1]
+    return f".{name}."
+
+
+def _kind(path: Path, strict: bool = True) -> str:
+    """``"folder"``, ``"file"`` (anything else that exists) or ``"missing"``. A path that cannot be
+    looked up (a name too long, a NUL character) is refused naming it, or, unless ``strict``,
+    reported ``"missing"``."""
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):  # a file above it: reported by _check_no_file_in_the_way
+        return "missing"
+    except (OSError, ValueError) as exc:
+        if not strict:
+            return "missing"
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise OutputError(f"cannot write {_shorten(str(path))!r}: {why}") from None
+    return "folder" if stat.S_ISDIR(st.st_mode) else "file"
 
 
 def _check_no_file_in_the_way(folder: Path, target: Path) -> None:
     """Raise :class:`OutputError` naming it if a regular file stands where a folder of ``folder`` must be."""
     for part in (folder, *folder.parents):
-        if part.exists():
-            if not part.is_dir():
-                raise OutputError(f"cannot write {target}: {part} is a file, not a folder")
+        kind = _kind(part)
+        if kind == "file":
+            raise OutputError(f"cannot write {target}: {part} is a file, not a folder")
+        if kind == "folder":
             return
 
 
 def _probe(folder: Path, target: Path) -> None:
+    """Check that ``target`` can be written under ``folder`` (made if missing), creating nothing:
+    a temporary file is made and removed in the nearest existing folder."""
     _check_no_file_in_the_way(folder, target)
+    existing = _existing_folder(folder)
+    if existing is None:
+        raise OutputError(f"cannot write {target}: no folder above it exists")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".rventry-write-check.", dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=".rventry-write-check.", dir=existing)
         os.close(fd)
         os.unlink(tmp)
     except OSError as exc:
         raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from None
 
 
-__all__ = ["OutputError", "output_set", "atomic_path", "atomic_write", "json_safe", "dumps_json", "write_json", "save_figure", "check_writable"]
+__all__ = ["OutputError", "output_set", "atomic_path", "atomic_write", "json_safe", "dumps_json", "write_json", "save_figure", "check_writable", "temp_prefix"]

@@ -121,9 +121,15 @@ def start_run(argv: list[str] | None = None) -> RunRecord:
     return _CURRENT
 
 
+def current_provenance() -> dict[str, Any]:
+    """The ``"provenance"`` entry of the run :func:`start_run` started, now (for a record that gathers
+    entries from several runs, each with its own)."""
+    return (_CURRENT or start_run()).provenance()
+
+
 def write_record(path: str | Path, data: dict, indent: int | None = 1) -> Path:
     """Write ``data`` with the provenance of the run :func:`start_run` started (started now if none was)."""
     return (_CURRENT or start_run()).write(path, data, indent=indent)
 
 
-__all__ = ["RunRecord", "start_run", "write_record", "source_commit", "cpu_model", "load_average", "package_versions", "PACKAGES"]
+__all__ = ["RunRecord", "start_run", "current_provenance", "write_record", "source_commit", "cpu_model", "load_average", "package_versions", "PACKAGES"]

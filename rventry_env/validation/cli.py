@@ -16,7 +16,8 @@ from pathlib import Path
 from rventry_env.util.args import interval, non_negative_float, non_negative_int, number_list, positive_float
 from rventry_env.util.args import seed as seed_type
 
-SHIPPED_RECORDS = {"apollo4": "the Apollo 4 entry shipped with rventry (drag-only start)"}
+SHIPPED_RECORDS = {"apollo4": "the Apollo 4 entry shipped with rventry (drag-only start)",
+                   "apollo10": "the Apollo 10 entry shipped with rventry (digitised from the report's figures)"}
 EFFECTS_HELP = ("j2_gravity, density_profile, lift_coefficient, drag_coefficient, wind, mass, mach_drag, "
                 "measured_density")  # fmt: skip
 
@@ -31,7 +32,7 @@ def register(subparsers) -> None:
         "record supports, name the aliases it cannot tell apart, and test the final residual against the "
         "noise.",
     )
-    p.add_argument("record", help="record CSV, or 'apollo4' for the shipped Apollo 4 record")
+    p.add_argument("record", help="record CSV, or 'apollo4' / 'apollo10' for a shipped flight record")
     p.add_argument("--vehicle", type=Path, help="vehicle JSON overriding the record's sidecar")
     p.add_argument("--start", choices=("declared", "drag-only"),
                    help="model to start from (default: the sidecar's, else declared)")  # fmt: skip
@@ -62,8 +63,10 @@ def register(subparsers) -> None:
     )
     s.add_argument("--effect", action="append", default=[], metavar="NAME[=VALUE]",
                    help="j2_gravity[=J2], density_profile[=A], lift_coefficient[=S], drag_coefficient[=S], "
-                   "wind[=E[,N]], mass[=S], us76_density, mach_drag[=A], time_offset[=DT]; repeat for several; "
-                   "none for a clean flight")  # fmt: skip
+                   "wind[=E[,N]], mass[=S], us76_density, mach_drag[=A], time_offset[=DT]; outside the candidate "
+                   "set: lift_band, drag_band, mach_lift, wind_shear, side_force, density_wave[=A,KM], "
+                   "mass_loss[=F,T0,T1], bank_bias[=DEG], alpha_bias[=DEG]; repeat for several; none for a clean "
+                   "flight")  # fmt: skip
     s.add_argument("--noise", type=number_list(non_negative_float, 1, 2), default=(20.0, 0.2),
                    metavar="POS_M[,VEL_MPS]",
                    help="noise standard deviation per component [20,0.2]; one value sets VEL = POS/100")  # fmt: skip
@@ -79,15 +82,20 @@ def register(subparsers) -> None:
                    help="noise distribution, both with the given standard deviation [normal]")  # fmt: skip
     s.add_argument("--start-scatter", type=number_list(non_negative_float, 2, 2), metavar="SECONDS,METRES",
                    help="the first SECONDS of positions (altitudes) scatter by a further METRES")  # fmt: skip
+    s.add_argument("--entry-offset", type=number_list(interval(-50e3, 50e3), 1, 2), metavar="METRES[,MPS]",
+                   help="a reduced record's sidecar declares the entry altitude (and speed) this much above the "
+                   "truth, e.g. an altitude read on another reference")  # fmt: skip
+    s.add_argument("--latitude", type=interval(-80.0, 80.0), metavar="DEG",
+                   help="geocentric latitude of the entry point [10]")  # fmt: skip
     s.set_defaults(func=_simulate)
 
 
 def _record_path(text: str) -> Path:
     path = Path(text)
     if not path.exists() and text in SHIPPED_RECORDS:
-        from rventry_env.validation.apollo4 import record_path
+        from importlib import import_module
 
-        return record_path()
+        return import_module(f"rventry_env.validation.{text}").record_path()
     return path
 
 
@@ -163,6 +171,9 @@ def _print_summary(rep: dict) -> None:
           f"{_fmt(w['after']['ljung_box_p'], '.3g')}")  # fmt: skip
     for w in (rep.get("entry_state_check") or {}).get("warnings", []):
         print(f"warning: {w}")
+    offset = rep.get("entry_state_offset")
+    if offset and (offset["prior_widened"] or offset["explained_by"]):
+        print("entry state: " + offset["statement"])
     if rep.get("rejected_outliers"):
         rows = ", ".join(str(r["row"]) for r in rep["rejected_outliers"][:10])
         print(f"outliers rejected: {len(rep['rejected_outliers'])} (rows {rows})")
@@ -182,9 +193,18 @@ def _simulate(args: argparse.Namespace) -> int:
     out = args.out
     check_writable(out, out.with_name(out.stem + ".truth.json"),
                    out.with_suffix(".json") if args.observe == "reduced" else None)  # fmt: skip
+    if args.entry_offset and args.observe != "reduced":
+        raise ValueError("--entry-offset: only a reduced record (--observe reduced) has a sidecar entry state")
+    from dataclasses import replace
+
+    from rventry_env.validation.synthetic.simulate import Scenario
+
+    scenario = Scenario() if args.latitude is None else replace(Scenario(), latitude_deg=args.latitude)
+    offset = None if not args.entry_offset else (list(args.entry_offset) + [0.0])[:2]
     out = simulate_record(out, effects, noise=noise, duration=args.duration, rate=args.rate, seed=args.seed,
-                          observe=args.observe, noise_tails=args.noise_tails,
-                          start_scatter=tuple(args.start_scatter) if args.start_scatter else None)  # fmt: skip
+                          observe=args.observe, noise_tails=args.noise_tails, scenario=scenario,
+                          start_scatter=tuple(args.start_scatter) if args.start_scatter else None,
+                          entry_offset=None if offset is None else tuple(offset))  # fmt: skip
     print(f"wrote {out} ({', '.join(specs) or 'no effect'}; noise {noise[0]:g} m, {noise[1]:g} m/s)",
           file=sys.stderr)  # fmt: skip
     return 0

@@ -48,6 +48,7 @@ from rventry_env.validation.search.phases import (
 )
 from rventry_env.validation.search.selection import BIC_THRESHOLD
 from rventry_env.validation.trace.attribution import trace_residual
+from rventry_env.validation.trace.support import drop_surrogates
 
 
 @dataclass
@@ -166,8 +167,10 @@ def identify(
     adeq = test_residual()
     if adeq["unexplained"] and try_pairs(ctx, state, max_effects, threshold, say):
         adeq = test_residual()  # a pair replaced the greedy answer
-    aliases = name_canonical_member(ctx, state)
     trace = trace_residual(ctx, state.current, threshold, say) if adeq["unexplained"] else None
+    if trace and drop_surrogates(ctx, state, trace, threshold, say):
+        adeq = test_residual()  # an effect stood in for the traced correction: the model without it
+    aliases = name_canonical_member(ctx, state)
     report = build_report(record, replay, controls, ctx.setup, screened, ctx, state, adeq, aliases, threshold,
                           max_effects, time.perf_counter() - t_start, trace)  # fmt: skip
     report.update(run_diagnostics(record, ctx, base, state.current, state.chosen, record.kind, state.first))

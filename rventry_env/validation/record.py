@@ -2,7 +2,8 @@
 
 A record is a comma-separated text file with a header row and one row per sample, time
 strictly increasing. It carries one observation set, the full ECEF state (``x_m .. vz_mps``)
-or the reduced one (``altitude_m, speed_rel_mps``), optional controls (``alpha_rad``,
+or the reduced one (``altitude_m`` with ``speed_rel_mps``, the Earth-relative speed, or
+``speed_inertial_mps``, the inertial speed many flight reports plot), optional controls (``alpha_rad``,
 ``bank_rad``, ``lift_to_drag_vertical``) and an optional measured ``density_kgpm3``. Empty
 fields are gaps. A JSON sidecar ``<record>.json`` (or ``<record>.csv.json``) may name the
 vehicle, the entry state and the measurement noise.
@@ -29,9 +30,10 @@ from rventry_env.util.files import atomic_write
 
 ECEF_COLUMNS = ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")
 REDUCED_COLUMNS = ("altitude_m", "speed_rel_mps")
+INERTIAL_SPEED = "speed_inertial_mps"  # the reduced set's speed may be the inertial one instead
 CONTROL_COLUMNS = ("alpha_rad", "bank_rad", "lift_to_drag_vertical")
 OPTIONAL_COLUMNS = CONTROL_COLUMNS + ("density_kgpm3",)
-KNOWN_COLUMNS = ("t_s",) + ECEF_COLUMNS + REDUCED_COLUMNS + OPTIONAL_COLUMNS
+KNOWN_COLUMNS = ("t_s",) + ECEF_COLUMNS + REDUCED_COLUMNS + (INERTIAL_SPEED,) + OPTIONAL_COLUMNS
 
 # plausibility bounds for an entry flight (the unit checks)
 EARTH_RADIUS = 6378137.0
@@ -81,6 +83,11 @@ class FlightRecord:
     lines: np.ndarray | None = None
 
     @property
+    def speed_frame(self) -> str:
+        """``"earth"`` (Earth-relative speeds or the ECEF velocity) or ``"inertial"`` (``speed_inertial_mps``)."""
+        return "inertial" if INERTIAL_SPEED in self.observation_names else "earth"
+
+    @property
     def observed_rows(self) -> np.ndarray:
         """Indices of rows with at least one measured observation."""
         return np.flatnonzero(np.any(np.isfinite(self.observations), axis=1))
@@ -101,7 +108,8 @@ class FlightRecord:
         return row_norm(self.observations[:, :3]) - EARTH_RADIUS
 
     def speed(self) -> np.ndarray:
-        """Measured Earth-relative speed per row (m/s; NaN where unknown)."""
+        """Measured speed per row (m/s; NaN where unknown): Earth-relative, or inertial where
+        :attr:`speed_frame` says so (a few per cent more at entry speeds)."""
         if self.kind == "reduced":
             return self.observations[:, 1]
         return row_norm(self.observations[:, 3:6])
@@ -318,7 +326,7 @@ def _check_units(cols: dict, lines: np.ndarray) -> None:
                 f"{alt[bad][0]:g} m (|r| = {rn[bad][0]:g} m) for an entry flight about an Earth of radius "
                 f"{EARTH_RADIUS:g} m{hint}"
             )
-    for names in (("speed_rel_mps",), ECEF_COLUMNS[3:]):
+    for names in (("speed_rel_mps",), (INERTIAL_SPEED,), ECEF_COLUMNS[3:]):
         if not all(c in cols for c in names):
             continue
         vel = np.stack([cols[c] for c in names], axis=1)
@@ -449,13 +457,14 @@ def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: b
     lines = cols.pop("_line")
     _check_time(cols["t_s"], lines)
     has_ecef = [c for c in ECEF_COLUMNS if c in cols]
-    has_red = [c for c in REDUCED_COLUMNS if c in cols]
+    has_red = [c for c in REDUCED_COLUMNS + (INERTIAL_SPEED,) if c in cols]
     if has_ecef and len(has_ecef) < 6:
         missing = [c for c in ECEF_COLUMNS if c not in cols]
         raise RecordError(f"missing required column(s) {', '.join(missing)} (the ECEF set needs all six)")
-    if not has_ecef and len(has_red) < 2:
+    speed_col = "speed_rel_mps" if "speed_rel_mps" in cols else INERTIAL_SPEED
+    if not has_ecef and not ("altitude_m" in cols and speed_col in cols):
         if has_red:
-            missing = [c for c in REDUCED_COLUMNS if c not in cols]
+            missing = ["altitude_m"] if "altitude_m" not in cols else ["speed_rel_mps (or speed_inertial_mps)"]
             raise RecordError(f"missing required column(s) {', '.join(missing)} (the reduced set needs both)")
         raise RecordError(
             "missing required columns: need x_m, y_m, z_m, vx_mps, vy_mps, vz_mps (ECEF) "
@@ -463,9 +472,14 @@ def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: b
         )
     _check_units(cols, lines)
     kind = "ecef" if has_ecef else "reduced"
-    names = ECEF_COLUMNS if kind == "ecef" else REDUCED_COLUMNS
+    names = ECEF_COLUMNS if kind == "ecef" else ("altitude_m", speed_col)
     if kind == "ecef" and has_red:
-        notes.append("columns altitude_m, speed_rel_mps ignored: the full ECEF set is used")
+        notes.append(f"columns {', '.join(has_red)} ignored: the full ECEF set is used")
+    elif kind == "reduced" and speed_col == "speed_rel_mps" and INERTIAL_SPEED in cols:
+        notes.append(f"column {INERTIAL_SPEED} ignored: the Earth-relative speed_rel_mps is used")
+    for c in names:
+        if not np.any(np.isfinite(cols[c])):
+            raise RecordError(f"column {c}: present but every field is empty (the {kind} set needs its values)")
     unknown = [h for h in header if h not in KNOWN_COLUMNS]
     if unknown:
         notes.append(f"columns not in the record format ignored: {', '.join(unknown)}")
@@ -546,6 +560,7 @@ def write_record(path: str | Path, t: np.ndarray, columns: dict[str, np.ndarray]
 
 __all__ = [
     "ECEF_COLUMNS",
+    "INERTIAL_SPEED",
     "KNOWN_COLUMNS",
     "REDUCED_COLUMNS",
     "FlightRecord",

@@ -1,22 +1,36 @@
 """The sidecar against the record: does the declared entry state match the first samples?
 
-A reduced record starts its replay from the sidecar's entry state, and the fit may move that
-state only within the noise. A sidecar altitude in kilometres, a record altitude in feet, or an
-inertial speed put in ``speed_rel_mps`` would otherwise be "explained" by whatever effect bends
-the trajectory furthest. The declared state is replayed (nothing fitted) over the first
-:data:`WINDOW_S` seconds (at least :data:`MIN_WINDOW_SAMPLES` samples) and the differences from
-the record are fitted by a robust straight line (Theil-Sen). Its value at the first sample is
-what the record says about the sidecar, with the scatter of the window about the line (1.4826
-MAD, never below the record's own noise estimate) as the noise there. One sample never decides:
-a record digitised from a figure may scatter by kilometres near entry.
+A reduced record starts its replay from the sidecar's entry state. The declared state is
+replayed (nothing fitted) over the first :data:`WINDOW_S` seconds (at least
+:data:`MIN_WINDOW_SAMPLES` samples) and the differences from the record are fitted by a robust
+straight line (Theil-Sen). Its value at the first sample is what the record says about the
+sidecar, with the scatter of the window about the line (1.4826 MAD, never below the record's own
+noise estimate) as the noise there. One sample never decides: a record digitised from a figure
+may scatter by kilometres near entry.
 
-* a difference beyond :data:`ERROR_SIGMAS` of those noise levels *and* beyond the absolute floors
-  (:data:`ALTITUDE_FLOOR_M`, :data:`SPEED_FLOOR_MPS`) is grossly inconsistent: an error naming
-  the field, with the likely cause when the ratio or difference says so (feet, kilometres,
-  inertial speed);
-* a smaller difference beyond what the entry state may move (:data:`INIT_BOUND_SIGMAS` noise
-  levels) and beyond :data:`SIGNIFICANT` standard errors of the robust line is a warning, and the fit's prior on that component is widened to the difference
-  plus :data:`INIT_BOUND_SIGMAS` standard errors of the robust line (``widen``).
+A sidecar that disagrees with its record is a *finding*, not an error: an altitude read on
+another reference (geodetic over the WGS-84 ellipsoid against a sphere,
+:mod:`~rventry_env.validation.intake.references`), a state converted from another frame or
+horizon, a reading error of a digitised figure. Only what cannot be physics is refused, with the
+field named:
+
+* a unit error: a ratio of a foot or a kilometre between the sidecar and the record (or between
+  the record and the replay), and an inertial speed where an Earth-relative one belongs (either
+  way round), when the difference has the size the error would make (within a quarter of it);
+* a replay that cannot start (it fails before the window ends);
+* a difference beyond the physical bound plus :data:`ERROR_SIGMAS` standard errors of the
+  robust line: :data:`ALTITUDE_BOUND_M`, the largest difference between two altitude references
+  on the WGS-84 Earth (geodetic height over the ellipsoid against a sphere of the equatorial
+  radius: the polar flattening, 21.4 km), and :data:`SPEED_BOUND_MPS`, the largest difference
+  between the speeds of two frames (the Earth's rotation at the equator, 465 m/s).
+
+A difference within the bounds but beyond what the entry state may move (:data:`INIT_BOUND_SIGMAS`
+noise levels) and beyond :data:`SIGNIFICANT` standard errors of the robust line is a warning,
+and the fit's prior on that component is widened to the difference plus
+:data:`INIT_BOUND_SIGMAS` noise levels and standard errors (``widen``), so the fit finds the entry
+state; the report
+gives the fitted offset with its standard error and the physical references it agrees with
+(:func:`~rventry_env.validation.intake.references.explain_entry_offset`).
 """
 
 from __future__ import annotations
@@ -26,11 +40,13 @@ import math
 import numpy as np
 
 from rventry_env.validation.intake.noise import INIT_BOUND_SIGMAS
-from rventry_env.validation.record import RecordError
+from rventry_env.validation.intake.references import ALTITUDE_REFERENCE_MAX_M, frame_speed_difference
+from rventry_env.validation.record import INERTIAL_SPEED, RecordError
 
-ERROR_SIGMAS = 5.0  # noise levels of the early samples' scatter beyond which a sidecar is refused
-ALTITUDE_FLOOR_M = 2000.0
-SPEED_FLOOR_MPS = 50.0
+ERROR_SIGMAS = 5.0  # standard errors of the robust line beyond a physical bound before a sidecar is refused
+ALTITUDE_BOUND_M = ALTITUDE_REFERENCE_MAX_M  # the polar flattening of WGS-84: the largest reference difference
+SPEED_BOUND_MPS = 465.1  # the Earth's rotation speed at the equator (7.292115e-5 rad/s x 6378137 m)
+HINT_TOLERANCE = 0.25  # a unit or frame error explains a difference within this fraction of it
 WINDOW_S = 30.0  # the first seconds of the record compared with the declared state
 MIN_WINDOW_SAMPLES = 8
 MAD_TO_SIGMA = 1.4826
@@ -67,6 +83,23 @@ def _robust_line(t: np.ndarray, d: np.ndarray, t_at: float, floor: float | None)
     # a robust line is about 1.25 times less efficient than least squares on normal noise
     se = 1.25 * scatter * math.sqrt(1.0 / t.size + ((t_at - t.mean()) ** 2 / sxx if sxx > 0 else 0.0))
     return float(intercept + slope * t_at), se, scatter
+
+
+def _speed_hint(setup, record, dv: float) -> str:
+    """The frame error a speed difference has the size of (an inertial speed in the other's place), or ''."""
+    es = setup.entry_state
+    rot = frame_speed_difference(es.speed, es.altitude, es.latitude, es.flight_path, es.azimuth,
+                                 setup.model.planet)  # fmt: skip
+    if abs(dv + rot) < HINT_TOLERANCE * abs(dv):  # the replay starts too fast by the Earth's rotation
+        if record.speed_frame == "inertial":
+            return (f" (the Earth's rotation adds {rot:.4g} m/s here: the sidecar's speed_rel_mps looks like an "
+                    f"inertial speed, or the record's {INERTIAL_SPEED} like an Earth-relative one)")
+        return (f" (the Earth's rotation adds {rot:.4g} m/s here: the sidecar's speed_rel_mps looks like an "
+                "inertial speed)")
+    if abs(dv - rot) < HINT_TOLERANCE * abs(dv) and record.speed_frame == "earth":
+        return (f" (the Earth's rotation adds {rot:.4g} m/s here: the record's speed_rel_mps looks like an inertial "
+                f"speed; name that column {INERTIAL_SPEED})")
+    return ""
 
 
 def check_entry_state(replay, setup, sigma_by_group: dict) -> dict:
@@ -111,41 +144,42 @@ def check_entry_state(replay, setup, sigma_by_group: dict) -> dict:
            "warnings": [], "widen": {}}  # fmt: skip
     near = abs(t_first - es.t) < 1.0
     where = f"t_s = {t_first:g} (row {row}; a robust line through {idx.size} samples to t_s = {t[-1]:g})"
-    if abs(dh) > max(ERROR_SIGMAS * noise_h, ALTITUDE_FLOOR_M):
-        hint = _ratio_hint(es.altitude, h_meas, "altitude_m") if near else ""
+    significant_h = abs(dh) > ERROR_SIGMAS * noise_h and abs(dh) > SIGNIFICANT * se_h
+    hint = _ratio_hint(es.altitude, h_meas, "altitude_m") if near else ""
+    hint = hint or _ratio_hint(float(pred[0, 0]), h_meas, "altitude_m (replayed)")
+    beyond = abs(dh) - ERROR_SIGMAS * se_h > ALTITUDE_BOUND_M
+    if significant_h and (hint or beyond):
+        why = hint or (f"; beyond {ALTITUDE_BOUND_M:.0f} m, the largest difference two altitude references make on the "
+                       "WGS-84 Earth, it is not an offset any reference explains: a unit, time or state error")
         raise RecordError(
             f"sidecar: entry_state.altitude_m = {es.altitude:g} m, replayed to {where}, is {-dh:+.4g} m from the "
             f"record's altitude_m {h_meas:g} m ({abs(dh) / max(noise_h, 1e-9):.1f} times the {noise_h:.3g} m "
-            f"scatter of those samples){hint}; fix the sidecar or the record"
+            f"scatter of those samples){why}; fix the sidecar or the record"
         )
-    if abs(dv) > max(ERROR_SIGMAS * noise_v, SPEED_FLOOR_MPS):
-        hint = ""
-        # inertial speed of the measured state with the declared direction: |v_E + w x r|
-        w = setup.model.planet.omega
-        r = setup.model.planet.radius + h_meas
-        east = v_meas * math.cos(es.flight_path) * math.sin(es.azimuth) + w * r * math.cos(es.latitude)
-        north = v_meas * math.cos(es.flight_path) * math.cos(es.azimuth)
-        up = v_meas * math.sin(es.flight_path)
-        v_inertial = math.sqrt(east * east + north * north + up * up)
-        if abs(es.speed - v_inertial) < 0.25 * abs(dv):
-            hint = (f" (the Earth-fixed speed plus the Earth's rotation is {v_inertial:.6g} m/s: "
-                    "the sidecar's speed_rel_mps looks like an inertial speed)")  # fmt: skip
-        elif near:
-            hint = _ratio_hint(es.speed, v_meas, "speed_rel_mps")
+    significant_v = abs(dv) > ERROR_SIGMAS * noise_v and abs(dv) > SIGNIFICANT * se_v
+    hint = _speed_hint(setup, replay.record, dv)
+    if not hint and near:
+        hint = _ratio_hint(es.speed, v_meas, "speed_rel_mps")
+    beyond = abs(dv) - ERROR_SIGMAS * se_v > SPEED_BOUND_MPS
+    if significant_v and (hint or beyond):
+        why = hint or (f"; beyond {SPEED_BOUND_MPS:.0f} m/s, the largest difference between two frames' speeds (the "
+                       "Earth's rotation), it is not an offset any frame explains")
+        speed_name = replay.record.observation_names[1]
         raise RecordError(
             f"sidecar: entry_state.speed_rel_mps = {es.speed:g} m/s, replayed to {where}, is {-dv:+.4g} m/s from "
-            f"the record's speed_rel_mps {v_meas:g} m/s ({abs(dv) / max(noise_v, 1e-9):.1f} times the "
-            f"{noise_v:.3g} m/s scatter of those samples){hint}"
+            f"the record's {speed_name} {v_meas:g} m/s ({abs(dv) / max(noise_v, 1e-9):.1f} times the "
+            f"{noise_v:.3g} m/s scatter of those samples){why}"
         )
     for name, group, d, s, se, unit in (("altitude_m", "altitude", dh, sh, se_h, "m"),
                                         ("speed_rel_mps", "speed", dv, sv, se_v, "m/s")):  # fmt: skip
         if s is not None and abs(d) > INIT_BOUND_SIGMAS * s and abs(d) > SIGNIFICANT * se:
-            half = abs(d) + INIT_BOUND_SIGMAS * se
+            # the offset the first samples show, and around it what the noise and the line's error allow
+            half = abs(d) + INIT_BOUND_SIGMAS * (s + se)
             out["widen"][group] = half
             out["warnings"].append(
                 f"sidecar: entry_state.{name} is {abs(d):.4g} {unit} ({abs(d) / s:.1f} noise levels) from a robust fit "
-                f"of the record at {where}; the fitted entry state may move {half:.4g} {unit} instead of "
-                f"{INIT_BOUND_SIGMAS * s:.4g} {unit}"
+                f"of the record at {where}; a finding, not an error: the fitted entry state may move {half:.4g} "
+                f"{unit} instead of {INIT_BOUND_SIGMAS * s:.4g} {unit}, and the report gives the offset it finds"
             )
     return out
 

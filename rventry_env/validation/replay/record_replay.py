@@ -157,6 +157,16 @@ def make_grid(t0: float, t_obs: np.ndarray, h_max: float) -> Grid:
     return Grid(g, step, tau)
 
 
+def inertial_speed(rx, ry, vx, vy, vz, omega: float, sqrt=np.sqrt):
+    """|v_E + w x r| with w = (0, 0, omega): the inertial speed of an ECEF position and Earth-relative velocity.
+
+    Plain component arithmetic, so NumPy arrays and CasADi symbols (``sqrt=casadi.sqrt``) share it:
+    the replay and its exact sensitivities observe the same function.
+    """
+    ix, iy = vx - omega * ry, vy + omega * rx
+    return sqrt(ix * ix + iy * iy + vz * vz)
+
+
 def hermite_weights(tau: np.ndarray, h: np.ndarray) -> tuple:
     """Cubic Hermite weights of (x_k, f_k, x_k+1, f_k+1), derivative weights scaled by the step."""
     t2, t3 = tau * tau, tau * tau * tau
@@ -289,12 +299,15 @@ class Replay:
 
     def observe(self, states: np.ndarray, model: EntryModel) -> np.ndarray:
         """Predicted observations ``(n_obs, m, B)`` from :meth:`states`."""
-        if self.record.kind == "ecef":
+        if self.record.kind == "ecef" or self.record.speed_frame == "inertial":
             xs = np.moveaxis(states, 1, -1).copy()  # (n, B, 10)
             xs[..., 1:5] /= np.linalg.norm(xs[..., 1:5], axis=-1, keepdims=True)
             xs[..., 6:10] /= np.linalg.norm(xs[..., 6:10], axis=-1, keepdims=True)
             r_e, v_e = cartesian_from_rv_euler(xs)
-            return np.moveaxis(np.concatenate([r_e, v_e], axis=-1), -1, 1)
+            if self.record.kind == "ecef":
+                return np.moveaxis(np.concatenate([r_e, v_e], axis=-1), -1, 1)
+            speed = inertial_speed(r_e[..., 0], r_e[..., 1], *np.moveaxis(v_e, -1, 0), model.planet.omega)  # (n, B)
+            return np.stack([states[:, 0] - model.planet.radius, speed], axis=1)
         return np.stack([states[:, 0] - model.planet.radius, states[:, 5]], axis=1)
 
     def predict(self, model: EntryModel, offsets: np.ndarray) -> np.ndarray:
@@ -303,4 +316,5 @@ class Replay:
             return self.observe(self.states(model, self.init.rv_euler(offsets)), model)
 
 
-__all__ = ["MAX_RK4_STEPS", "Grid", "InitialState", "Replay", "hermite_weights", "initial_state", "make_grid"]
+__all__ = ["MAX_RK4_STEPS", "Grid", "InitialState", "Replay", "hermite_weights", "inertial_speed", "initial_state",
+           "make_grid"]

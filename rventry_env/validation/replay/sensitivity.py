@@ -21,7 +21,7 @@ from rventry_env.core.backend import casadi_ns
 from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.physics import entry_rhs
-from rventry_env.validation.replay.record_replay import N_RV, Replay, hermite_weights
+from rventry_env.validation.replay.record_replay import N_RV, Replay, hermite_weights, inertial_speed
 
 
 def _dense(*exprs) -> list:
@@ -106,14 +106,20 @@ class SensitivityReplay:
         fe = f(x, ue[0], ue[1], [ue[2 + i] for i in range(q)])
         self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, ca.jtimes(fe, z, seeds))).buffer()
         # observations and their derivatives at the samples
-        if replay.record.kind == "ecef":
+        rec = replay.record
+        if rec.kind == "ecef" or rec.speed_frame == "inertial":
             qa = x[1:5] / ca.norm_2(x[1:5])
             qb = x[6:10] / ca.norm_2(x[6:10])
             c_ae = dcm(qa[0], qa[1], qa[2], qa[3])
             c_ba = dcm(qb[0], qb[1], qb[2], qb[3])
             a1 = [c_ae[0][j] for j in range(3)]
             b1 = [sum(c_ba[0][i] * c_ae[i][j] for i in range(3)) for j in range(3)]
-            y = ca.vertcat(*[x[0] * a for a in a1], *[x[5] * b for b in b1])
+            r_e, v_e = [x[0] * a for a in a1], [x[5] * b for b in b1]
+        if rec.kind == "ecef":
+            y = ca.vertcat(*r_e, *v_e)
+        elif rec.speed_frame == "inertial":
+            y = ca.vertcat(x[0] - replay.setup.model.planet.radius,
+                           inertial_speed(r_e[0], r_e[1], *v_e, replay.setup.model.planet.omega, ca.sqrt))
         else:
             y = ca.vertcat(x[0] - replay.setup.model.planet.radius, x[5])
         obs = ca.Function("observe", [x], _dense(y, ca.jacobian(y, x)))

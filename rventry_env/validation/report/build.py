@@ -11,13 +11,17 @@ import math
 
 import numpy as np
 
+from rventry_env.validation.intake.references import explain_entry_offset
 from rventry_env.validation.record import RecordError
 from rventry_env.validation.report.diagnostics import error_metrics
 from rventry_env.validation.report.model_io import model_to_dict
 from rventry_env.validation.search.aliases import identifiable
 from rventry_env.validation.search.effects import EARTH_J2, PHYSICAL_BOUNDS
 from rventry_env.validation.search.fit import FitResult
-from rventry_env.validation.search.statistics import whiteness
+from rventry_env.validation.search.statistics import effective_size, whiteness
+
+
+PRIVATE_TRACE_KEYS = ("residual_after_trace", "fit")  # the trace's arrays and fit objects: for plots and phases
 
 
 def residual_whiteness(fit: FitResult, sigma: np.ndarray) -> dict:
@@ -62,6 +66,17 @@ def statement(chosen, adeq: dict, aliases: list) -> str:
     return head + " " + adeq["statement"]
 
 
+def surrogate_text(trace: dict | None) -> str:
+    """The effects removed because they only stood in for the traced correction, in words ('' if none)."""
+    gone = (trace or {}).get("surrogates_removed") or []
+    if not gone:
+        return ""
+    names = ", ".join(g["effect"] for g in gone)
+    return (f" Next to the traced correction the record does not support {names}: "
+            f"{'it' if len(gone) == 1 else 'they'} only stood in for it and {'is' if len(gone) == 1 else 'are'} "
+            "not in the identified model.")
+
+
 def answer_parameters(current: FitResult, chosen) -> tuple[dict, dict]:
     """The answer's parameters and standard errors (the known J2 with its record-preferred stderr)."""
     n0 = current.extra["n_initial"]
@@ -103,6 +118,23 @@ def record_section(record, replay, controls) -> dict:
     }
 
 
+def entry_state_section(fit: FitResult, setup, screened, sigma: np.ndarray) -> dict | None:
+    """The entry-state offset a reduced record's fit found from its sidecar, with its uncertainty and references.
+
+    The standard errors are the fit's, inflated by sqrt(n / n_eff) when its residual is serially
+    correlated (the AR(1) effective sample size, as in BIC): a correlated residual holds fewer
+    independent values than samples.
+    """
+    if setup.entry_state is None or fit.extra["n_initial"] != 3:
+        return None
+    n0 = fit.extra["n_initial"]
+    lag1 = residual_whiteness(fit, sigma)["lag1_autocorrelation"]
+    n = sum(fit.n_by_group)
+    inflation = math.sqrt(n / effective_size(n, lag1)) if n else 1.0
+    return explain_entry_offset(fit.names[:n0], fit.values[:n0], fit.stderr[:n0], setup, inflation,
+                                screened.entry_check)  # fmt: skip
+
+
 def build_report(record, replay, controls, setup, screened, ctx, state, adeq: dict, aliases: list,
                  threshold: float, max_effects: int, elapsed: float, trace: dict | None = None) -> dict:  # fmt: skip
     """The identification report (see ``docs/validation.md`` for every key).
@@ -121,9 +153,10 @@ def build_report(record, replay, controls, setup, screened, ctx, state, adeq: di
         "effect": chosen[0] if chosen else ("unexplained" if adeq["unexplained"] else "none"),
         "effects": list(chosen),
         "unexplained": adeq["unexplained"],
-        "statement": statement(chosen, adeq, aliases) + (" " + trace["statement"] if trace else ""),
+        "statement": (statement(chosen, adeq, aliases) + surrogate_text(trace)
+                      + (" " + trace["statement"] if trace else "")),
         "attribution": trace["attribution"] if trace else [],
-        "trace": None if trace is None else {k: v for k, v in trace.items() if k != "residual_after_trace"},
+        "trace": None if trace is None else {k: v for k, v in trace.items() if k not in PRIVATE_TRACE_KEYS},
         "parameters": params,
         "parameter_stderr": stderr,
         "fixed_parameters": {"j2": EARTH_J2} if "j2_gravity" in chosen else {},
@@ -148,6 +181,7 @@ def build_report(record, replay, controls, setup, screened, ctx, state, adeq: di
         "noise": noise_section(screened, current),
         "rejected_outliers": screened.rejected,
         "entry_state_check": screened.entry_check or None,
+        "entry_state_offset": entry_state_section(current, setup, screened, sigma),
         "record": record_section(record, replay, controls),
         "start_model": setup.start,
         "density_knots_m": list(current.structure.density_knots) if "density_profile" in chosen else None,

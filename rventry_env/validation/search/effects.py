@@ -148,14 +148,23 @@ def knot_counts(altitudes: np.ndarray) -> tuple:
     """Knot counts worth trying, up to what the record resolves.
 
     Those of :data:`KNOT_COUNTS` whose spacing over the altitudes flown is at least
-    :data:`MIN_KNOT_SPACING` and with at least :data:`SAMPLES_PER_KNOT` samples per knot: a long
-    dense record may bend its profile every kilometre (a density wave of a few kilometres), a
-    short or sparse one stays coarse. BIC picks among them (:meth:`FitContext.fit_profile`).
+    :data:`MIN_KNOT_SPACING` and with at least :data:`SAMPLES_PER_KNOT` samples per knot, and the
+    finest count that still meets both (a 10 km span resolves 11 knots, which the list's 8 and 12
+    step over): a long dense record may bend its profile every kilometre (a density wave of a few
+    kilometres), a short or sparse one stays coarse. BIC picks among them
+    (:meth:`FitContext.fit_profile`).
     """
     h = altitudes[np.isfinite(altitudes)]
     span = float(np.max(h) - np.min(h))
-    return tuple(n for n in KNOT_COUNTS
-                 if n == 2 or (span / (n - 1) >= MIN_KNOT_SPACING and n * SAMPLES_PER_KNOT <= h.size))  # fmt: skip
+
+    def resolved(n):
+        return span / (n - 1) >= MIN_KNOT_SPACING and n * SAMPLES_PER_KNOT <= h.size
+
+    counts = {n for n in KNOT_COUNTS if n == 2 or resolved(n)}
+    finest = min(int(span // MIN_KNOT_SPACING) + 1, h.size // SAMPLES_PER_KNOT, max(KNOT_COUNTS))
+    if finest > 2 and resolved(finest):
+        counts.add(finest)
+    return tuple(sorted(counts))
 
 
 def mach_knots(mach: np.ndarray, n_knots: int = 2) -> tuple:

@@ -214,8 +214,21 @@ class OutputErrorProblem:
                 "chi2": rss,
                 "step": step * self.scale[idx],
                 "stderr": np.sqrt(np.clip(np.diag(cov), 0, None)) * self.scale[idx],
+                "residual": r,
             }
         return out
+
+    def rss_by_group(self, r_norm: np.ndarray) -> tuple[list, list]:
+        """Residual sums of squares per observation group (physical units) of a normalised masked residual."""
+        sig = np.broadcast_to(self.sigma, self.mask.shape)[self.mask]
+        grp = np.broadcast_to(self.groups, self.mask.shape)[self.mask]
+        e = r_norm * sig
+        rss, nval = [], []
+        for g in np.unique(self.groups):
+            sel = grp == g
+            rss.append(float(np.sum(e[sel] ** 2)))
+            nval.append(int(np.count_nonzero(sel)))
+        return rss, nval
 
     def result(self, z: np.ndarray, message: str = "") -> FitResult:
         """A :class:`FitResult` at scaled unknowns ``z``."""

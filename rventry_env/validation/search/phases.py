@@ -46,7 +46,8 @@ SCREEN_KEEP = 2  # additions fitted in full per forward-selection step, after li
 PROFILES = ("density_profile", "mach_drag")  # effects whose knot count is chosen by BIC
 MAX_PROVISIONAL_STEPS = 1  # steps in a row the search may continue from a fit whose entry state is on its bound
 SEARCH_REPLAY_BUDGET = 250  # replays with sensitivities after which forward selection adds nothing more
-PAIR_CANDIDATES = 3  # the best single candidates whose pairs are fitted after the greedy search
+PAIR_CANDIDATES = 3  # the best single candidates whose pairs are tried after the greedy search
+PAIR_KEEP = 3  # pairs fitted in full, after a one-step screening of them all
 FIXED_EFFECTS = ("j2_gravity", "measured_density")  # effects without a free parameter
 
 
@@ -335,9 +336,11 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
     of a true pair (a density level for a mass error), the other member may then only fit
     implausibly next to it (J2 soaking up the difference). The :data:`PAIR_CANDIDATES` best
     first-step fits that are not stretched to a physical bound are paired with each other and
-    with every effect that has no free parameter (:data:`FIXED_EFFECTS`); a credible pair
-    replaces the answer when it beats it by the threshold (by any margin when the answer has as
-    many effects). Run when the greedy answer leaves a residual that is not noise.
+    with every effect that has no free parameter (:data:`FIXED_EFFECTS`). Every admissible pair is
+    screened by one Gauss-Newton step from its better member's fit (one replay); the
+    :data:`PAIR_KEEP` best are fitted in full. A credible pair replaces the answer when it beats it
+    by the threshold (by any margin when the answer has as many effects). Run when the greedy
+    answer leaves a residual that is not noise.
 
     :return: True when a pair replaced the answer.
     """
@@ -350,7 +353,7 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
     # alone, since it only corrects the model next to the effect it was missing: pair it with each
     fixed = [e for e in state.first if e in FIXED_EFFECTS and e not in top]
     pairs = list(itertools.combinations(top, 2)) + [(a, b) for a in top for b in fixed]
-    fits = {}
+    candidates = {}
     for pair in pairs:
         if set(pair) == set(state.chosen):
             continue
@@ -358,9 +361,20 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
         st = _pair_structure(ctx, pair, members)
         if not admissible(pair, st, c0):
             continue
-        say(f"pair: {' + '.join(pair)}")
-        start = min(members, key=lambda f: f.bic)
-        fits[" + ".join(pair)] = ctx.fit(st, start)
+        candidates[" + ".join(pair)] = (st, min(members, key=lambda f: f.bic))
+    # one Gauss-Newton step from the better member (exact Jacobian, one replay) screens every pair; the
+    # PAIR_KEEP best are fitted in full
+    screened = {}
+    for label, (st, start) in candidates.items():
+        prob = ctx.problem(st)
+        lin = prob.linearized(ctx.start_from(prob, start), {"all": list(range(len(prob.names)))})
+        screened[label] = lin["all"]["chi2"]
+        ctx.nfev += 1
+    fits = {}
+    for label in sorted(screened, key=screened.get)[:PAIR_KEEP]:
+        st, start = candidates[label]
+        say(f"pair: {label}")
+        fits[label] = ctx.fit(st, start)
     if not fits:
         return False
     state.step_fits.append(fits)
@@ -370,6 +384,8 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
     replace = best is not None and best["bic"] < cmp["bic_current"] - margin
     state.steps.append({"step": "pairs", "from": list(state.chosen), "effective_samples": cmp["n_eff"],
                         "bic_current": cmp["bic_current"], "tried": cmp["table"],
+                        "screened": [{"effects": label, "linearized_chi2": chi2} for label, chi2 in
+                                     sorted(screened.items(), key=lambda kv: kv[1])],
                         "accepted": best["effect"] if replace else None})  # fmt: skip
     if replace:
         state.current = fits[best["effect"]]

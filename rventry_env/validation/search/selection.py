@@ -10,7 +10,7 @@ from rventry_env.validation.replay.record_replay import Replay
 from rventry_env.validation.replay.replay_setup import ReplaySetup
 from rventry_env.validation.search.effects import EARTH_J2, Structure
 from rventry_env.validation.search.fit import FitResult, OutputErrorProblem, j2_free_param
-from rventry_env.validation.search.statistics import bic_effective, effective_size, whiteness
+from rventry_env.validation.search.statistics import bic, bic_effective, effective_size, whiteness
 
 BIC_THRESHOLD = 10.0  # "very strong" evidence on the Kass-Raftery scale
 CATCH_UP = 10.0  # knot refinement stops when it trails the best rival by this many last gains
@@ -96,22 +96,36 @@ class FitContext:
         return check
 
     def refine(self, previous: FitResult, profile: str) -> FitResult | None:
-        """``previous`` refitted with the next finer knot count of one of its profiles (None if none is finer)."""
+        """``previous`` refitted with a finer knot count of one of its profiles (None if none is finer).
+
+        The next finer count, or the finer count that one Gauss-Newton step from ``previous`` (its
+        profile interpolated, exact Jacobian) says fits best, when that is another: a profile that
+        cannot yet follow a structure of the record competes with a new effect by the count that
+        resolves it, not only by the next.
+        """
         counts = self.knots_by_count if profile == "density_profile" else self.mach_by_count
-        prefix = "dlnrho_" if profile == "density_profile" else "dlncd_M"
         st0 = previous.structure
         kn_old = st0.density_knots if profile == "density_profile" else st0.mach_knots
         finer = [n for n in counts if n > len(kn_old)]
         if not finer:
             return None
-        n = finer[0]
-        st = self.structure(previous.effects, st0, **({"density_n": n} if profile == "density_profile" else {"mach_n": n}))
+        screened = {n: self._screen_count(previous.effects, profile, st0, previous, n) for n in finer}
+        n = min(screened, key=screened.get) if len(finer) > 1 else finer[0]
+        return self._fit_count(previous.effects, profile, st0, previous, n, False)
+
+    def _screen_count(self, effects, profile: str, like, best: FitResult, n: int) -> float:
+        """The BIC one Gauss-Newton step from ``best`` reaches with the profile at ``n`` knots (one replay)."""
+        prefix = "dlnrho_" if profile == "density_profile" else "dlncd_M"
+        st = self.structure(effects, like, **({"density_n": n} if profile == "density_profile" else {"mach_n": n}))
         prob = self.problem(st)
-        theta0 = self.start_from(prob, previous)
-        old = [i for i, name in enumerate(previous.names) if name.startswith(prefix)]
+        theta0 = self.start_from(prob, best)
+        old = [i for i, name in enumerate(best.names) if name.startswith(prefix)]
         new = [i for i, name in enumerate(prob.names) if name.startswith(prefix)]
-        theta0[new] = _profile_start(profile, st0, st, previous.values[old])
-        return self.fit(st, None, max_nfev=30, theta0=theta0)
+        theta0[new] = _profile_start(profile, best.structure, st, best.values[old])
+        lin = prob.linearized(theta0, {"all": list(range(len(prob.names)))})["all"]
+        self.nfev += 1
+        rss, nval = prob.rss_by_group(lin["residual"])
+        return bic(rss, nval, len(prob.names))
 
     def fit_profile(self, effects: tuple, profile: str, like: Structure | None, previous: FitResult | None,
                     rival_bic: float | None = None) -> tuple[FitResult, list]:  # fmt: skip
@@ -124,28 +138,63 @@ class FitContext:
         gain. Each finer fit starts from the coarser one, its log factors interpolated.
         """
         counts = self.knots_by_count if profile == "density_profile" else self.mach_by_count
-        prefix = "dlnrho_" if profile == "density_profile" else "dlncd_M"
         best, trials, gain = None, [], None
+        stalled = False
         for n in counts:
             if best is not None and rival_bic is not None and gain is not None:
                 if best.bic - rival_bic > CATCH_UP * gain:
                     trials.append({"knots": n, "skipped": "cannot catch up with the best other candidate"})
                     break
-            st = self.structure(effects, like, **({"density_n": n} if profile == "density_profile" else {"mach_n": n}))
-            prob = self.problem(st)
-            theta0 = self.start_from(prob, previous if best is None else best)
-            if best is not None:
-                old = [i for i, name in enumerate(best.names) if name.startswith(prefix)]
-                new = [i for i, name in enumerate(prob.names) if name.startswith(prefix)]
-                theta0[new] = _profile_start(profile, best.structure, st, best.values[old])
-            f = self.fit(st, None, max_nfev=60 if best is None else 30, theta0=theta0)
+            f = self._fit_count(effects, profile, like, previous if best is None else best, n, best is None)
             trials.append({"knots": n, "bic": f.bic, "credible": f.credible})
             if best is not None:
                 gain = best.bic - f.bic
                 if f.bic > best.bic - self.threshold:
+                    stalled = True
                     break
             best = f
+        if stalled:
+            best = self._finer_than_stalled(effects, profile, like, best, trials)
         return best, trials
+
+    def _fit_count(self, effects, profile: str, like, start: FitResult | None, n: int, first: bool) -> FitResult:
+        """The profile's fit at ``n`` knots, started from ``start`` (a coarser profile's values interpolated)."""
+        prefix = "dlnrho_" if profile == "density_profile" else "dlncd_M"
+        st = self.structure(effects, like, **({"density_n": n} if profile == "density_profile" else {"mach_n": n}))
+        prob = self.problem(st)
+        theta0 = self.start_from(prob, start)
+        if not first and start is not None:
+            old = [i for i, name in enumerate(start.names) if name.startswith(prefix)]
+            new = [i for i, name in enumerate(prob.names) if name.startswith(prefix)]
+            theta0[new] = _profile_start(profile, start.structure, st, start.values[old])
+        return self.fit(st, None, max_nfev=60 if first else 30, theta0=theta0)
+
+    def _finer_than_stalled(self, effects, profile: str, like, best: FitResult, trials: list) -> FitResult:
+        """A profile that stopped gaining may still resolve a finer structure: screen every finer count.
+
+        A density wave of a few kilometres is aliased by knots coarser than half its wavelength, so
+        the next finer count may gain nothing while a finer one resolves it. Each finer count the
+        record resolves is screened by one Gauss-Newton step from ``best`` (its profile
+        interpolated, exact Jacobian); the best of them is fitted when it promises to beat ``best``
+        by the threshold, and kept when it does.
+        """
+        counts = self.knots_by_count if profile == "density_profile" else self.mach_by_count
+        n_best = len(best.structure.density_knots if profile == "density_profile" else best.structure.mach_knots)
+        tried = {t["knots"] for t in trials}
+        screened = {}
+        for n in counts:
+            if n <= n_best or n in tried:
+                continue
+            screened[n] = self._screen_count(effects, profile, like, best, n)
+            trials.append({"knots": n, "screened_bic": screened[n]})
+        if not screened:
+            return best
+        n = min(screened, key=screened.get)
+        if screened[n] > best.bic - self.threshold:
+            return best
+        f = self._fit_count(effects, profile, like, best, n, False)
+        trials.append({"knots": n, "bic": f.bic, "credible": f.credible})
+        return f if f.bic < best.bic - self.threshold else best
 
 
 def _profile_start(profile: str, old: Structure, new: Structure, values: np.ndarray) -> np.ndarray:

@@ -28,11 +28,23 @@ Effect values (defaults in brackets):
 * ``mach_lift=S,M`` C_L multiplied by S below Mach M (1-Mach edge; the truth's speed of sound is
   300 m/s) [0.85,21];
 * ``wind_shear=W[,H]`` an eastward wind W tanh((h - H) / 2 km) that reverses at H km [60,54];
-* ``side_force=Y`` a force out of the vertical plane, Y times the drag [0.02].
+* ``side_force=Y`` a force out of the vertical plane, Y times the drag [0.02];
+* ``density_wave=A,WAVELENGTH_KM`` ln(rho_true / rho_exp) = A sin(2 pi (h - 30 km) / WAVELENGTH):
+  the ``density_profile`` sinusoid with a wavelength of a few kilometres [0.08,6];
+* ``mass_loss=F,T0,T1`` the mass falls by the fraction F linearly from T0 to T1 s (ablation)
+  [0.05,100,300];
+* ``bank_bias=DEG`` the record's bank column reads DEG more than the bank flown [2];
+* ``alpha_bias=DEG`` the record's angle of attack reads DEG more than the angle flown (a trim
+  offset) [-1].
 
 ``mach_drag`` and ``time_offset`` are outside the identification's candidate set in shape (a smooth Mach law
-against a piecewise-linear correction) or altogether (a clock error); the last five are outside it
-altogether, for the residual trace (:mod:`rventry_env.validation.trace`).
+against a piecewise-linear correction) or altogether (a clock error); the band, Mach-lift, shear, side-force,
+mass-loss and control-bias effects are outside it altogether, for the residual trace
+(:mod:`rventry_env.validation.trace`); the density wave is in the set's shape only where the
+profile's knots resolve it.
+
+A reduced record's sidecar declares the true entry state unless ``entry_offset`` moves it (the
+sidecar's altitude and speed that much above the truth: a sidecar that disagrees with its record).
 """
 
 from __future__ import annotations
@@ -64,7 +76,12 @@ DEFAULT_VALUES = {
     "mach_lift": "0.85,21",
     "wind_shear": "60,54",
     "side_force": "0.02",
+    "density_wave": "0.08,6",
+    "mass_loss": "0.05,100,300",
+    "bank_bias": "2",
+    "alpha_bias": "-1",
 }
+RECORD_EFFECTS = ("time_offset", "bank_bias", "alpha_bias")  # in how the record reads the flight, not in the world
 SIMULATED_EFFECTS = tuple(DEFAULT_VALUES)
 
 
@@ -119,7 +136,7 @@ def parse_effects(specs: list[str]) -> dict[str, str]:
 
 
 def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
-    """The truth model containing ``effects`` (name -> value text); ``time_offset`` is not a world effect."""
+    """The truth model containing ``effects`` (name -> value text); :data:`RECORD_EFFECTS` are not world effects."""
     w = truth.TruthWorld()
     for name, text in effects.items():
         if name == "us76_density":
@@ -149,6 +166,16 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
                 raise ValueError("--effect mach_lift takes SCALE,MACH (C_L x SCALE below MACH > 0)")
             w = replace(w, mach_lift_scale=values[0], mach_lift_below=values[1])
             continue
+        if name == "density_wave":
+            if len(values) != 2 or values[1] <= 0:
+                raise ValueError("--effect density_wave takes AMPLITUDE,WAVELENGTH_KM (wavelength > 0)")
+            w = replace(w, density_amplitude=values[0], density_wavelength=values[1] * 1e3)
+            continue
+        if name == "mass_loss":
+            if len(values) != 3 or not (0 <= values[0] < 1) or not values[1] < values[2]:
+                raise ValueError("--effect mass_loss takes FRACTION,T0_S,T1_S (0 <= fraction < 1, T0 < T1)")
+            w = replace(w, mass_loss=values[0], mass_loss_start=values[1], mass_loss_end=values[2])
+            continue
         if name == "wind_shear":
             if len(values) > 2:
                 raise ValueError("--effect wind_shear takes PEAK_MPS[,REVERSAL_KM]")
@@ -174,6 +201,9 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
         elif name == "time_offset":
             if abs(v) > 10.0:
                 raise ValueError(f"--effect time_offset: at most 10 s, got {v:g}")
+        elif name in ("bank_bias", "alpha_bias"):
+            if abs(v) > 30.0:
+                raise ValueError(f"--effect {name}: at most 30 deg, got {v:g}")
     return w
 
 
@@ -193,7 +223,7 @@ def _sample_times(rate: float, duration: float, noise) -> np.ndarray:
     return t
 
 
-def _fly_truth(world, sc: "Scenario", t: np.ndarray, dt_tag: float) -> tuple:
+def _fly_truth(world, sc: "Scenario", t: np.ndarray, dt_tag: float, effects: dict[str, str]) -> tuple:
     """(r, v, altitude) of the truth flight at the record's times, a time-tag offset applied."""
     r0, v0 = truth.ecef_from_spherical(
         world.radius + sc.altitude, math.radians(sc.longitude_deg), math.radians(sc.latitude_deg),
@@ -201,13 +231,22 @@ def _fly_truth(world, sc: "Scenario", t: np.ndarray, dt_tag: float) -> tuple:
     )  # fmt: skip
     # a time-tag offset: the row of time t holds the state at t + dt_tag (started that much later)
     t_true = t + dt_tag
+
+    def fly(times):
+        try:
+            return truth.fly(world, r0, v0, sc.controls, times)
+        except (OverflowError, RuntimeError) as exc:  # an effect so strong the flight leaves floating point
+            given = ", ".join(f"{k}={v}" for k, v in effects.items()) or "none"
+            raise ValueError(f"--effect {given}: the truth flight cannot be flown with these effects ({exc}); "
+                             "choose values nearer the defaults") from None  # fmt: skip
+
     if dt_tag:
         t_fly = np.concatenate([[0.0], t_true]) if t_true[0] > 0 else t_true
-        r, v = truth.fly(world, r0, v0, sc.controls, t_fly)
+        r, v = fly(t_fly)
         if t_true[0] > 0:
             r, v = r[1:], v[1:]
     else:
-        r, v = truth.fly(world, r0, v0, sc.controls, t)
+        r, v = fly(t)
     h = np.linalg.norm(r, axis=1) - world.radius
     if np.any(h < 0):
         t_ground = t[np.argmax(h < 0)]
@@ -215,20 +254,23 @@ def _fly_truth(world, sc: "Scenario", t: np.ndarray, dt_tag: float) -> tuple:
     return r, v, h
 
 
-def _reduced_sidecar(sc: "Scenario", world) -> dict:
-    """The sidecar of a reduced record: the declared vehicle and the entry state."""
+def _reduced_sidecar(sc: "Scenario", world, entry_offset=None) -> dict:
+    """The sidecar of a reduced record: the declared vehicle and the entry state (off the truth's by
+    ``entry_offset``, metres and m/s, where given)."""
+    dh, dv = entry_offset or (0.0, 0.0)
     return {
         "generated_by": GENERATED_BY,
         # the declared vehicle: a mass effect stays undeclared
         "vehicle": {"name": "CAV-H", "mass_kg": truth.TruthWorld().mass, "reference_area_m2": world.area,
                     "aerodynamics": {"type": "cav-h"}},
-        "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude, "speed_rel_mps": sc.speed,
+        "entry_state": {"t_s": 0.0, "altitude_m": sc.altitude + dh, "speed_rel_mps": sc.speed + dv,
                         "flight_path_angle_deg": sc.flight_path_deg, "longitude_deg": sc.longitude_deg,
                         "latitude_deg": sc.latitude_deg, "azimuth_deg": sc.azimuth_deg},
     }  # fmt: skip
 
 
-def _truth_meta(effects, noise, observe: str, noise_tails: str, start_scatter, seed: int, sc, world) -> dict:
+def _truth_meta(effects, noise, observe: str, noise_tails: str, start_scatter, entry_offset, seed: int, sc,
+                world) -> dict:  # fmt: skip
     """What the record was made from, for checking an identification against it (``.truth.json``)."""
     return {
         "effects": effects,
@@ -236,6 +278,7 @@ def _truth_meta(effects, noise, observe: str, noise_tails: str, start_scatter, s
                   "velocity_mps" if observe == "ecef" else "speed_mps": noise[1]},
         "noise_tails": noise_tails,
         "start_scatter": None if start_scatter is None else {"seconds": start_scatter[0], "metres": start_scatter[1]},
+        "entry_offset": None if entry_offset is None else {"altitude_m": entry_offset[0], "speed_mps": entry_offset[1]},
         "seed": seed,
         "scenario": asdict(sc),
         "truth_world": asdict(world),
@@ -243,12 +286,21 @@ def _truth_meta(effects, noise, observe: str, noise_tails: str, start_scatter, s
     }  # fmt: skip
 
 
-def _check_noise_shape(noise_tails: str, start_scatter) -> None:
+def _record_bias(effects: dict[str, str], name: str) -> float:
+    """The bias (rad) a control column reads with, from a ``bank_bias``/``alpha_bias`` effect (0 without)."""
+    return math.radians(float(effects[name])) if name in effects else 0.0
+
+
+def _check_noise_shape(noise_tails: str, start_scatter, entry_offset, observe: str) -> None:
     if noise_tails not in ("normal", "student-t3"):
         raise ValueError(f"noise_tails must be 'normal' or 'student-t3', got {noise_tails!r}")
     if start_scatter is not None and not (len(start_scatter) == 2 and all(math.isfinite(x) and x >= 0
                                                                          for x in start_scatter)):  # fmt: skip
         raise ValueError(f"start_scatter: two finite numbers >= 0 (seconds, metres), got {start_scatter!r}")
+    if entry_offset is not None and not (len(entry_offset) == 2 and all(math.isfinite(x) for x in entry_offset)):
+        raise ValueError(f"entry_offset: two finite numbers (metres, m/s), got {entry_offset!r}")
+    if entry_offset is not None and observe != "reduced":
+        raise ValueError("entry_offset: only a reduced record has a sidecar entry state")
 
 
 def simulate_record(
@@ -262,6 +314,7 @@ def simulate_record(
     observe: str = "ecef",
     noise_tails: str = "normal",
     start_scatter: tuple[float, float] | None = None,
+    entry_offset: tuple[float, float] | None = None,
 ) -> Path:
     """Fly the truth model and write a record.
 
@@ -280,6 +333,9 @@ def simulate_record(
     :param start_scatter: ``(seconds, metres)``: the samples of the first ``seconds`` scatter by
         a further ``metres`` (one standard deviation, normal) in every position or altitude
         component, like a record digitised from a figure whose start is crowded.
+    :param entry_offset: ``(metres, m/s)``: a reduced record's sidecar declares the entry altitude
+        and speed this much above the truth (a sidecar that disagrees with its record, e.g. an
+        altitude on another reference).
     :return: the record path.
     """
     effects = effects or {}
@@ -287,8 +343,8 @@ def simulate_record(
     world = truth_world(effects)
     t = _sample_times(rate, duration, noise)
     dt_tag = float(effects.get("time_offset", "0") or 0.0) if "time_offset" in effects else 0.0
-    r, v, h = _fly_truth(world, sc, t, dt_tag)
-    _check_noise_shape(noise_tails, start_scatter)
+    r, v, h = _fly_truth(world, sc, t, dt_tag, effects)
+    _check_noise_shape(noise_tails, start_scatter, entry_offset, observe)
     rng = np.random.default_rng(seed)
 
     def draw(sd: float, shape) -> np.ndarray:
@@ -319,15 +375,16 @@ def simulate_record(
             "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
             "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
         }
-        write_json(out.with_suffix(".json"), _reduced_sidecar(sc, world), indent=2)
+        write_json(out.with_suffix(".json"), _reduced_sidecar(sc, world, entry_offset), indent=2)
     else:
         raise ValueError("observe must be 'ecef' or 'reduced'")
-    cols["alpha_rad"] = ctrl[:, 0]
-    cols["bank_rad"] = ctrl[:, 1]
+    cols["alpha_rad"] = ctrl[:, 0] + _record_bias(effects, "alpha_bias")
+    cols["bank_rad"] = ctrl[:, 1] + _record_bias(effects, "bank_bias")
     write_record(out, t, cols)
-    meta = _truth_meta(effects, noise, observe, noise_tails, start_scatter, seed, sc, world)
+    meta = _truth_meta(effects, noise, observe, noise_tails, start_scatter, entry_offset, seed, sc, world)
     write_json(out.with_name(out.stem + ".truth.json"), meta, indent=2)
     return out
 
 
-__all__ = ["DEFAULT_VALUES", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record", "truth_world"]
+__all__ = ["DEFAULT_VALUES", "RECORD_EFFECTS", "SIMULATED_EFFECTS", "Scenario", "parse_effects", "simulate_record",
+           "truth_world"]

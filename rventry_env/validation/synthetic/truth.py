@@ -74,6 +74,8 @@ class TruthWorld:
         (m/s): it reverses at ``shear_altitude``.
     :param side_force: a force out of the vertical plane, this fraction of the drag, toward the
         right of the velocity (v x up).
+    :param mass_loss: a mass that falls with time (ablation, a jettison): the fraction of the mass
+        lost, linearly from ``mass_loss_start`` to ``mass_loss_end`` (s), constant outside.
     """
 
     radius: float = 6378137.0
@@ -106,6 +108,9 @@ class TruthWorld:
     shear_altitude: float = 54e3
     shear_width: float = 2e3
     side_force: float = 0.0
+    mass_loss: float = 0.0
+    mass_loss_start: float = 0.0
+    mass_loss_end: float = 0.0
 
 
 # U.S. Standard Atmosphere 1976 below 86 km: layers in geopotential altitude (m') with their
@@ -226,11 +231,22 @@ def lift_direction(r: np.ndarray, v: np.ndarray, v_air: np.ndarray, bank: float)
     return lv / np.linalg.norm(lv)
 
 
-def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world: TruthWorld) -> np.ndarray:
-    """Earth-relative acceleration d(v_E)/dt in ECEF (m/s^2) for one state and control.
+def mass_at(t: float, world: TruthWorld) -> float:
+    """The vehicle's mass (kg) at time ``t`` (s): the declared mass less the ``mass_loss`` ramp."""
+    if not world.mass_loss:
+        return world.mass
+    a, b = world.mass_loss_start, world.mass_loss_end
+    frac = 1.0 if t >= b else (0.0 if t <= a else (t - a) / (b - a))
+    return world.mass * (1.0 - world.mass_loss * frac)
+
+
+def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world: TruthWorld,
+                 t: float = 0.0) -> np.ndarray:  # fmt: skip
+    """Earth-relative acceleration d(v_E)/dt in ECEF (m/s^2) for one state and control at time ``t``.
 
     Newton's law seen from the rotating frame:
-    a = g + (L + D)/m - 2 w x v - w x (w x r), w = (0, 0, omega).
+    a = g + (L + D)/m - 2 w x v - w x (w x r), w = (0, 0, omega). The time matters only for a
+    mass that changes (``mass_loss``).
     """
     w = np.array([0.0, 0.0, world.omega])
     h = np.linalg.norm(r) - world.radius
@@ -254,7 +270,7 @@ def acceleration(r: np.ndarray, v: np.ndarray, alpha: float, bank: float, world:
     if world.mach_lift_below:
         below = 0.5 * (1.0 - math.tanh(mach - world.mach_lift_below))
         cl *= 1.0 + (world.mach_lift_scale - 1.0) * below
-    k = q * world.area / world.mass
+    k = q * world.area / mass_at(t, world)
     drag = -k * world.cd_scale * cd * v_air / speed_air
     lift = k * world.cl_scale * cl * lift_direction(r, v, v_air, bank)
     out = gravity_ecef(r, world) + drag + lift - 2.0 * np.cross(w, v) - np.cross(w, np.cross(w, r))
@@ -305,7 +321,7 @@ def fly(
 
     def rhs(t, s):
         alpha, bank = controls(t)
-        return np.concatenate([s[3:], acceleration(s[:3], s[3:], alpha, bank, world)])
+        return np.concatenate([s[3:], acceleration(s[:3], s[3:], alpha, bank, world, t)])
 
     t_eval = np.asarray(t_eval, dtype=float)
     s0 = np.concatenate([np.asarray(r0, float), np.asarray(v0, float)])
@@ -326,6 +342,7 @@ __all__ = [
     "fly",
     "gravity_ecef",
     "lift_direction",
+    "mass_at",
     "us76_density",
     "wind_ecef",
 ]

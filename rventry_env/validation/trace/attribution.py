@@ -40,8 +40,11 @@ KNOT_COUNTS = (2, 3, 4, 7, 13)
 MIN_ALTITUDE_SPACING = 1e3  # m between knots of an altitude profile
 MIN_TIME_SPACING = 10.0  # s between knots of a time profile
 VALUES_PER_PARAMETER = 8  # a fit needs at least this many measured values per parameter
-REFINE_ITERATIONS = 4
-REFINE_LEADERS = 1  # corrections per axis refined to convergence after the one-step screening
+REFINE_NFEV = 40  # replays with sensitivities per refined correction
+# a refinement stops when a step lowers the cost by less than this fraction: on a record of n values the
+# cost is about n, so 1e-6 is a change of n/1e6 in chi-square, far below the BIC threshold it is judged by
+REFINE_FTOL = 1e-6
+REFINE_BUDGET = 6  # refinements before the search stops (a pair's members count; the last pair may add its two)
 AERO_MAX = 1.0  # an aerodynamic correction beyond 100 % of the drag is not a correction
 BAND_FRACTION = 0.5  # the band: where the correction is at least this fraction of its peak
 
@@ -239,8 +242,29 @@ def _mach_in(ctx, axis: str, lo: float, hi: float) -> tuple[list | None, dict | 
     return rng, bound
 
 
-def _describe(ctx, lin: _Linearized, theta: np.ndarray, cov: np.ndarray, channels) -> list[dict]:
-    """One attribution entry per channel: band, size, profile, Mach in the band."""
+def _lift_to_drag_in(ctx, model, axis: str, lo: float, hi: float) -> float | None:
+    """The median lift-to-drag ratio of ``model`` over the record's samples within a band (None without lift)."""
+    rec, replay = ctx.replay.record, ctx.replay
+    h = rec.altitude()[replay.rows]
+    v = rec.speed()[replay.rows]
+    s = replay.t_obs if axis == "time" else h
+    ok = np.isfinite(h) & np.isfinite(v) & (s >= lo - 1e-9) & (s <= hi + 1e-9)
+    if not np.any(ok):
+        return None
+    mach = v[ok] / np.asarray(model.atmosphere.speed_of_sound(h[ok], NUMPY), float)
+    alpha, _ = replay.controls.many(replay.t_obs[ok])
+    cl, cd = model.vehicle.aerodynamics.coefficients(alpha, mach, NUMPY)
+    ratio = np.asarray(cl, float) / np.asarray(cd, float)
+    return float(np.median(ratio)) if np.any(ratio != 0) else None
+
+
+def _describe(ctx, lin: _Linearized, theta: np.ndarray, cov: np.ndarray, channels, model=None) -> list[dict]:
+    """One attribution entry per channel: band, size, profile, Mach in the band.
+
+    A lateral entry also gives the force across the lift as a fraction of the drag at its peak,
+    sin(g) L/D with the model's median L/D in the band (``across_over_drag``): the size a side
+    force would have.
+    """
     lo, hi = lin.knots[0], lin.knots[-1]
     s = _profile_grid(lo, hi)
     k = len(lin.knots)
@@ -276,6 +300,10 @@ def _describe(ctx, lin: _Linearized, theta: np.ndarray, cov: np.ndarray, channel
             "whole_span": [float(lo), float(hi)],
         }
         entry["mach_in_band"], entry["mach_range_of_band"] = _mach_in(ctx, lin.axis, a, b)
+        if c == "lateral_lift":
+            entry["bank_offset_deg"] = math.degrees(peak)
+            ld = _lift_to_drag_in(ctx, model, lin.axis, a, b) if model is not None else None
+            entry["across_over_drag"] = None if ld is None else math.sin(peak) * ld
         if c == "wind":
             i = int(np.argmax(g))
             entry["direction"] = {"east_mps": float(np.interp(s[i], lin.knots, coef[:k])),
@@ -298,8 +326,12 @@ def _mach_text(entry: dict) -> str:
     return f" (Mach {m[0]:.1f}-{m[1]:.1f})" if m else ""
 
 
-def points_to(attribution: list[dict], rivals: list[dict]) -> list[str]:
-    """The physical effects a trace points to, in plain words (most specific first)."""
+def points_to(attribution: list[dict], rivals: list[dict], alpha_dependent: bool = False) -> list[str]:
+    """The physical effects a trace points to, in plain words (most specific first).
+
+    :param alpha_dependent: the vehicle's coefficients depend on the angle of attack (a trim offset
+        then moves drag and lift together, like the density).
+    """
     if not attribution:
         return []
     by = {e["channel"]: e for e in attribution}
@@ -315,9 +347,15 @@ def points_to(attribution: list[dict], rivals: list[dict]) -> list[str]:
         d, v = by["drag"], by["vertical_lift"]
         together = d["band"][0] <= v["band"][1] and v["band"][0] <= d["band"][1]  # the bands overlap
     if together:
+        if d["size"] * v["size"] > 0 and d["axis"] == "time":
+            out.append(f"a mass change over {_fmt_band(d)}{_mach_text(d)}: drag and lift accelerations change "
+                       f"together and with time (x {1 + d['size']:.3f}, a mass x {1 / (1 + d['size']):.3f}: "
+                       "ablation, a jettison)")  # fmt: skip
         if d["size"] * v["size"] > 0:
             out.append(f"the air density over {_fmt_band(d)}{_mach_text(d)}: drag and lift change together "
-                       f"(drag x {1 + d['size']:.3f}), as a density the atmosphere model lacks would make them")  # fmt: skip
+                       f"(drag x {1 + d['size']:.3f}), as a density the atmosphere model lacks would make them"
+                       + (", or an angle-of-attack (trim) offset, which moves this vehicle's C_D and C_L the same way"
+                          if alpha_dependent else ""))  # fmt: skip
         else:
             out.append(f"a trim (angle-of-attack) change over {_fmt_band(d)}{_mach_text(d)}: drag and lift move in "
                        "opposite directions")  # fmt: skip
@@ -357,9 +395,18 @@ def points_to(attribution: list[dict], rivals: list[dict]) -> list[str]:
                 out.append(f"a lift change over the whole flight ({size}) with a shape the constant "
                            "lift_coefficient cannot take: C_L varying with Mach or angle of attack")  # fmt: skip
         elif c == "lateral_lift":
-            out.append(f"a force across the lift over {where} (L/D {e['size']:+.3f} out of the plane of symmetry): a "
-                       "bank-angle "
-                       "bias or error in the bank record, or a side force (sideslip, an asymmetric shape)")  # fmt: skip
+            coef = np.asarray(e["coefficients"]["value"], float)
+            se = e.get("coefficient_stderr_max") or 0.0
+            steady = float(np.ptp(coef)) <= max(3.0 * se, 0.1 * float(np.max(np.abs(coef))))
+            deg = math.degrees(e["size"])
+            if steady:
+                out.append(f"a bank-angle bias of {deg:+.2f} deg over {where} (the lift rotated out of the plane of "
+                           "symmetry by a constant angle): an error in the bank record (a bias, a reference or sign "
+                           "convention), or a side force (sideslip, an asymmetric shape)")  # fmt: skip
+            else:
+                out.append(f"a force across the lift over {where} (the lift rotated by up to {deg:+.2f} deg out of the "
+                           "plane of symmetry, not constant): a side force (sideslip, an asymmetric shape) or an "
+                           "error in the bank record that varies")  # fmt: skip
         elif c == "wind":
             kind = "that reverses with altitude (a shear)" if e.get("reverses") else "that varies along the flight"
             if e["axis"] == "time":
@@ -374,8 +421,19 @@ def points_to(attribution: list[dict], rivals: list[dict]) -> list[str]:
     return out
 
 
-def _screen(ctx, final, combos, n_values: int, sigma_entries, n_groups: int, say) -> list[dict]:
-    """One linearized step of every channel set over each axis and knot count: the screening's fits."""
+def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
+    """Trace the residual of ``final`` to a force channel (see the module docstring).
+
+    :param ctx: the fit context of the record.
+    :param final: the identified fit.
+    :param threshold: the BIC margin the trace must beat the identified model by.
+    :return: the trace: ``attribution`` (a list of channel, axis, band, size, ...), the rivals,
+        the fits tried, what the record would look like with it, and the effects it points to.
+    """
+    n_groups = int(np.max(ctx.groups)) + 1
+    n_values = int(np.count_nonzero(np.isfinite(ctx.replay.y)))
+    sigma_entries = np.broadcast_to(ctx.sigma, ctx.replay.y.shape)[np.isfinite(ctx.replay.y)]
+    combos = [(c,) for c in CHANNELS] + list(itertools.combinations(CHANNELS, 2))
     fits = []  # (label channels, axis, k, lin, step, r_new, n_params)
     engines = ctx.engines
     for axis in ("altitude", "time"):
@@ -396,54 +454,6 @@ def _screen(ctx, final, combos, n_values: int, sigma_entries, n_groups: int, say
             lin.release(keep_jacobian=finer is None)
         for lin in replayed:
             lin.release()
-    return fits
-
-
-def _refine_leaders(ctx, final, chosen: dict, ranked: list, sigma_entries, n_groups: int, n_eff: float, say) -> None:
-    """Refine to convergence the leaders of the screening, and the members alone of a leading pair (in place)."""
-    # the leaders of the one-step screening, refined to convergence: a large residual is not linear
-    leaders = [f for axis in ("altitude", "time") for f in [g for g in ranked if g["axis"] == axis][:REFINE_LEADERS]]
-    # a pair is compared with its members alone, refined alike (only the leading pair of an axis)
-    leaders += [chosen[((c,), f["axis"])] for f in list(leaders)[::REFINE_LEADERS]
-                if len(f["channels"]) == 2 for c in f["channels"]]
-    leaders = list({id(f): f for f in leaders}.values())
-    for f in leaders:
-        say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
-        theta, r = _refine(ctx, f, final)
-        rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
-        f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True)
-        f["outside"] = _outside_bounds(f["lin"], theta, f["channels"])
-
-
-def _attribute(ctx, best: dict) -> tuple:
-    """(linearization, residual, attribution) of the best correction, its coefficients' covariance from the
-    Jacobian at the refined point."""
-    lin, cols, theta = best["lin"], best["cols"], best["theta"]
-    r, jac = lin.evaluate(theta)
-    ctx.nfev += 1
-    a = jac[:, cols]
-    dof = max(len(r) - len(cols), 1)
-    cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
-    cov = np.zeros((len(theta), len(theta)))
-    cov[np.ix_(cols, cols)] = cov_c
-    attribution = _describe(ctx, lin, theta, cov, best["channels"])
-    return lin, r, attribution
-
-
-def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
-    """Trace the residual of ``final`` to a force channel (see the module docstring).
-
-    :param ctx: the fit context of the record.
-    :param final: the identified fit.
-    :param threshold: the BIC margin the trace must beat the identified model by.
-    :return: the trace: ``attribution`` (a list of channel, axis, band, size, ...), the rivals,
-        the fits tried, what the record would look like with it, and the effects it points to.
-    """
-    n_groups = int(np.max(ctx.groups)) + 1
-    n_values = int(np.count_nonzero(np.isfinite(ctx.replay.y)))
-    sigma_entries = np.broadcast_to(ctx.sigma, ctx.replay.y.shape)[np.isfinite(ctx.replay.y)]
-    combos = [(c,) for c in CHANNELS] + list(itertools.combinations(CHANNELS, 2))
-    fits = _screen(ctx, final, combos, n_values, sigma_entries, n_groups, say)
     base_rss, base_n = final.rss_by_group, final.n_by_group
     best_raw = min(fits, key=lambda f: f["bic_white"])
     lag1 = whiteness(_residual_matrix(best_raw["lin"], best_raw["r"]))["lag1_autocorrelation"]
@@ -457,15 +467,53 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         key = (f["channels"], f["axis"])
         if key not in chosen or f["bic"] < chosen[key]["bic"]:
             chosen[key] = f
+    r_final = (final.residual / ctx.sigma[None, :])[np.isfinite(ctx.replay.y)]
+    cost_final = max(float(r_final @ r_final), 1e-300)
+    for f in chosen.values():
+        f["bic_screened"] = f["bic"]
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
-    _refine_leaders(ctx, final, chosen, ranked, sigma_entries, n_groups, n_eff, say)
+
+    def refine(f) -> int:
+        if f.get("refined"):
+            return 0
+        say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
+        theta, r, at_bound = _refine(ctx, f, final)
+        rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
+        f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True,
+                 cost_ratio=float(r @ r) / cost_final)  # fmt: skip
+        f["outside"] = sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound))
+        return 1
+
+    def eligible(f):
+        if not f.get("refined") or f["outside"]:
+            return False
+        # a pair must beat each of its members alone (same axis), refined alike, by the threshold too
+        return len(f["channels"]) == 1 or all(
+            chosen[((c,), f["axis"])].get("refined") and f["bic"] < chosen[((c,), f["axis"])]["bic"] - threshold
+            for c in f["channels"])  # fmt: skip
+
+    # the screening is one linear step: a large residual is not linear, so its best are refined to convergence,
+    # the best of each axis first, then in the screening's order while an unrefined correction's screened BIC
+    # could still beat the best refined one or tie with it (within the threshold: a rival the record cannot
+    # tell apart is refined too, so the winner is decided between converged fits)
+    order = [next(f for f in ranked if f["axis"] == axis) for axis in ("altitude", "time")
+             if any(f["axis"] == axis for f in ranked)]  # fmt: skip
+    order += [f for f in ranked if f not in order]
+    n_refined = 0
+    for f in order:
+        best_bic = min((g["bic"] for g in ranked if eligible(g)), default=math.inf)
+        if n_refined >= 2 and (f["bic_screened"] >= best_bic + threshold or n_refined >= REFINE_BUDGET):
+            break
+        n_refined += refine(f)
+        for c in f["channels"] if len(f["channels"]) == 2 else ():
+            n_refined += refine(chosen[((c,), f["axis"])])  # a pair is compared with its members refined alike
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
-    eligible = [f for f in ranked if f.get("refined") and not f["outside"]]
-    # a pair must beat each of its members alone (same axis) by the threshold too
-    eligible = [f for f in eligible if len(f["channels"]) == 1
-                or all(f["bic"] < chosen[((c,), f["axis"])]["bic"] - threshold for c in f["channels"])]  # fmt: skip
+    eligible_fits = [f for f in ranked if eligible(f)]
     table = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"], "bic_gain": b_final - f["bic"],
-              "refined": bool(f.get("refined")), "outside_bounds": f.get("outside") or []} for f in ranked]  # fmt: skip
+              "screened_bic_gain": b_final - f["bic_screened"], "refined": bool(f.get("refined")),
+              "cost_ratio": f.get("cost_ratio"), "refine_replays": f.get("refine_nfev"),
+              "outside_bounds": f.get("outside") or []}
+             for f in ranked]  # fmt: skip
     out = {
         "method": "piecewise-linear corrections over altitude and over time per force channel, knots by BIC, "
         "fitted with the entry state and the identified effects (exact Jacobian of the replay)",
@@ -474,20 +522,56 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         "tried": table,
         "added_to_model": False,
     }
-    best = eligible[0] if eligible else None
-    gain = b_final - best["bic"] if best else -math.inf
-    if best is not None:
-        lin, r, attribution = _attribute(ctx, best)
+    best = eligible_fits[0] if eligible_fits else None
     if best is None:
         out.update({"attribution": [], "rivals": [], "points_to": [], "leading": None,
                     "statement": "No force channel explains the residual: every leading correction is outside its "
                                  "physical bounds."})  # fmt: skip
         return out
-    resid = _residual_matrix(lin, r) * ctx.sigma[None, :]
     rivals = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"],
                "bic_behind": f["bic"] - best["bic"]}
               for f in ranked if f is not best and f["bic"] - best["bic"] < threshold]  # fmt: skip
-    pts = points_to(attribution, rivals)
+    # what the screening ranked above the result and the refinement budget left unrefined (normally none)
+    out["unrefined_above_leading"] = sum(1 for f in ranked if not f.get("refined") and f["bic"] < best["bic"])
+    out["fit"] = TraceFit(best, b_final, n_eff, sigma_entries, n_groups)  # for what follows; not in the report
+    return describe_trace(ctx, final, out, threshold, rivals)
+
+
+class TraceFit:
+    """The trace's best correction, kept for the phases that follow (not written to the report).
+
+    :param f: the refined correction (channels, axis, knots, its replay, columns, parameters, BIC).
+    :param b_final: the BIC of the model it corrects, on the trace's effective sample size.
+    :param n_eff: that effective sample size.
+    """
+
+    def __init__(self, f: dict, b_final: float, n_eff: float, sigma_entries, n_groups: int):
+        self.f, self.b_final, self.n_eff = f, b_final, n_eff
+        self.sigma_entries, self.n_groups = sigma_entries, n_groups
+
+    @property
+    def gain(self) -> float:
+        return self.b_final - self.f["bic"]
+
+
+def describe_trace(ctx, final, out: dict, threshold: float, rivals: list) -> dict:
+    """The attribution of ``out["fit"]`` (or its leading correction, when not significant), in words and figures."""
+    tf = out["fit"]
+    best, n_eff = tf.f, tf.n_eff
+    gain = tf.gain
+    lin, cols, theta = best["lin"], best["cols"], best["theta"]
+    r, jac = lin.evaluate(theta)
+    ctx.nfev += 1
+    a = jac[:, cols]
+    dof = max(len(r) - len(cols), 1)
+    cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
+    cov = np.zeros((len(theta), len(theta)))
+    cov[np.ix_(cols, cols)] = cov_c
+    attribution = _describe(ctx, lin, theta, cov, best["channels"], final.model)
+    resid = _residual_matrix(lin, r) * ctx.sigma[None, :]
+    from rventry_env.physics import ConstantAerodynamics
+
+    pts = points_to(attribution, rivals, not isinstance(ctx.setup.lift_reference, ConstantAerodynamics))
     from rventry_env.validation.report.diagnostics import error_metrics
 
     names = " + ".join(best["channels"])
@@ -511,17 +595,49 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
         "rivals": rivals,
         "after_trace": after,
         "points_to": pts,
+        "leading": None,
         "statement": f"Traced to {names} over {best['axis']}: {bands}. It points to: " + "; ".join(pts) + ".",
     })  # fmt: skip
     return out
 
 
-def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton from the screening step, a fresh Jacobian each iteration, halving a step that does not help.
+def refit_without(ctx, trace: dict, reduced, threshold: float) -> "TraceFit":
+    """The trace's correction refitted on another identified model (one effect fewer), never worse than its start.
+
+    :param trace: a trace whose ``fit`` is the correction to refit.
+    :param reduced: the identified fit without the effect.
+    :return: the refitted correction, its BIC counted on the trace's effective sample size.
+    """
+    tf = trace["fit"]
+    old = tf.f
+    r0 = (reduced.residual / ctx.sigma[None, :])[np.isfinite(ctx.replay.y)]
+    screen = _Linearized(ctx, reduced, old["axis"], old["knots"], old["channels"], ctx.engines, residual=r0)
+    cols = screen.columns(old["channels"])
+    f = {"channels": old["channels"], "axis": old["axis"], "knots": old["knots"], "lin": screen, "cols": cols,
+         "step": np.zeros(len(cols)), "k_params": len(cols)}  # fmt: skip
+    theta, r, at_bound = _refine(ctx, f, reduced)
+    rss, nval = _rss_by_group(r, tf.sigma_entries, f["lin"].group_of, tf.n_groups)
+    f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], tf.n_eff), refined=True,
+             outside=sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound)))  # fmt: skip
+    b_reduced = bic_effective(reduced.rss_by_group, reduced.n_by_group, reduced.n_params, tf.n_eff)
+    return TraceFit(f, b_reduced, tf.n_eff, tf.sigma_entries, tf.n_groups)
+
+
+def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray, list]:
+    """The screened correction refitted to convergence, never worse than its start.
 
     The refinement replays only the fit's own channels (fewer sensitivity columns than the
-    screening's all-channel replay); ``f["lin"]`` and ``f["cols"]`` become that replay's.
+    screening's all-channel replay); ``f["lin"]`` and ``f["cols"]`` become that replay's. It starts
+    from the better of the screening's step and the identified model itself (no correction), and a
+    bounded trust-region least-squares fit (SciPy's ``trf``, exact Jacobians) only accepts steps
+    that lower the cost: the result is never worse than the model it corrects. The entry state
+    keeps the bound the identification gave it, the identified effects their physical bounds, and
+    the corrections theirs (:data:`AERO_MAX`, :data:`WIND_MAX_MPS`).
+
+    :return: the parameters, the residual there, and the channels that ended on a bound.
     """
+    from scipy.optimize import least_squares
+
     screen = f["lin"]
     screened = dict(zip(screen.names, screen.theta0[screen.n0:]))
     for i, s in zip(f["cols"], f["step"]):
@@ -530,32 +646,67 @@ def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray]:
     lin = _Linearized(ctx, final, screen.axis, len(screen.knots), f["channels"], ctx.engines, residual=screen.r)
     cols = lin.columns(f["channels"])
     f["lin"], f["cols"] = lin, cols
-    theta = lin.theta0.copy()
-    step = np.zeros(len(theta))
-    step[: screen.n0] = f["step"][: screen.n0]  # the entry state's columns come first in both
+    lower, upper = _bounds(ctx, final, lin)
+    start = lin.theta0.copy()
+    stepped = start.copy()
+    stepped[: screen.n0] += f["step"][: screen.n0]  # the entry state's columns come first in both
     for j, name in enumerate(lin.names):
-        step[lin.n0 + j] = screened[name] - theta[lin.n0 + j]
-    r_best = lin.r
-    cost = float(r_best @ r_best)
-    for _ in range(REFINE_ITERATIONS):
-        for _half in range(4):
-            trial = theta + step
-            r, jac = lin.evaluate(trial)
+        stepped[lin.n0 + j] = screened[name]
+    width = upper - lower
+    inner = np.where(np.isfinite(width), 1e-9 * width, 0.0)
+    stepped = np.clip(stepped, lower + inner, upper - inner)
+    cache = {}
+
+    def evaluate(theta):
+        key = theta.tobytes()
+        if key not in cache:
+            r, jac = lin.evaluate(theta)
             ctx.nfev += 1
-            c = float(r @ r) if np.all(np.isfinite(r)) else math.inf
-            if c < cost:
-                break
-            step = 0.5 * step
-        else:
-            break
-        gain = (cost - c) / cost
-        theta, r_best, cost = trial, r, c
-        if gain < 1e-4:
-            break
-        s, _ = lin.step(r, jac, cols)
-        step = np.zeros(len(theta))
-        step[cols] = s
-    return theta, r_best
+            bad = ~np.isfinite(r)
+            cache.clear()
+            cache[key] = (np.where(bad, 1e4, r), np.where(bad[:, None], 0.0, jac))
+        return cache[key]
+
+    r_step, _ = evaluate(stepped)
+    x0 = stepped if float(r_step @ r_step) < float(lin.r @ lin.r) else start
+    full = x0.copy()
+
+    def put(x):
+        full[cols] = x
+        return full
+
+    sol = least_squares(lambda x: evaluate(put(x))[0], x0[cols], jac=lambda x: evaluate(put(x))[1][:, cols],
+                        bounds=(lower[cols], upper[cols]), method="trf", x_scale="jac", max_nfev=REFINE_NFEV,
+                        ftol=REFINE_FTOL, xtol=1e-10, gtol=1e-10)  # fmt: skip
+    f["refine_nfev"] = int(sol.nfev)
+    theta = put(sol.x).copy()
+    r, _ = evaluate(theta)
+    if float(r @ r) > float(lin.r @ lin.r):  # cannot happen with a descent method; never report worse than the start
+        theta, r = start, lin.r
+    on_bound = []
+    k = len(lin.knots)
+    for c in f["channels"]:
+        idx = [lin.n0 + lin.names.index(n) for n in channel_parameters(c, k)]
+        lo, hi = lower[idx], upper[idx]
+        if np.any(np.minimum(theta[idx] - lo, hi - theta[idx]) < 1e-4 * (hi - lo)):
+            on_bound.append(c)
+    return theta, r, on_bound
+
+
+def _bounds(ctx, final, lin) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of a trace fit's parameters: the entry state's and the effects' as identified, the corrections'."""
+    from rventry_env.validation.search.effects import structure_parameters
+
+    n0 = lin.n0
+    half = np.full(n0, np.inf) if ctx.init_bound is None else np.asarray(ctx.init_bound, float)
+    params = structure_parameters(ctx.setup, final.structure)
+    lo = [-half, [p.lower for p in params]]
+    hi = [half, [p.upper for p in params]]
+    for name in lin.names[len(params):]:
+        lim = WIND_MAX_MPS if name.startswith("trace_wind") else AERO_MAX
+        lo.append([-lim])
+        hi.append([lim])
+    return np.concatenate(lo), np.concatenate(hi)
 
 
 def _outside_bounds(lin, theta: np.ndarray, channels) -> list[str]:
@@ -573,4 +724,4 @@ def _outside_bounds(lin, theta: np.ndarray, channels) -> list[str]:
     return out
 
 
-__all__ = ["KNOT_COUNTS", "knot_counts", "points_to", "trace_residual"]
+__all__ = ["KNOT_COUNTS", "TraceFit", "describe_trace", "knot_counts", "points_to", "refit_without", "trace_residual"]

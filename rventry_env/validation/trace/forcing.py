@@ -10,17 +10,23 @@ channel        added specific force                         size unit
 drag           -g D/m along the velocity (b1)               fraction of the drag
 vertical_lift  g D/m along the lift (normal to v, in the     change of L/D
                vehicle's plane of symmetry, banked)
-lateral_lift   g D/m normal to v and to the lift (out of     side-force L/D
-               the plane of symmetry)
+lateral_lift   the lift rotated out of the plane of          rad of bank
+               symmetry by g: L/m ((cos g - 1) along the
+               lift + sin g across it)
 wind           a horizontal wind g_east, g_north (m/s)       m/s
 ============== ============================================ =============================
 
 "Vertical" and "lateral" are the vehicle's: in and out of its plane of symmetry, which the bank
 rolls about the velocity (at zero bank they are the local vertical plane and the horizontal). A
 lift-coefficient change acts along the lift whatever the bank; a bank-angle error or a side force
-acts across it. The aerodynamic channels are scaled by the drag acceleration so that a coefficient change (a
-C_D that varies with Mach, a lift change, a side force) is a smooth g, and so that they act only
-where there is air. The wind enters the model's wind part, so it changes the air-relative
+acts across it. The drag and vertical-lift channels are scaled by the drag acceleration so that a
+coefficient change (a C_D that varies with Mach, a lift change) is a smooth g, and so that they
+act only where there is air. The lateral channel is a rotation of the lift about the velocity,
+the bank angle's own degree of freedom: a bank-angle bias is a constant g, exactly, with the loss
+of lift in the plane of symmetry that goes with it (1 - cos g: 0.06 % at 2 degrees, which over a
+300 s glide moves the vehicle by hundreds of metres); a side force Y D/m across the lift is
+g = asin(Y D / L), which varies with the lift-to-drag ratio. Without lift in the model nothing
+can be traced across it. The wind enters the model's wind part, so it changes the air-relative
 velocity exactly as a wind would. With ``axis="time"`` the hat functions' values at every RK4
 stage time are known inputs of the step; with ``axis="altitude"`` they are functions of the state.
 """
@@ -37,7 +43,7 @@ from rventry_env.physics.atmosphere import piecewise_linear
 CHANNELS = ("drag", "vertical_lift", "lateral_lift", "wind")
 AXES = ("altitude", "time")
 UNITS = {"drag": "fraction of the drag", "vertical_lift": "L/D along the lift",
-         "lateral_lift": "L/D across the lift", "wind": "m/s"}  # fmt: skip
+         "lateral_lift": "rad of bank (the lift rotated out of the plane of symmetry)", "wind": "m/s"}  # fmt: skip
 
 
 def channel_parameters(channel: str, n_knots: int) -> list[str]:
@@ -121,8 +127,10 @@ class ChannelForcing:
             gv = g("trace_vertical_lift") * d
             add[1], add[2] = add[1] + gv * cu, add[2] + gv * su
         if "lateral_lift" in self.channels:
-            gl = g("trace_lateral_lift") * d
-            add[1], add[2] = add[1] - gl * su, add[2] + gl * cu
+            # the lift rotated about the velocity by gl: (cos gl - 1) along the lift, sin gl across it
+            gl = g("trace_lateral_lift")
+            along, across = (ns.cos(gl) - 1.0) * f.lift_accel, ns.sin(gl) * f.lift_accel
+            add[1], add[2] = add[1] + along * cu - across * su, add[2] + along * su + across * cu
         accel = tuple(f.accel_b[i] + add[i] for i in range(3))
         aero = tuple(f.aero_b[i] + add[i] for i in range(3))
         return model, f._replace(accel_b=accel, aero_b=aero)
