@@ -25,7 +25,7 @@ from rventry_env.util.files import OutputError, check_writable, write_json
 from script_modules import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
-fuzz = load_script("fuzz_cli")
+fuzz = load_script("studies/fuzz_cli")
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ import pytest
 
 from script_modules import load_script
 
-bench = load_script("bench_observation_bounds")
+bench = load_script("studies/observation_bounds")
 
 
 def _fly(law: str, dispersion: str, seeds: list[int]) -> list[tuple]:
