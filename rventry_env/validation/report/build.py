@@ -21,7 +21,7 @@ from rventry_env.validation.search.fit import FitResult
 from rventry_env.validation.search.statistics import effective_size, whiteness
 
 
-PRIVATE_TRACE_KEYS = ("residual_after_trace", "fit")  # the trace's arrays and fit objects: for plots and phases
+PRIVATE_TRACE_KEYS = ("residual_after_trace", "fit", "rival_fits")  # the trace's arrays and fit objects: for plots and phases
 
 
 def residual_whiteness(fit: FitResult, sigma: np.ndarray) -> dict:

@@ -531,6 +531,7 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     rivals = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"],
                "bic_behind": f["bic"] - best["bic"]}
               for f in ranked if f is not best and f["bic"] - best["bic"] < threshold]  # fmt: skip
+    out["rival_fits"] = [f for f in ranked if f is not best and f["bic"] - best["bic"] < threshold]  # not in the report
     # what the screening ranked above the result and the refinement budget left unrefined (normally none)
     out["unrefined_above_leading"] = sum(1 for f in ranked if not f.get("refined") and f["bic"] < best["bic"])
     out["fit"] = TraceFit(best, b_final, n_eff, sigma_entries, n_groups)  # for what follows; not in the report
@@ -554,29 +555,57 @@ class TraceFit:
         return self.b_final - self.f["bic"]
 
 
+def _describe_fit(ctx, f: dict, model) -> tuple[list[dict], np.ndarray]:
+    """A refined correction in words and figures (its channels' bands, sizes and standard errors, from
+    the Jacobian at its parameters: one replay), and its normalized residual."""
+    lin, cols, theta = f["lin"], f["cols"], f["theta"]
+    r, jac = lin.evaluate(theta)
+    ctx.nfev += 1
+    a = jac[:, cols]
+    dof = max(len(r) - len(cols), 1)
+    cov = np.zeros((len(theta), len(theta)))
+    cov[np.ix_(cols, cols)] = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
+    return _describe(ctx, lin, theta, cov, f["channels"], model), r
+
+
+def _bands_text(attribution: list[dict]) -> str:
+    return "; ".join(f"{e['channel']} {e['size']:+.3g} +/- {e['coefficient_stderr_max']:.2g} {e['size_unit']} over "
+                     f"{_fmt_band(e)}{_mach_text(e)}" for e in attribution)  # fmt: skip
+
+
+def _describe_rivals(ctx, final, rivals: list, fits: list, alpha_dependent: bool) -> str:
+    """Each refined rival's attribution and what it would point to, in place; the words that name the
+    rivals (empty without one). A rival is what the record cannot tell apart from the result: naming
+    it is part of the result."""
+    words = []
+    for rv, f in zip(rivals, fits):
+        if not f.get("refined") or f.get("outside"):
+            continue
+        if "attribution" not in rv:
+            rv["attribution"], _ = _describe_fit(ctx, f, final.model)
+            rv["points_to"] = points_to(rv["attribution"], [], alpha_dependent)
+        said = f"{' + '.join(rv['channels'])} over {rv['axis']} ({rv['bic_behind']:.1f} behind in BIC"
+        # the closest rival's reading in full (the others' are in the report's rivals)
+        words.append(said + (f": {rv['points_to'][0]})" if not words and rv["points_to"] else ")"))
+    return (" The record cannot tell it from " + "; ".join(words) + ".") if words else ""
+
+
 def describe_trace(ctx, final, out: dict, threshold: float, rivals: list) -> dict:
     """The attribution of ``out["fit"]`` (or its leading correction, when not significant), in words and figures."""
     tf = out["fit"]
     best, n_eff = tf.f, tf.n_eff
     gain = tf.gain
-    lin, cols, theta = best["lin"], best["cols"], best["theta"]
-    r, jac = lin.evaluate(theta)
-    ctx.nfev += 1
-    a = jac[:, cols]
-    dof = max(len(r) - len(cols), 1)
-    cov_c = np.linalg.pinv(a.T @ a) * float(r @ r) / dof
-    cov = np.zeros((len(theta), len(theta)))
-    cov[np.ix_(cols, cols)] = cov_c
-    attribution = _describe(ctx, lin, theta, cov, best["channels"], final.model)
+    lin = best["lin"]
+    attribution, r = _describe_fit(ctx, best, final.model)
     resid = _residual_matrix(lin, r) * ctx.sigma[None, :]
     from rventry_env.physics import ConstantAerodynamics
 
-    pts = points_to(attribution, rivals, not isinstance(ctx.setup.lift_reference, ConstantAerodynamics))
+    alpha_dependent = not isinstance(ctx.setup.lift_reference, ConstantAerodynamics)
+    pts = points_to(attribution, rivals, alpha_dependent)
     from rventry_env.validation.report.diagnostics import error_metrics
 
     names = " + ".join(best["channels"])
-    bands = "; ".join(f"{e['channel']} {e['size']:+.3g} +/- {e['coefficient_stderr_max']:.2g} {e['size_unit']} over "
-                      f"{_fmt_band(e)}{_mach_text(e)}" for e in attribution)  # fmt: skip
+    bands = _bands_text(attribution)
     after = error_metrics(resid, ctx.replay.record.kind)
     out["residual_after_trace"] = resid  # for the plot; not written to the report
     if not gain > threshold:
@@ -596,7 +625,8 @@ def describe_trace(ctx, final, out: dict, threshold: float, rivals: list) -> dic
         "after_trace": after,
         "points_to": pts,
         "leading": None,
-        "statement": f"Traced to {names} over {best['axis']}: {bands}. It points to: " + "; ".join(pts) + ".",
+        "statement": f"Traced to {names} over {best['axis']}: {bands}. It points to: " + "; ".join(pts) + "."
+        + _describe_rivals(ctx, final, rivals, out.get("rival_fits", []), alpha_dependent),
     })  # fmt: skip
     return out
 
