@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 
 import gymnasium as gym
@@ -653,7 +654,7 @@ def test_the_located_impact_is_the_root_of_the_rk4_map_in_at_most_four_substeps(
     assert xb[0] < radius
     tau_ref = brentq(lambda tau: state_at(tau)[0] - radius, 0.0, h, xtol=1e-14, rtol=1e-15)
     evaluations = []
-    counting = type(MATH)(**{**vars(MATH), "while_loop": lambda c, b, carry: _count_while(c, b, carry, evaluations)})
+    counting = dataclasses.replace(MATH, while_loop=lambda c, b, carry: _count_while(c, b, carry, evaluations))
     x_hit, tau = prop_mod.Propagator(EntryTask(substeps=1), counting)._locate_impact(tuple(x0), k1, u, h, model, radius, xb)
     assert abs(x_hit[0] - radius) <= prop_mod.IMPACT_TOLERANCE_M
     assert tau == pytest.approx(tau_ref, abs=1e-6 / speed * 10)
