@@ -47,7 +47,7 @@ def test_the_count_sees_a_long_function(tmp_path):
     pkg.mkdir()
     body = "\n".join(f"        x{i} = {i}" for i in range(78))
     (pkg / "m.py").write_text(f"def outer():\n    def inner():\n{body}\n        return 0\n    return inner\n")
-    found = dict((name, n) for n, name in function_lengths(tmp_path))
+    found = {name: n for n, name in function_lengths(tmp_path)}
     assert found == {"rventry_env/m.py:1 outer": 82, "rventry_env/m.py:2 inner": 80}
 
 

@@ -369,17 +369,17 @@ def _entry_bounds(config: EntryProblemConfig, names, soft: bool) -> dict:
     control_upper = [uam, usm] + [extra_bound] * n_extra + [1.0] * (len(names) - 2 - n_extra)
     extra_scale = 1e-3 if config.norm_mode == "projection" else 1e-2
     slack_scale = [1e-2] * (len(names) - 2 - n_extra)
-    return dict(
-        state_lower=state_lower,
-        state_upper=state_upper,
-        control_lower=control_lower,
-        control_upper=control_upper,
-        initial_lower=initial_lower,
-        initial_upper=initial_upper,
-        final_lower=final_lower,
-        final_upper=final_upper,
-        control_scale=[uam, usm] + [extra_scale] * n_extra + slack_scale,
-    )
+    return {
+        "state_lower": state_lower,
+        "state_upper": state_upper,
+        "control_lower": control_lower,
+        "control_upper": control_upper,
+        "initial_lower": initial_lower,
+        "initial_upper": initial_upper,
+        "final_lower": final_lower,
+        "final_upper": final_upper,
+        "control_scale": [uam, usm] + [extra_scale] * n_extra + slack_scale,
+    }
 
 
 def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlProblem:
