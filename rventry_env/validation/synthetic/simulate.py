@@ -303,6 +303,50 @@ def _check_noise_shape(noise_tails: str, start_scatter, entry_offset, observe: s
         raise ValueError("entry_offset: only a reduced record has a sidecar entry state")
 
 
+def _output_path(out: str | Path) -> Path:
+    """The record's path, its folder made, and a sidecar this command wrote beside an earlier record
+    of that name removed."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stale = out.with_suffix(".json")
+    if stale.is_file() and GENERATED_BY in stale.read_text():
+        stale.unlink()  # a sidecar this command wrote for an earlier record of that name
+    return out
+
+
+def _measured_columns(observe: str, t: np.ndarray, r: np.ndarray, v: np.ndarray, h: np.ndarray, noise,
+                      noise_tails: str, start_scatter, rng: np.random.Generator) -> dict:  # fmt: skip
+    """The observation columns of the record: the true positions and velocities (``"ecef"``) or
+    altitude and speed (``"reduced"``) with the measurement noise drawn from ``rng`` (normal or
+    heavy-tailed), and the start's scatter on the positions or altitudes."""
+
+    def draw(sd: float, shape) -> np.ndarray:
+        if noise_tails == "normal":
+            return rng.normal(0.0, sd, shape)
+        return sd * rng.standard_t(3, shape) / math.sqrt(3.0)  # variance of t(3) is 3
+
+    def scatter(shape) -> np.ndarray:
+        out = np.zeros(shape)
+        if start_scatter is not None and start_scatter[1] > 0:
+            early = t <= start_scatter[0]
+            out[early] = rng.normal(0.0, start_scatter[1], out[early].shape)
+        return out
+
+    if observe == "ecef":
+        r_m = r + draw(noise[0], r.shape) + scatter(r.shape)
+        v_m = v + draw(noise[1], v.shape)
+        cols = {n: c for n, c in zip(("x_m", "y_m", "z_m"), r_m.T)}
+        cols.update({n: c for n, c in zip(("vx_mps", "vy_mps", "vz_mps"), v_m.T)})
+    elif observe == "reduced":
+        cols = {
+            "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
+            "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
+        }
+    else:
+        raise ValueError("observe must be 'ecef' or 'reduced'")
+    return cols
+
+
 def simulate_record(
     out: str | Path,
     effects: dict[str, str] | None = None,
@@ -346,38 +390,11 @@ def simulate_record(
     r, v, h = _fly_truth(world, sc, t, dt_tag, effects)
     _check_noise_shape(noise_tails, start_scatter, entry_offset, observe)
     rng = np.random.default_rng(seed)
-
-    def draw(sd: float, shape) -> np.ndarray:
-        if noise_tails == "normal":
-            return rng.normal(0.0, sd, shape)
-        return sd * rng.standard_t(3, shape) / math.sqrt(3.0)  # variance of t(3) is 3
-
-    def scatter(shape) -> np.ndarray:
-        out = np.zeros(shape)
-        if start_scatter is not None and start_scatter[1] > 0:
-            early = t <= start_scatter[0]
-            out[early] = rng.normal(0.0, start_scatter[1], out[early].shape)
-        return out
-
     ctrl = np.array([sc.controls(ti) for ti in t])
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stale = out.with_suffix(".json")
-    if stale.is_file() and GENERATED_BY in stale.read_text():
-        stale.unlink()  # a sidecar this command wrote for an earlier record of that name
-    if observe == "ecef":
-        r_m = r + draw(noise[0], r.shape) + scatter(r.shape)
-        v_m = v + draw(noise[1], v.shape)
-        cols = {n: c for n, c in zip(("x_m", "y_m", "z_m"), r_m.T)}
-        cols.update({n: c for n, c in zip(("vx_mps", "vy_mps", "vz_mps"), v_m.T)})
-    elif observe == "reduced":
-        cols = {
-            "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
-            "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
-        }
+    out = _output_path(out)
+    cols = _measured_columns(observe, t, r, v, h, noise, noise_tails, start_scatter, rng)
+    if observe == "reduced":
         write_json(out.with_suffix(".json"), _reduced_sidecar(sc, world, entry_offset), indent=2)
-    else:
-        raise ValueError("observe must be 'ecef' or 'reduced'")
     cols["alpha_rad"] = ctrl[:, 0] + _record_bias(effects, "alpha_bias")
     cols["bank_rad"] = ctrl[:, 1] + _record_bias(effects, "bank_bias")
     write_record(out, t, cols)
