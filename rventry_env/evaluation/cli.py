@@ -255,12 +255,33 @@ def _evaluate(args) -> int:
     return 0
 
 
+def _fly_compare_plan(plan: list, task, dispersion: str, args) -> list:
+    """Fly every (case, agent) of ``rventry compare``'s plan on one pool, with a progress bar each.
+
+    :return: the episode batches, in the plan's order.
+    """
+    from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
+
+    # every law's episodes on one pool: the batched laws fly beside mpc's episodes, not after them
+    jobs = [(EvaluationJob(agent, d, task, record_history=True), list(range(args.seed, args.seed + n)))
+            for _, agent, _, n, d in plan]  # fmt: skip
+    with progress_bar(transient=False) as progress:
+        overall = progress.add_task(f"rventry compare ({dispersion} set)", total=sum(p[3] for p in plan))
+        bars = [progress.add_task(f"  {case}: {agent}", total=n) for case, agent, _, n, _ in plan]
+
+        def advance(j, k):
+            progress.advance(bars[j], k)
+            progress.advance(overall, k)
+
+        batches = evaluate_many(jobs, workers=args.workers, cluster=args.cluster, progress=advance)
+    return batches
+
+
 def _compare(args) -> int:
     from rich.console import Console
 
     from rventry_env.task import EntryTask
     from rventry_env.evaluation import compare_report as cr
-    from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
     from rventry_env.evaluation.summary import summarize
     from rventry_env.evaluation.agents import agent_cards, check_agent, compared_agents
     from rventry_env.reference import load_reference
@@ -281,18 +302,7 @@ def _compare(args) -> int:
     runs = {}
     task = EntryTask()
     j_star = float(load_reference().cost)
-    # every law's episodes on one pool: the batched laws fly beside mpc's episodes, not after them
-    jobs = [(EvaluationJob(agent, d, task, record_history=True), list(range(args.seed, args.seed + n)))
-            for _, agent, _, n, d in plan]  # fmt: skip
-    with progress_bar(transient=False) as progress:
-        overall = progress.add_task(f"rventry compare ({dispersion} set)", total=sum(p[3] for p in plan))
-        bars = [progress.add_task(f"  {case}: {agent}", total=n) for case, agent, _, n, _ in plan]
-
-        def advance(j, k):
-            progress.advance(bars[j], k)
-            progress.advance(overall, k)
-
-        batches = evaluate_many(jobs, workers=args.workers, cluster=args.cluster, progress=advance)
+    batches = _fly_compare_plan(plan, task, dispersion, args)
     for (case, agent, name, n, d), batch in zip(plan, batches):
         summary = summarize(batch, j_star, task)
         runs[(case, name)] = (batch, summary, _document(agent, n, d, args.seed, batch, summary))

@@ -120,6 +120,28 @@ def _finish_trajectory_axes(ax: dict, axes, groups, target_deg) -> None:
         a.grid(alpha=0.3)
 
 
+def _draw_flights(ax: dict, batches: dict, order: list, color: dict, styles: dict, headline, banks: dict) -> None:
+    """Every episode of every batch on the trajectory panels, in ``order``: the headline thick and on
+    top, the others fainter, thinner the more episodes a batch holds."""
+    for label in order:
+        b = batches[label]
+        c, ls = color[label], styles.get(label, "-")
+        t, x = b.history_t, b.history_x
+        n = x.shape[1]
+        top = label == headline
+        if n == 1:
+            lw, alpha = (2.4, 1.0) if top else (1.4, 0.9 if headline is None else 0.7)
+        else:
+            lw, alpha = (0.9, max(0.15, min(0.8, 20.0 / n))) if top else (0.5, max(0.03, min(0.5, 4.0 / n)))
+        kw = dict(color=c, lw=lw, alpha=alpha, ls=ls, zorder=3 if top else 2)
+        lat, lon = _ground_track(x)
+        ax["h"].plot(t, (x[..., IDX.r] - R_E) / 1e3, **kw)
+        ax["v"].plot(t, x[..., IDX.v] / 1e3, **kw)
+        ax["track"].plot(lon, lat, **kw)
+        ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), **kw)
+        ax["sigma"].plot(t, banks[label], **kw)
+
+
 def plot_trajectories(
     batches: dict[str, EpisodeBatch], path: str | Path, reference=None, target_deg=(0.0, 25.15), title: str = "",
     headline: str | None = None,
@@ -153,23 +175,7 @@ def plot_trajectories(
     # the headline last, so that it is drawn over the others
     order = [k for k in batches if k != headline] + ([headline] if headline is not None else [])
     banks = {label: unwrapped_bank_deg(batches[label].history_x) for label in batches}
-    for label in order:
-        b = batches[label]
-        c, ls = color[label], styles.get(label, "-")
-        t, x = b.history_t, b.history_x
-        n = x.shape[1]
-        top = label == headline
-        if n == 1:
-            lw, alpha = (2.4, 1.0) if top else (1.4, 0.9 if headline is None else 0.7)
-        else:
-            lw, alpha = (0.9, max(0.15, min(0.8, 20.0 / n))) if top else (0.5, max(0.03, min(0.5, 4.0 / n)))
-        kw = dict(color=c, lw=lw, alpha=alpha, ls=ls, zorder=3 if top else 2)
-        lat, lon = _ground_track(x)
-        ax["h"].plot(t, (x[..., IDX.r] - R_E) / 1e3, **kw)
-        ax["v"].plot(t, x[..., IDX.v] / 1e3, **kw)
-        ax["track"].plot(lon, lat, **kw)
-        ax["alpha"].plot(t, np.degrees(x[..., IDX.alpha]), **kw)
-        ax["sigma"].plot(t, banks[label], **kw)
+    _draw_flights(ax, batches, order, color, styles, headline, banks)
     # the bank panel's range: where nearly all of the drawn bank angles lie, so that a few vehicles
     # spinning at the end do not squeeze every other line flat
     every = np.concatenate([v[np.isfinite(v)] for v in banks.values()] or [np.zeros(1)])
@@ -192,6 +198,37 @@ def plot_trajectories(
 def plot_outcomes(batches: dict[str, EpisodeBatch], path: str | Path, thresholds, title: str = "") -> Path:
     """Histograms of miss, vertical-impact error and speed error with the success thresholds, one row per law, as a PNG."""
     return save_figure(outcomes_figure(batches, thresholds, title), path, tight=False)
+
+
+def _shared_bins(pooled: np.ndarray, thr: float, positive: bool) -> np.ndarray:
+    """40 bins over every law's values and the threshold: logarithmic for a positive quantity."""
+    if positive:
+        lo = max(pooled.min(), 1e-3) if pooled.size else 1e-3
+        hi = max(pooled.max(), 10 * lo) if pooled.size else 1.0
+        bins = np.logspace(np.log10(lo), np.log10(hi), 40)
+    else:
+        lo, hi = (pooled.min(), pooled.max()) if pooled.size > 1 else (-thr, thr)
+        lo, hi = min(lo, -thr), max(hi, thr)
+        bins = np.linspace(lo, hi, 40)
+    return bins
+
+
+def _outcome_histogram(ax, v: np.ndarray, bins: np.ndarray, thr: float, positive: bool, row: int) -> None:
+    """One law's histogram of one outcome, heights a fraction of its episodes, the threshold dashed in red."""
+    from matplotlib import ticker
+
+    if v.size:
+        ax.hist(np.clip(v, bins[0], bins[-1]) if positive else v, bins=bins, color=f"C{row % 10}",
+                weights=np.full(v.size, 1.0 / v.size), histtype="stepfilled", alpha=0.8)  # fmt: skip
+    ax.axvline(thr, color="r", ls="--", lw=1)
+    if not positive:
+        ax.axvline(-thr, color="r", ls="--", lw=1)
+    ax.set_ylim(0, 1.05)
+    ax.yaxis.set_major_locator(ticker.FixedLocator([0, 0.5, 1]))
+    ax.tick_params(labelsize=8)
+    ax.grid(alpha=0.3)
+    if positive:
+        ax.set_xscale("log")
 
 
 def outcomes_figure(batches: dict[str, EpisodeBatch], thresholds, title: str = ""):
@@ -218,31 +255,11 @@ def outcomes_figure(batches: dict[str, EpisodeBatch], thresholds, title: str = "
         values = {name: v[np.isfinite(v)] for name, v in values.items()}
         pooled = np.concatenate([v for v in values.values()]) if values else np.zeros(0)
         # one set of bins for every law, so the rows compare; heights are fractions of each law's episodes
-        if positive:
-            lo = max(pooled.min(), 1e-3) if pooled.size else 1e-3
-            hi = max(pooled.max(), 10 * lo) if pooled.size else 1.0
-            bins = np.logspace(np.log10(lo), np.log10(hi), 40)
-        else:
-            lo, hi = (pooled.min(), pooled.max()) if pooled.size > 1 else (-thr, thr)
-            lo, hi = min(lo, -thr), max(hi, thr)
-            bins = np.linspace(lo, hi, 40)
+        bins = _shared_bins(pooled, thr, positive)
         unit = label.rsplit("(", 1)[-1].rstrip(")")
         axes[0, col].set_title(f"{label}\ndashed: success within {'' if positive else '+/-'}{thr:g} {unit}", fontsize=10)
         for row, name in enumerate(names):
-            ax = axes[row, col]
-            v = values[name]
-            if v.size:
-                ax.hist(np.clip(v, bins[0], bins[-1]) if positive else v, bins=bins, color=f"C{row % 10}",
-                        weights=np.full(v.size, 1.0 / v.size), histtype="stepfilled", alpha=0.8)  # fmt: skip
-            ax.axvline(thr, color="r", ls="--", lw=1)
-            if not positive:
-                ax.axvline(-thr, color="r", ls="--", lw=1)
-            ax.set_ylim(0, 1.05)
-            ax.yaxis.set_major_locator(ticker.FixedLocator([0, 0.5, 1]))
-            ax.tick_params(labelsize=8)
-            ax.grid(alpha=0.3)
-            if positive:
-                ax.set_xscale("log")
+            _outcome_histogram(axes[row, col], values[name], bins, thr, positive, row)
         bottom = axes[-1, col]
         bottom.set_xlabel(label)
         if positive:  # whole labels at 1, 2, 5 per decade, none on the minor ticks: no overlap

@@ -94,33 +94,12 @@ class EpisodeBatch:
         return out
 
 
-def rollout(
-    policy: GuidanceLaw,
-    n_episodes: int | None = None,
-    *,
-    seed: int = 0,
-    seeds=None,
-    dispersion: Dispersion | dict | str | None = None,
-    task: EntryTask | None = None,
-    model: EntryModel | None = None,
-    max_episode_steps: int | None = None,
-    record_history: bool = False,
-    starts: StartStates | None = None,
-) -> EpisodeBatch:
-    """Run ``n_episodes`` episodes of ``policy`` side by side; episode i uses seed ``seed + i``.
+_OUTCOME_KEYS = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
+                 "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
 
-    :param policy: the guidance law (see module docstring).
-    :param n_episodes: number of episodes (one copy each).
-    :param seed: base seed: episode i uses ``seed + i``.
-    :param seeds: the seeds of the episodes, one each (instead of ``n_episodes`` and ``seed``).
-    :param dispersion: initial-state and model dispersions (None = nominal).
-    :param task: the task (default :class:`EntryTask`).
-    :param model: the force model (default :class:`EntryModel`).
-    :param max_episode_steps: time limit in steps (default the registration's).
-    :param record_history: keep the state and action of every step (for plots).
-    :param starts: start states that replace the task's initial state (a rung of the ladder such as
-        ``late``, :mod:`rventry_env.evaluation.rungs`); None: the task's own start.
-    """
+
+def _episode_seeds(n_episodes: int | None, seed: int, seeds) -> list[int]:
+    """The episodes' seeds: ``seeds`` as given, or ``seed + i`` for each of ``n_episodes``; checked."""
     if seeds is None:
         if n_episodes is None or n_episodes < 1:
             raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
@@ -130,23 +109,21 @@ def rollout(
         raise ValueError(f"give n_episodes >= 1 or a non-empty list of seeds, got {n_episodes} and {len(seeds)} seeds")
     if any(s < 0 for s in seeds):
         raise ValueError("seeds must be >= 0")
-    n = len(seeds)
-    kwargs = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
-    # one episode per copy: an ended copy stays frozen (no autoreset), so the law's memory and
-    # time for it stand still too
-    venv = RvEntryVectorEnv(num_envs=n, task=task, model=model, dispersion=dispersion,
-                            autoreset_mode=AutoresetMode.DISABLED, starts=starts, **kwargs)  # fmt: skip
-    check_retargets(check_law(policy), venv.task)
-    obs, info = venv.reset(seed=seeds)
-    policy.reset(n)
+    return seeds
+
+
+def _fly(venv: RvEntryVectorEnv, policy: GuidanceLaw, obs, info, record_history: bool):
+    """Fly every copy of the reset ``venv`` with ``policy`` to its end, the law seeing only measurements.
+
+    :return: ``(final, lengths, navigation, (hist_t, hist_x, hist_a))``: each outcome of
+        `_OUTCOME_KEYS` per copy, the episode lengths in steps, the navigation errors at the end
+        and the history lists (empty unless ``record_history``).
+    """
+    n = venv.num_envs
     fixed_target = venv.task.targets == "fixed"
     done = np.zeros(n, bool)
-    keys = ("miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "cost", "max_load_factor_g",
-            "min_dynamic_pressure_pa", "constraint_violation", "is_success", "failure", "time_s")  # fmt: skip
+    keys = _OUTCOME_KEYS
     final = {k: np.zeros(n, dtype=object if k == "failure" else (bool if k in ("constraint_violation", "is_success") else float)) for k in keys}
-    draws = venv.dispersion_draw.copy()
-    flight_draw = episode_draws(info["dispersion_draw"])
-    targets = {} if fixed_target else target_degrees(info["target_e"])
     lengths = np.zeros(n, int)
     navigation = np.full((n, 3), np.nan)
     hist_t, hist_x, hist_a = [], [], []
@@ -177,8 +154,53 @@ def rollout(
                 hist_t.append(np.where(ended, time_s, np.nan))
                 hist_x.append(np.where(ended[:, None], venv.state, np.nan))
                 hist_a.append(np.full((n, 2), np.nan, np.float32))
+    return final, lengths, navigation, (hist_t, hist_x, hist_a)
+
+
+def rollout(
+    policy: GuidanceLaw,
+    n_episodes: int | None = None,
+    *,
+    seed: int = 0,
+    seeds=None,
+    dispersion: Dispersion | dict | str | None = None,
+    task: EntryTask | None = None,
+    model: EntryModel | None = None,
+    max_episode_steps: int | None = None,
+    record_history: bool = False,
+    starts: StartStates | None = None,
+) -> EpisodeBatch:
+    """Run ``n_episodes`` episodes of ``policy`` side by side; episode i uses seed ``seed + i``.
+
+    :param policy: the guidance law (see module docstring).
+    :param n_episodes: number of episodes (one copy each).
+    :param seed: base seed: episode i uses ``seed + i``.
+    :param seeds: the seeds of the episodes, one each (instead of ``n_episodes`` and ``seed``).
+    :param dispersion: initial-state and model dispersions (None = nominal).
+    :param task: the task (default :class:`EntryTask`).
+    :param model: the force model (default :class:`EntryModel`).
+    :param max_episode_steps: time limit in steps (default the registration's).
+    :param record_history: keep the state and action of every step (for plots).
+    :param starts: start states that replace the task's initial state (a rung of the ladder such as
+        ``late``, :mod:`rventry_env.evaluation.rungs`); None: the task's own start.
+    """
+    seeds = _episode_seeds(n_episodes, seed, seeds)
+    n = len(seeds)
+    kwargs = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
+    # one episode per copy: an ended copy stays frozen (no autoreset), so the law's memory and
+    # time for it stand still too
+    venv = RvEntryVectorEnv(num_envs=n, task=task, model=model, dispersion=dispersion,
+                            autoreset_mode=AutoresetMode.DISABLED, starts=starts, **kwargs)  # fmt: skip
+    check_retargets(check_law(policy), venv.task)
+    obs, info = venv.reset(seed=seeds)
+    policy.reset(n)
+    fixed_target = venv.task.targets == "fixed"
+    draws = venv.dispersion_draw.copy()
+    flight_draw = episode_draws(info["dispersion_draw"])
+    targets = {} if fixed_target else target_degrees(info["target_e"])
+    final, lengths, navigation, (hist_t, hist_x, hist_a) = _fly(venv, policy, obs, info, record_history)
     stats = list(policy.episode_stats())
-    batch = EpisodeBatch(**{k: final[k] for k in keys}, dispersion_draw=draws, lengths=lengths,
+    batch = EpisodeBatch(**{k: final[k] for k in _OUTCOME_KEYS}, dispersion_draw=draws, lengths=lengths,
                          seeds=np.array(seeds), law_stats=stats, provenance=policy.provenance,
                          flight_draw=flight_draw, targets=targets, navigation=navigation)  # fmt: skip
     if record_history:

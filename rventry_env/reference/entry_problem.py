@@ -256,19 +256,8 @@ def _rate_band(config: EntryProblemConfig, ns, state_index: int, control_index: 
     return PathConstraint(name, fn, lower=-config.delta, upper=config.delta, scale=config.delta)
 
 
-def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlProblem:
-    """The Example 2 optimal-control problem (see the module docstring)."""
-    config = config or EntryProblemConfig()
-    ns = casadi_ns()
-    model = config.model
-    re = model.planet.radius
-    nan_free = math.inf
-    # --- cost, Eq. Ex2-Cost
-    uam, usm = config.u_alpha_max, config.u_sigma_max
-
-    names = control_names(config)
-    soft = config.soft_path_penalty is not None
-    i_slack = len(names) - len(SLACK_NAMES)  # where the slacks sit among the controls, when soft
+def _entry_lagrange(config: EntryProblemConfig, soft: bool, i_slack: int):
+    """The running cost, Eq. Ex2-Cost, plus the exact (L1) penalty on the slacks when the path is soft."""
 
     def lagrange(x, u, t, *par):
         cost = config.problem.cost_integrand(x[10], u[0], u[1])
@@ -276,7 +265,15 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
             cost = cost + config.soft_path_penalty * (u[i_slack] + u[i_slack + 1])
         return cost
 
-    # --- path constraints, Eq. Ex2-path (alpha and the rates are bounds below)
+    return lagrange
+
+
+def _entry_path(config: EntryProblemConfig, ns, soft: bool, i_slack: int) -> tuple[list, list]:
+    """The path constraints, Eq. Ex2-path, and the invariants of the normalization mode.
+
+    Alpha and the rates are bounds (see `_entry_bounds`); with ``norm_mode == "paper"`` the rate
+    bands join the path constraints, with ``"projection"`` the unit norms are invariants.
+    """
     if soft:
         # relative, with slacks: n / n_max - excess <= 1 and q / q_min + shortfall >= 1
         path = [
@@ -304,8 +301,15 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
         ]
     elif config.norm_mode == "paper":
         path += [_rate_band(config, ns, s, c) for s, c in ((2, 2), (3, 3), (7, 4), (8, 5))]
+    return path, invariants
 
-    # --- endpoint, Eq. Ex2-endpoint: two independent equations plus the sign
+
+def _entry_endpoint(config: EntryProblemConfig) -> list:
+    """The endpoint constraints, Eq. Ex2-endpoint: two independent equations plus the sign.
+
+    With ``norm_mode == "none"`` the three printed equations on a1 instead; a final
+    flight-path-angle limit is appended when the configuration sets one.
+    """
     target, east, north = config.target_frame()
 
     def along(vec):
@@ -332,8 +336,17 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
             EndpointConstraint("final_gamma", lambda x0, xf, t0, tf: sin_flight_path(xf[6:10]), upper=limit,
                                lower=limit if config.final_gamma_equality else -math.inf)
         )  # fmt: skip
+    return endpoint
 
-    # --- bounds and boundary conditions, Table tab:Ex2-BCs
+
+def _entry_bounds(config: EntryProblemConfig, names, soft: bool) -> dict:
+    """The state, boundary and control bounds, Table tab:Ex2-BCs, and the controls' scales.
+
+    Returned as the keyword arguments of `OptimalControlProblem` they fill.
+    """
+    re = config.model.planet.radius
+    nan_free = math.inf
+    uam, usm = config.u_alpha_max, config.u_sigma_max
     q_lo, q_hi = -1.5, 1.5  # never active: the norms are 1
     state_lower = [re - 1.0, *[q_lo] * 4, 50.0, *[q_lo] * 4, 0.0, -8 * math.pi]
     state_upper = [re + 150e3, *[q_hi] * 4, 8000.0, *[q_hi] * 4, config.alpha_max, 8 * math.pi]
@@ -356,20 +369,36 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
     control_upper = [uam, usm] + [extra_bound] * n_extra + [1.0] * (len(names) - 2 - n_extra)
     extra_scale = 1e-3 if config.norm_mode == "projection" else 1e-2
     slack_scale = [1e-2] * (len(names) - 2 - n_extra)
+    return {
+        "state_lower": state_lower,
+        "state_upper": state_upper,
+        "control_lower": control_lower,
+        "control_upper": control_upper,
+        "initial_lower": initial_lower,
+        "initial_upper": initial_upper,
+        "final_lower": final_lower,
+        "final_upper": final_upper,
+        "control_scale": [uam, usm] + [extra_scale] * n_extra + slack_scale,
+    }
 
+
+def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlProblem:
+    """The Example 2 optimal-control problem (see the module docstring)."""
+    config = config or EntryProblemConfig()
+    ns = casadi_ns()
+    re = config.model.planet.radius
+    names = control_names(config)
+    soft = config.soft_path_penalty is not None
+    i_slack = len(names) - len(SLACK_NAMES)  # where the slacks sit among the controls, when soft
+    lagrange = _entry_lagrange(config, soft, i_slack)
+    path, invariants = _entry_path(config, ns, soft, i_slack)
+    endpoint = _entry_endpoint(config)
+    bounds = _entry_bounds(config, names, soft)
     return OptimalControlProblem(
         name=f"rv-euler-entry-{config.norm_mode}",
         state_names=ENTRY_STATE_NAMES,
         control_names=names,
         dynamics=entry_dynamics(config, ns),
-        state_lower=state_lower,
-        state_upper=state_upper,
-        control_lower=control_lower,
-        control_upper=control_upper,
-        initial_lower=initial_lower,
-        initial_upper=initial_upper,
-        final_lower=final_lower,
-        final_upper=final_upper,
         t0=0.0,
         tf_lower=config.tf_bounds[0],
         tf_upper=config.tf_bounds[1],
@@ -379,11 +408,11 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
         invariants=invariants,
         state_scale=[1e5, 1, 1, 1, 1, 1e4, 1, 1, 1, 1, 0.5, math.pi],
         state_shift=[re, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
-        control_scale=[uam, usm] + [extra_scale] * n_extra + slack_scale,
         control_shift=[0.0] * len(names),
         time_scale=500.0,
         cost_scale=10.0,
         parameter_names=AERO_SCALE_PARAMETERS if config.aero_scale_parameters else (),
+        **bounds,
     )
 
 

@@ -143,26 +143,13 @@ def _law(x, p, state, config: EntryProblemConfig, gains: GuidanceGains, rho_fit)
     return np.array([u_a, u_s])
 
 
-def simulate_batch(
-    config: EntryProblemConfig,
-    params: dict,
-    gains: GuidanceGains = GuidanceGains(),
-    dt: float = 1.0,
-    t_max: float = 2500.0,
-) -> list[GuessFlight]:
-    """Fly one vehicle per parameter set (arrays in ``params`` broadcast together).
+def _fly_batch(config: EntryProblemConfig, p: dict, gains: GuidanceGains, dt: float, t_max: float):
+    """Fly every parameter set's vehicle with RK4 steps of ``dt`` from the entry state, lift up,
+    until it reaches the final altitude (crossing interpolated within the step), is lost, or ``t_max``.
 
-    :param config: the entry problem (initial state, bounds, target, model).
-    :param params: ``kr``, ``dive_range`` (m), ``v_dive`` (m/s), scalars or arrays.
-    :param gains: the fixed gains.
-    :param dt: RK4 step (s).
-    :param t_max: give up after this time (s).
-    :return: one :class:`GuessFlight` per parameter set, in broadcast order.
+    :return: ``(ts, xs, us, t_end, x_end)``: the times, states (time, 12, n) and controls of the
+        steps, and each vehicle's end time and state (NaN where none ended).
     """
-    if not dt > 0:
-        raise ValueError(f"dt must be positive, got {dt}")
-    arrays = np.broadcast_arrays(*[np.asarray(params[k], dtype=float) for k in _PARAMS])
-    p = {k: a.ravel() for k, a in zip(("kr", "dive_range", "v_dive"), arrays)}
     n = p["kr"].size
     model = config.model
     re = model.planet.radius
@@ -198,6 +185,13 @@ def simulate_batch(
         xs.append(x.copy())
     us.append(us[-1])
     ts, xs, us = np.array(ts), np.array(xs), np.array(us)
+    return ts, xs, us, t_end, x_end
+
+
+def _scored_flights(config: EntryProblemConfig, p: dict, ts, xs, us, t_end, x_end) -> list[GuessFlight]:
+    """Each vehicle's flight cut at its end, with its miss, final-speed error, flight-path angle and score."""
+    n = p["kr"].size
+    re = config.model.planet.radius
     a1, b1 = _directions(x_end)
     miss = re * np.arccos(np.clip(config.target_e() @ a1, -1.0, 1.0))
     gamma = np.degrees(np.arcsin(np.clip(np.sum(a1 * b1, axis=0), -1.0, 1.0)))
@@ -218,6 +212,30 @@ def simulate_batch(
                         float(gamma[i]), float(score))
         )  # fmt: skip
     return flights
+
+
+def simulate_batch(
+    config: EntryProblemConfig,
+    params: dict,
+    gains: GuidanceGains = GuidanceGains(),
+    dt: float = 1.0,
+    t_max: float = 2500.0,
+) -> list[GuessFlight]:
+    """Fly one vehicle per parameter set (arrays in ``params`` broadcast together).
+
+    :param config: the entry problem (initial state, bounds, target, model).
+    :param params: ``kr``, ``dive_range`` (m), ``v_dive`` (m/s), scalars or arrays.
+    :param gains: the fixed gains.
+    :param dt: RK4 step (s).
+    :param t_max: give up after this time (s).
+    :return: one :class:`GuessFlight` per parameter set, in broadcast order.
+    """
+    if not dt > 0:
+        raise ValueError(f"dt must be positive, got {dt}")
+    arrays = np.broadcast_arrays(*[np.asarray(params[k], dtype=float) for k in _PARAMS])
+    p = {k: a.ravel() for k, a in zip(("kr", "dive_range", "v_dive"), arrays)}
+    ts, xs, us, t_end, x_end = _fly_batch(config, p, gains, dt, t_max)
+    return _scored_flights(config, p, ts, xs, us, t_end, x_end)
 
 
 def extra_controls(config: EntryProblemConfig, x: np.ndarray, u: np.ndarray) -> np.ndarray:

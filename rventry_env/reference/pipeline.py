@@ -144,27 +144,10 @@ def diagnostics(config: EntryProblemConfig, sol) -> dict:
     return out
 
 
-def solve_reference(
-    config: EntryProblemConfig | None = None,
-    options: ReferenceOptions | None = None,
-    progress: Progress | None = None,
-) -> ReferenceSolve:
-    """Solve Example 2 from a generated guess (see the module docstring).
+def _solver_settings(options: ReferenceOptions):
+    """The collocation solver's options and the first mesh (end-clustered when asked) of a reference solve."""
+    from rventry_env.reference.collocation import SolverOptions
 
-    :param config: the problem constants (default: docs/conventions.md's).
-    :param options: :class:`ReferenceOptions`.
-    :param progress: called once per mesh pass.
-    """
-    from rventry_env.reference.collocation import CompiledProblem, SolverOptions, solve
-    from rventry_env.reference.guess import generate_guess
-
-    config = config or EntryProblemConfig()
-    options = options or ReferenceOptions()
-    recorder = RecordingProgress(progress)
-    start = time.perf_counter()
-    cpu_start = time.process_time()
-    guess, flight = generate_guess(config)
-    t_guess = time.perf_counter() - start
     solver_opts = SolverOptions(
         mesh_tolerance=options.mesh_tolerance,
         max_mesh_iterations=options.max_mesh_iterations,
@@ -177,6 +160,31 @@ def solve_reference(
         first = end_clustered_mesh(*options.first_mesh, options.end_fraction, *options.end_mesh)
     else:
         first = Mesh.uniform(*options.first_mesh)
+    return solver_opts, first
+
+
+def solve_reference(
+    config: EntryProblemConfig | None = None,
+    options: ReferenceOptions | None = None,
+    progress: Progress | None = None,
+) -> ReferenceSolve:
+    """Solve Example 2 from a generated guess (see the module docstring).
+
+    :param config: the problem constants (default: docs/conventions.md's).
+    :param options: :class:`ReferenceOptions`.
+    :param progress: called once per mesh pass.
+    """
+    from rventry_env.reference.collocation import CompiledProblem, solve
+    from rventry_env.reference.guess import generate_guess
+
+    config = config or EntryProblemConfig()
+    options = options or ReferenceOptions()
+    recorder = RecordingProgress(progress)
+    start = time.perf_counter()
+    cpu_start = time.process_time()
+    guess, flight = generate_guess(config)
+    t_guess = time.perf_counter() - start
+    solver_opts, first = _solver_settings(options)
     cp = CompiledProblem(entry_problem(config))
     res = solve(cp, guess, first, solver_opts, recorder)
     stages = ["exact"]

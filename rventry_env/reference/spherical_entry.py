@@ -92,6 +92,34 @@ def spherical_rhs(x, u, model, ns=NUMPY):
     )  # fmt: skip
 
 
+def _spherical_boundary(config: EntryProblemConfig, final_gamma_deg: float, relaxed: bool):
+    """The initial and final state bounds of Table tab:Ex2-BCs in spherical coordinates, and the
+    final flight-path angle: a final-state bound, or an endpoint inequality when ``relaxed``.
+
+    :return: ``(initial_lower, initial_upper, final_lower, final_upper, endpoint_constraints)``.
+    """
+    re = config.model.planet.radius
+    # the rv-Euler initial state of Table tab:Ex2-BCs is horizontal flight due east at (0, 0)
+    x0 = np.array([re + config.problem.initial_altitude, 0.0, 0.0, config.problem.initial_speed, 0.0, 90 * DEG, 0.0, 0.0])
+    init_lo, init_hi = x0.copy(), x0.copy()
+    init_lo[6:8] = (0.0, -4 * math.pi)
+    init_hi[6:8] = (config.alpha_max, 4 * math.pi)
+    fin_lo = np.full(8, -math.inf)
+    fin_hi = np.full(8, math.inf)
+    fin_lo[0] = fin_hi[0] = re + config.problem.final_altitude
+    fin_lo[1] = fin_hi[1] = config.problem.target_longitude
+    fin_lo[2] = fin_hi[2] = config.problem.target_latitude
+    fin_lo[3] = fin_hi[3] = config.problem.final_speed
+    fin_lo[6] = fin_hi[6] = config.problem.final_alpha
+    endpoint = []
+    if relaxed:
+        limit = final_gamma_deg * DEG
+        endpoint.append(EndpointConstraint("final_gamma", lambda a, b, t0, tf: b[4], upper=limit))
+    else:
+        fin_lo[4] = fin_hi[4] = final_gamma_deg * DEG
+    return init_lo, init_hi, fin_lo, fin_hi, endpoint
+
+
 def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg: float | None = -90.0,
                       relaxed: bool = False) -> OptimalControlProblem:  # fmt: skip
     """Example 2 in spherical coordinates.
@@ -121,24 +149,7 @@ def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg:
         PathConstraint("dynamic_pressure", lambda x, u, t: aero_accelerations(x, model, ns)[2],
                        lower=config.problem.q_min, scale=1e5),
     ]  # fmt: skip
-    # the rv-Euler initial state of Table tab:Ex2-BCs is horizontal flight due east at (0, 0)
-    x0 = np.array([re + config.problem.initial_altitude, 0.0, 0.0, config.problem.initial_speed, 0.0, 90 * DEG, 0.0, 0.0])
-    init_lo, init_hi = x0.copy(), x0.copy()
-    init_lo[6:8] = (0.0, -4 * math.pi)
-    init_hi[6:8] = (config.alpha_max, 4 * math.pi)
-    fin_lo = np.full(8, -math.inf)
-    fin_hi = np.full(8, math.inf)
-    fin_lo[0] = fin_hi[0] = re + config.problem.final_altitude
-    fin_lo[1] = fin_hi[1] = config.problem.target_longitude
-    fin_lo[2] = fin_hi[2] = config.problem.target_latitude
-    fin_lo[3] = fin_hi[3] = config.problem.final_speed
-    fin_lo[6] = fin_hi[6] = config.problem.final_alpha
-    endpoint = []
-    if relaxed:
-        limit = final_gamma_deg * DEG
-        endpoint.append(EndpointConstraint("final_gamma", lambda a, b, t0, tf: b[4], upper=limit))
-    else:
-        fin_lo[4] = fin_hi[4] = final_gamma_deg * DEG
+    init_lo, init_hi, fin_lo, fin_hi, endpoint = _spherical_boundary(config, final_gamma_deg, relaxed)
     return OptimalControlProblem(
         name=f"spherical-entry-gamma{final_gamma_deg:g}{'-relaxed' if relaxed else ''}",
         state_names=STATE_NAMES,

@@ -24,6 +24,12 @@ EFFECTS_HELP = ("j2_gravity, density_profile, lift_coefficient, drag_coefficient
 
 def register(subparsers) -> None:
     """Add the model-validation subcommands to the ``rventry`` parser."""
+    _register_identify(subparsers)
+    _register_simulate_record(subparsers)
+
+
+def _register_identify(subparsers) -> None:
+    """Add ``rventry identify``: replay a record, name the effect the model lacks."""
     p = subparsers.add_parser(
         "identify",
         help="replay a flight record, name the effect the model lacks, add it",
@@ -54,6 +60,9 @@ def register(subparsers) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=_identify)
 
+
+def _register_simulate_record(subparsers) -> None:
+    """Add ``rventry simulate-record``: fly the truth model with undeclared effects, write a record."""
     s = subparsers.add_parser(
         "simulate-record",
         help="fly the CAV-H through a truth model with undeclared effects, write a flight record",

@@ -283,8 +283,8 @@ def _check_components(cols: dict, names, limit: float, unit: str, lines: np.ndar
             )
 
 
-def _check_units(cols: dict, lines: np.ndarray) -> None:
-    """Reject values whose magnitude says the unit is wrong (km for m, km/s for m/s, deg for rad)."""
+def _check_altitude_units(cols: dict, lines: np.ndarray) -> None:
+    """Reject an altitude column in kilometres, or an altitude no entry flight reaches."""
     if "altitude_m" in cols:
         h = cols["altitude_m"]
         hf = h[np.isfinite(h)]
@@ -299,6 +299,10 @@ def _check_units(cols: dict, lines: np.ndarray) -> None:
                 f"row {_first_bad(bad, lines)}, column altitude_m: implausible altitude "
                 f"{h[bad][0]:g} m for an entry flight (between {MIN_ALTITUDE:g} and {MAX_ALTITUDE:g} m)"
             )
+
+
+def _check_position_units(cols: dict, lines: np.ndarray) -> None:
+    """Reject ECEF positions in feet or kilometres, or at an altitude no entry flight reaches."""
     if all(c in cols for c in ECEF_COLUMNS[:3]):
         pos = np.stack([cols[c] for c in ECEF_COLUMNS[:3]], axis=1)
         ratio = row_norm(pos) / EARTH_RADIUS
@@ -326,6 +330,10 @@ def _check_units(cols: dict, lines: np.ndarray) -> None:
                 f"{alt[bad][0]:g} m (|r| = {rn[bad][0]:g} m) for an entry flight about an Earth of radius "
                 f"{EARTH_RADIUS:g} m{hint}"
             )
+
+
+def _check_speed_units(cols: dict, lines: np.ndarray) -> None:
+    """Reject speeds or velocities in km/s, above an Earth entry's, or not positive."""
     for names in (("speed_rel_mps",), (INERTIAL_SPEED,), ECEF_COLUMNS[3:]):
         if not all(c in cols for c in names):
             continue
@@ -348,6 +356,10 @@ def _check_units(cols: dict, lines: np.ndarray) -> None:
         bad = ok & (speed <= 0)
         if np.any(bad):
             raise RecordError(f"row {_first_bad(bad, lines)}, column(s) {label}: speed must be positive")
+
+
+def _check_other_units(cols: dict, lines: np.ndarray) -> None:
+    """Reject angles in degrees, and densities or lift-to-drag ratios no entry flight has."""
     for name in ("alpha_rad", "bank_rad"):
         if name in cols:
             a = cols[name]
@@ -373,6 +385,14 @@ def _check_units(cols: dict, lines: np.ndarray) -> None:
                 f"row {_first_bad(bad, lines)}, column lift_to_drag_vertical: "
                 f"implausible value {ld[bad][0]:g}"
             )
+
+
+def _check_units(cols: dict, lines: np.ndarray) -> None:
+    """Reject values whose magnitude says the unit is wrong (km for m, km/s for m/s, deg for rad)."""
+    _check_altitude_units(cols, lines)
+    _check_position_units(cols, lines)
+    _check_speed_units(cols, lines)
+    _check_other_units(cols, lines)
 
 
 def _check_time_unit_ecef(t: np.ndarray, obs: np.ndarray, lines: np.ndarray) -> None:
@@ -440,22 +460,13 @@ def _reject_constant(name: str):
     raise ValueError(f"{name} is not a JSON number (give a finite value)")
 
 
-def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: bool = True) -> FlightRecord:
-    """Read and validate a flight record.
+def _required_columns(header: list, cols: dict) -> tuple[list, list, str]:
+    """The record's observation columns, checked: the full ECEF set, or altitude and a speed.
 
-    :param path: the CSV file.
-    :param sidecar: a parsed sidecar to use instead of the file beside the record.
-    :param use_sidecar: look for ``<record>.json`` when ``sidecar`` is None.
-    :raises RecordError: with the row or column at fault.
+    :return: ``(has_ecef, has_red, speed_col)``: the ECEF and the reduced-set columns present,
+        and the speed column the reduced set would use.
+    :raises RecordError: naming the missing columns.
     """
-    path = Path(path)
-    if path.is_dir():
-        raise RecordError(f"{path}: is a directory, not a record file (give the CSV file)")
-    if not path.is_file():
-        raise FileNotFoundError(f"no such record: {path}")
-    header, cols, notes = _read_csv(path)
-    lines = cols.pop("_line")
-    _check_time(cols["t_s"], lines)
     has_ecef = [c for c in ECEF_COLUMNS if c in cols]
     has_red = [c for c in REDUCED_COLUMNS + (INERTIAL_SPEED,) if c in cols]
     if has_ecef and len(has_ecef) < 6:
@@ -470,19 +481,13 @@ def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: b
             "missing required columns: need x_m, y_m, z_m, vx_mps, vy_mps, vz_mps (ECEF) "
             f"or altitude_m, speed_rel_mps (reduced); the header has {', '.join(header)[:120]}"
         )
-    _check_units(cols, lines)
-    kind = "ecef" if has_ecef else "reduced"
-    names = ECEF_COLUMNS if kind == "ecef" else ("altitude_m", speed_col)
-    if kind == "ecef" and has_red:
-        notes.append(f"columns {', '.join(has_red)} ignored: the full ECEF set is used")
-    elif kind == "reduced" and speed_col == "speed_rel_mps" and INERTIAL_SPEED in cols:
-        notes.append(f"column {INERTIAL_SPEED} ignored: the Earth-relative speed_rel_mps is used")
-    for c in names:
-        if not np.any(np.isfinite(cols[c])):
-            raise RecordError(f"column {c}: present but every field is empty (the {kind} set needs its values)")
-    unknown = [h for h in header if h not in KNOWN_COLUMNS]
-    if unknown:
-        notes.append(f"columns not in the record format ignored: {', '.join(unknown)}")
+    return has_ecef, has_red, speed_col
+
+
+def _observations(cols: dict, names, kind: str, lines: np.ndarray, notes: list) -> np.ndarray:
+    """The observation matrix (one column per name), checked for enough rows, a time span and (ECEF)
+    the time unit; rows with only controls or density and empty fields are noted in ``notes``.
+    """
     # a position without its velocity (or the reverse) in one row is kept: each
     # channel enters the residual on its own
     obs = np.stack([cols[c] for c in names], axis=1)
@@ -504,6 +509,40 @@ def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: b
     partial = int(np.count_nonzero(~np.isfinite(obs[observed])))
     if partial:
         notes.append(f"{partial} empty observation field(s) in rows with observations are left out of the residual")
+    return obs
+
+
+def load_record(path: str | Path, *, sidecar: dict | None = None, use_sidecar: bool = True) -> FlightRecord:
+    """Read and validate a flight record.
+
+    :param path: the CSV file.
+    :param sidecar: a parsed sidecar to use instead of the file beside the record.
+    :param use_sidecar: look for ``<record>.json`` when ``sidecar`` is None.
+    :raises RecordError: with the row or column at fault.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise RecordError(f"{path}: is a directory, not a record file (give the CSV file)")
+    if not path.is_file():
+        raise FileNotFoundError(f"no such record: {path}")
+    header, cols, notes = _read_csv(path)
+    lines = cols.pop("_line")
+    _check_time(cols["t_s"], lines)
+    has_ecef, has_red, speed_col = _required_columns(header, cols)
+    _check_units(cols, lines)
+    kind = "ecef" if has_ecef else "reduced"
+    names = ECEF_COLUMNS if kind == "ecef" else ("altitude_m", speed_col)
+    if kind == "ecef" and has_red:
+        notes.append(f"columns {', '.join(has_red)} ignored: the full ECEF set is used")
+    elif kind == "reduced" and speed_col == "speed_rel_mps" and INERTIAL_SPEED in cols:
+        notes.append(f"column {INERTIAL_SPEED} ignored: the Earth-relative speed_rel_mps is used")
+    for c in names:
+        if not np.any(np.isfinite(cols[c])):
+            raise RecordError(f"column {c}: present but every field is empty (the {kind} set needs its values)")
+    unknown = [h for h in header if h not in KNOWN_COLUMNS]
+    if unknown:
+        notes.append(f"columns not in the record format ignored: {', '.join(unknown)}")
+    obs = _observations(cols, names, kind, lines, notes)
     sc = sidecar
     if sc is None and use_sidecar:
         sp = sidecar_path(path)

@@ -203,6 +203,13 @@ class OptimalControlProblem:
     parameter_values: Any = None
 
     def __post_init__(self):
+        self._check_names_and_functions()
+        self._check_bounds()
+        self._check_times_and_constraints()
+        self._check_scales_and_parameters()
+
+    def _check_names_and_functions(self) -> None:
+        """The state and control names (unique, non-empty), the dynamics and a cost, checked."""
         self.state_names = tuple(self.state_names)
         self.control_names = tuple(self.control_names)
         for what, names in (("state", self.state_names), ("control", self.control_names)):
@@ -220,6 +227,10 @@ class OptimalControlProblem:
                 raise TypeError(f"{what} must be callable or None")
         if self.lagrange is None and self.mayer is None:
             raise ValueError("a problem needs a cost: give lagrange, mayer or both")
+
+    def _check_bounds(self) -> None:
+        """The bounds as vectors (infinite where not given), the end bounds limited by the path
+        bounds, and no lower bound above its upper one."""
         nx, nu = self.n_x, self.n_u
         self.state_lower = _vec(self.state_lower, nx, "state_lower", -math.inf)
         self.state_upper = _vec(self.state_upper, nx, "state_upper", math.inf)
@@ -244,6 +255,9 @@ class OptimalControlProblem:
             if bad.size:
                 i = int(bad[0])
                 raise ValueError(f"{what}: {names[i]!r} has lower {lo[i]} > upper {hi[i]}")
+
+    def _check_times_and_constraints(self) -> None:
+        """The initial and final times, and the constraints as tuples of their own kinds, checked."""
         self.t0 = float(self.t0)
         if not math.isfinite(self.t0):
             raise ValueError(f"t0 must be finite, got {self.t0}")
@@ -261,6 +275,10 @@ class OptimalControlProblem:
             for c in group:
                 if not isinstance(c, kind):
                     raise TypeError(f"expected {kind.__name__}, got {type(c).__name__}")
+
+    def _check_scales_and_parameters(self) -> None:
+        """The state, control, time and cost scales and the parameters, checked (scales filled in
+        from the bounds where not given)."""
         self.state_scale, self.state_shift = _scaling(
             self.state_scale, self.state_shift, self.state_lower, self.state_upper, "state"
         )

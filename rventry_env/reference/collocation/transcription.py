@@ -178,26 +178,21 @@ class SolverOptions:
             raise ValueError(f"nlp_tolerance must be positive, got {self.nlp_tolerance}")
 
 
-def transcribe(
-    cp: CompiledProblem, mesh: Mesh, options: SolverOptions | None = None, warm: bool = False
-) -> Transcription:
-    """Build the NLP (and its IPOPT solver) of ``cp`` on ``mesh``.
+def _nlp_variables(sym, p, nn: int, nc: int):
+    """The NLP's decision variables, scaled: the states at every node, the controls at every
+    collocation point and, with a free final time, one copy of tf per node.
 
-    :param warm: use ``options.warm_ipopt`` on top of the IPOPT options (the guess
-        is a converged solution on a nearby mesh).
+    :return: ``(xs, us, tfs, zs, tf_nodes)``: the state and control matrices (column = node),
+        the tf copies (``None`` for a fixed final time), the vectors stacked into the NLP's
+        ``x`` and the final time at every node, unscaled.
     """
     import casadi as ca
 
-    opts = options or SolverOptions()
-    start = time.perf_counter()
-    p = cp.problem
-    nx, nu, nn, nc = p.n_x, p.n_u, mesh.n_nodes, mesh.n_collocation
-    big_d, h_col, w_col, s_nodes = _block_matrices(mesh)
-
-    sym = ca.MX if opts.graph == "mx" else ca.SX
+    nx, nu = p.n_x, p.n_u
     xs = sym.sym("X", nx, nn)  # scaled, column = node
     us = sym.sym("U", nu, nc)
     zs = [ca.vec(xs), ca.vec(us)]  # column-major vec = node-major, matching pack()
+    tfs = None
     if p.free_final_time:
         # one copy of tf per node, chained by equalities: a single tf variable would
         # couple every defect and make the KKT matrix's tf row and column dense
@@ -207,18 +202,20 @@ def transcribe(
         tf_nodes = tfs * p.time_scale
     else:
         tf_nodes = ca.repmat(sym(p.tf_lower), 1, nn)
-    tf = tf_nodes[0, nn - 1]
-    tf_col = tf_nodes[0, :nc]
-    t0 = p.t0
-    node = cp.node_function()
-    # one mapped call evaluates dynamics, path constraints and running cost at every
-    # collocation point; its derivatives are those of one node, reused nc times
-    par = sym.sym("P", p.n_p)  # the problem's parameters: NLP parameters, set per solve
-    f_sc, c_sc, lag = node.map(nc)(
-        xs[:, :nc], us, ca.DM(s_nodes[:nc]).T, ca.DM(h_col).T, tf_col, ca.repmat(par, 1, nc)
-    )  # fmt: skip
-    # defects, D X = (tf - t0) h / 2 f, divided by the state scale
-    defect = ca.mtimes(xs, _dm_sparse(big_d).T) - f_sc
+    return xs, us, tfs, zs, tf_nodes
+
+
+def _nlp_constraints(cp: CompiledProblem, xs, tfs, tf, c_sc, defect, nn: int, nc: int):
+    """The NLP's constraint rows, in order: the defects, the links of the tf copies, the path
+    constraints, the invariants and the endpoint constraints (scaled).
+
+    :return: ``(g, lbg, ubg, groups)``: the rows and their bounds as lists of blocks, and each
+        group's slice of the rows.
+    """
+    import casadi as ca
+
+    p = cp.problem
+    nx = p.n_x
     g = [ca.vec(defect)]
     groups = {"defects": slice(0, nx * nc)}
     lbg = [np.zeros(nx * nc)]
@@ -249,12 +246,11 @@ def transcribe(
     if p.endpoint_constraints:
         b = cp.endpoint_function()(xs[:, 0], xs[:, nn - 1], tf)
         add("endpoint", b, cp.end_lower / cp.end_scale, cp.end_upper / cp.end_scale)
+    return g, lbg, ubg, groups
 
-    cost = ca.mtimes((tf_col - t0) * 0.5 * lag, ca.DM(h_col * w_col))  # Radau quadrature
-    cost = cost + cp.mayer_function()(xs[:, 0], xs[:, nn - 1], tf)
-    nlp = {"x": ca.vertcat(*zs), "f": cost / p.cost_scale, "g": ca.vertcat(*g), "p": par}
 
-    # variable bounds (scaled)
+def _variable_bounds(p, nn: int, nc: int) -> tuple[list, list]:
+    """The scaled bounds of the NLP's variables (states, controls, tf copies), as lists of blocks."""
     xl = np.tile(p.state_lower, (nn, 1))
     xu = np.tile(p.state_upper, (nn, 1))
     xl[0], xu[0] = p.initial_lower, p.initial_upper
@@ -266,7 +262,11 @@ def transcribe(
     if p.free_final_time:
         lbx.append(np.full(nn, p.tf_lower / p.time_scale))
         ubx.append(np.full(nn, p.tf_upper / p.time_scale if math.isfinite(p.tf_upper) else math.inf))
+    return lbx, ubx
 
+
+def _ipopt_options(opts: SolverOptions, warm: bool) -> dict:
+    """IPOPT's options: the defaults here, then the warm-start ones when ``warm``, then the user's."""
     ipopt = {
         "tol": opts.nlp_tolerance,
         "max_iter": opts.max_nlp_iterations,
@@ -278,6 +278,48 @@ def transcribe(
     if warm:
         ipopt.update(opts.warm_ipopt)
     ipopt.update(opts.ipopt)
+    return ipopt
+
+
+def transcribe(
+    cp: CompiledProblem, mesh: Mesh, options: SolverOptions | None = None, warm: bool = False
+) -> Transcription:
+    """Build the NLP (and its IPOPT solver) of ``cp`` on ``mesh``.
+
+    :param warm: use ``options.warm_ipopt`` on top of the IPOPT options (the guess
+        is a converged solution on a nearby mesh).
+    """
+    import casadi as ca
+
+    opts = options or SolverOptions()
+    start = time.perf_counter()
+    p = cp.problem
+    nn, nc = mesh.n_nodes, mesh.n_collocation
+    big_d, h_col, w_col, s_nodes = _block_matrices(mesh)
+
+    sym = ca.MX if opts.graph == "mx" else ca.SX
+    xs, us, tfs, zs, tf_nodes = _nlp_variables(sym, p, nn, nc)
+    tf = tf_nodes[0, nn - 1]
+    tf_col = tf_nodes[0, :nc]
+    t0 = p.t0
+    node = cp.node_function()
+    # one mapped call evaluates dynamics, path constraints and running cost at every
+    # collocation point; its derivatives are those of one node, reused nc times
+    par = sym.sym("P", p.n_p)  # the problem's parameters: NLP parameters, set per solve
+    f_sc, c_sc, lag = node.map(nc)(
+        xs[:, :nc], us, ca.DM(s_nodes[:nc]).T, ca.DM(h_col).T, tf_col, ca.repmat(par, 1, nc)
+    )  # fmt: skip
+    # defects, D X = (tf - t0) h / 2 f, divided by the state scale
+    defect = ca.mtimes(xs, _dm_sparse(big_d).T) - f_sc
+    g, lbg, ubg, groups = _nlp_constraints(cp, xs, tfs, tf, c_sc, defect, nn, nc)
+
+    cost = ca.mtimes((tf_col - t0) * 0.5 * lag, ca.DM(h_col * w_col))  # Radau quadrature
+    cost = cost + cp.mayer_function()(xs[:, 0], xs[:, nn - 1], tf)
+    nlp = {"x": ca.vertcat(*zs), "f": cost / p.cost_scale, "g": ca.vertcat(*g), "p": par}
+
+    lbx, ubx = _variable_bounds(p, nn, nc)
+
+    ipopt = _ipopt_options(opts, warm)
     solver = ca.nlpsol(
         "lgr", "ipopt", nlp,
         {"ipopt": ipopt, "print_time": False, "error_on_fail": False},

@@ -102,6 +102,45 @@ def _speed_hint(setup, record, dv: float) -> str:
     return ""
 
 
+def _refuse_gross_altitude(es, where: str, near: bool, dh: float, se_h: float, noise_h: float, h_meas: float,
+                           h_replayed: float) -> None:  # fmt: skip
+    """Refuse a declared entry altitude that differs from the record's by a unit's ratio or by more
+    than any altitude reference explains, naming both values and the scatter."""
+    significant_h = abs(dh) > ERROR_SIGMAS * noise_h and abs(dh) > SIGNIFICANT * se_h
+    hint = _ratio_hint(es.altitude, h_meas, "altitude_m") if near else ""
+    hint = hint or _ratio_hint(h_replayed, h_meas, "altitude_m (replayed)")
+    beyond = abs(dh) - ERROR_SIGMAS * se_h > ALTITUDE_BOUND_M
+    if significant_h and (hint or beyond):
+        why = hint or (f"; beyond {ALTITUDE_BOUND_M:.0f} m, the largest difference two altitude references make on the "
+                       "WGS-84 Earth, it is not an offset any reference explains: a unit, time or state error")
+        raise RecordError(
+            f"sidecar: entry_state.altitude_m = {es.altitude:g} m, replayed to {where}, is {-dh:+.4g} m from the "
+            f"record's altitude_m {h_meas:g} m ({abs(dh) / max(noise_h, 1e-9):.1f} times the {noise_h:.3g} m "
+            f"scatter of those samples){why}; fix the sidecar or the record"
+        )
+
+
+def _refuse_gross_speed(setup, record, where: str, near: bool, dv: float, se_v: float, noise_v: float,
+                        v_meas: float) -> None:  # fmt: skip
+    """Refuse a declared entry speed that differs from the record's by a unit's ratio, another frame's
+    speed, or more than the Earth's rotation explains, naming both values and the scatter."""
+    es = setup.entry_state
+    significant_v = abs(dv) > ERROR_SIGMAS * noise_v and abs(dv) > SIGNIFICANT * se_v
+    hint = _speed_hint(setup, record, dv)
+    if not hint and near:
+        hint = _ratio_hint(es.speed, v_meas, "speed_rel_mps")
+    beyond = abs(dv) - ERROR_SIGMAS * se_v > SPEED_BOUND_MPS
+    if significant_v and (hint or beyond):
+        why = hint or (f"; beyond {SPEED_BOUND_MPS:.0f} m/s, the largest difference between two frames' speeds (the "
+                       "Earth's rotation), it is not an offset any frame explains")
+        speed_name = record.observation_names[1]
+        raise RecordError(
+            f"sidecar: entry_state.speed_rel_mps = {es.speed:g} m/s, replayed to {where}, is {-dv:+.4g} m/s from "
+            f"the record's {speed_name} {v_meas:g} m/s ({abs(dv) / max(noise_v, 1e-9):.1f} times the "
+            f"{noise_v:.3g} m/s scatter of those samples){why}"
+        )
+
+
 def check_entry_state(replay, setup, sigma_by_group: dict) -> dict:
     """Compare the declared entry state, replayed over the first seconds, with a robust fit of the record there.
 
@@ -144,32 +183,8 @@ def check_entry_state(replay, setup, sigma_by_group: dict) -> dict:
            "warnings": [], "widen": {}}  # fmt: skip
     near = abs(t_first - es.t) < 1.0
     where = f"t_s = {t_first:g} (row {row}; a robust line through {idx.size} samples to t_s = {t[-1]:g})"
-    significant_h = abs(dh) > ERROR_SIGMAS * noise_h and abs(dh) > SIGNIFICANT * se_h
-    hint = _ratio_hint(es.altitude, h_meas, "altitude_m") if near else ""
-    hint = hint or _ratio_hint(float(pred[0, 0]), h_meas, "altitude_m (replayed)")
-    beyond = abs(dh) - ERROR_SIGMAS * se_h > ALTITUDE_BOUND_M
-    if significant_h and (hint or beyond):
-        why = hint or (f"; beyond {ALTITUDE_BOUND_M:.0f} m, the largest difference two altitude references make on the "
-                       "WGS-84 Earth, it is not an offset any reference explains: a unit, time or state error")
-        raise RecordError(
-            f"sidecar: entry_state.altitude_m = {es.altitude:g} m, replayed to {where}, is {-dh:+.4g} m from the "
-            f"record's altitude_m {h_meas:g} m ({abs(dh) / max(noise_h, 1e-9):.1f} times the {noise_h:.3g} m "
-            f"scatter of those samples){why}; fix the sidecar or the record"
-        )
-    significant_v = abs(dv) > ERROR_SIGMAS * noise_v and abs(dv) > SIGNIFICANT * se_v
-    hint = _speed_hint(setup, replay.record, dv)
-    if not hint and near:
-        hint = _ratio_hint(es.speed, v_meas, "speed_rel_mps")
-    beyond = abs(dv) - ERROR_SIGMAS * se_v > SPEED_BOUND_MPS
-    if significant_v and (hint or beyond):
-        why = hint or (f"; beyond {SPEED_BOUND_MPS:.0f} m/s, the largest difference between two frames' speeds (the "
-                       "Earth's rotation), it is not an offset any frame explains")
-        speed_name = replay.record.observation_names[1]
-        raise RecordError(
-            f"sidecar: entry_state.speed_rel_mps = {es.speed:g} m/s, replayed to {where}, is {-dv:+.4g} m/s from "
-            f"the record's {speed_name} {v_meas:g} m/s ({abs(dv) / max(noise_v, 1e-9):.1f} times the "
-            f"{noise_v:.3g} m/s scatter of those samples){why}"
-        )
+    _refuse_gross_altitude(es, where, near, dh, se_h, noise_h, h_meas, float(pred[0, 0]))
+    _refuse_gross_speed(setup, replay.record, where, near, dv, se_v, noise_v, v_meas)
     for name, group, d, s, se, unit in (("altitude_m", "altitude", dh, sh, se_h, "m"),
                                         ("speed_rel_mps", "speed", dv, sv, se_v, "m/s")):  # fmt: skip
         if s is not None and abs(d) > INIT_BOUND_SIGMAS * s and abs(d) > SIGNIFICANT * se:

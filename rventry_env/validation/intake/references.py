@@ -76,6 +76,54 @@ def _agreement(value: float, stderr: float, predicted: float) -> float:
     return abs(value - predicted) / stderr if stderr > 0 else math.inf
 
 
+def _reference_readings(dh: float, se_h: float, dg: float, se_g: float, early, d_alt: float, u_ref: float,
+                        psi: float) -> list[dict]:  # fmt: skip
+    """Each reference's reading of the offset (the altitude reference either way round, the horizon
+    reference either way round), its prediction and how many standard errors the fit lies from it."""
+    references = []
+    for sign, reading in ((1.0, "the record's altitudes (and the atmosphere it flew) are geodetic, over the WGS-84 "
+                                "ellipsoid, and the sidecar's altitude is over the model's sphere"),
+                          (-1.0, "the sidecar's altitude is geodetic, over the WGS-84 ellipsoid, and the record's "
+                                 "altitudes (and the atmosphere it flew) are over the model's sphere")):  # fmt: skip
+        pred = sign * d_alt
+        z = _agreement(dh, math.hypot(se_h, u_ref), pred)
+        z_early = _agreement(early[0], math.hypot(early[1], u_ref), pred) if early else None
+        references.append({"reference": "altitude_reference", "component": "dh0_m", "predicted": pred,
+                           "uncertainty": u_ref, "reading": reading, "z": z, "z_first_samples": z_early,
+                           "agrees": bool(z <= AGREEMENT_SIGMAS)})  # fmt: skip
+    for sign, reading in ((1.0, "the sidecar's flight-path angle is read from the geocentric horizon and the record "
+                                "flew the geodetic one"),
+                          (-1.0, "the sidecar's flight-path angle is read from the geodetic horizon")):  # fmt: skip
+        pred = sign * psi
+        z = _agreement(dg, se_g, pred)
+        references.append({"reference": "horizon_reference", "component": "dgamma0_rad", "predicted": pred,
+                           "reading": reading, "z": z, "agrees": bool(z <= AGREEMENT_SIGMAS)})  # fmt: skip
+    return references
+
+
+def _offset_statement(fitted: dict, se: dict, early, explained: list, significant: bool, latitude: float,
+                      d_alt: float, u_ref: float) -> str:  # fmt: skip
+    """The statement of the fitted offset: its size, and the altitude reference that explains it or
+    that none does."""
+    dh, se_h = fitted["dh0_m"], se["dh0_m"]
+    dg, se_g = fitted["dgamma0_rad"], se["dgamma0_rad"]
+    lat_deg = math.degrees(latitude)
+    where = f"{abs(lat_deg):.1f} deg {'N' if lat_deg >= 0 else 'S'}"
+    text = (f"The fitted entry state is {dh:+.4g} +/- {se_h:.2g} m in altitude, {fitted['dv0_mps']:+.4g} +/- "
+            f"{se['dv0_mps']:.2g} m/s in speed and {math.degrees(dg):+.3g} +/- {math.degrees(se_g):.2g} deg in "
+            "flight-path angle from the sidecar's")  # fmt: skip
+    text += (f" (the first samples alone: {early[0]:+.4g} +/- {early[1]:.2g} m)." if early else ".")
+    if explained:
+        r = explained[0]
+        text += (f" The altitude offset agrees with the altitude reference at {where} ({r['predicted']:+.4g} +/- "
+                 f"{u_ref:.2g} m, {r['z']:.1f} standard errors away): {r['reading']}.")  # fmt: skip
+    elif significant:
+        text += (f" No altitude reference explains it (the WGS-84 surface lies {d_alt:.4g} m inside the model's "
+                 f"sphere at {where}): a reading error, a time tag or a state converted in another frame "
+                 "remain.")  # fmt: skip
+    return text
+
+
 def explain_entry_offset(names, values, stderr, setup, inflation: float = 1.0, check: dict | None = None) -> dict:
     """The fitted entry-state offset of a reduced record, its uncertainty, and the references it agrees with.
 
@@ -112,42 +160,12 @@ def explain_entry_offset(names, values, stderr, setup, inflation: float = 1.0, c
     # the declared latitude may be geodetic or geocentric: the reference's own uncertainty
     u_ref = abs(altitude_reference_offset(es.latitude + horizon_deflection(es.latitude), planet.radius) - d_alt)
     psi = horizon_deflection(es.latitude) * math.cos(es.azimuth)
-    references = []
-    for sign, reading in ((1.0, "the record's altitudes (and the atmosphere it flew) are geodetic, over the WGS-84 "
-                                "ellipsoid, and the sidecar's altitude is over the model's sphere"),
-                          (-1.0, "the sidecar's altitude is geodetic, over the WGS-84 ellipsoid, and the record's "
-                                 "altitudes (and the atmosphere it flew) are over the model's sphere")):  # fmt: skip
-        pred = sign * d_alt
-        z = _agreement(dh, math.hypot(se_h, u_ref), pred)
-        z_early = _agreement(early[0], math.hypot(early[1], u_ref), pred) if early else None
-        references.append({"reference": "altitude_reference", "component": "dh0_m", "predicted": pred,
-                           "uncertainty": u_ref, "reading": reading, "z": z, "z_first_samples": z_early,
-                           "agrees": bool(z <= AGREEMENT_SIGMAS)})  # fmt: skip
-    for sign, reading in ((1.0, "the sidecar's flight-path angle is read from the geocentric horizon and the record "
-                                "flew the geodetic one"),
-                          (-1.0, "the sidecar's flight-path angle is read from the geodetic horizon")):  # fmt: skip
-        pred = sign * psi
-        z = _agreement(dg, se_g, pred)
-        references.append({"reference": "horizon_reference", "component": "dgamma0_rad", "predicted": pred,
-                           "reading": reading, "z": z, "agrees": bool(z <= AGREEMENT_SIGMAS)})  # fmt: skip
+    references = _reference_readings(dh, se_h, dg, se_g, early, d_alt, u_ref, psi)
     significant = abs(dh) > AGREEMENT_SIGMAS * se_h
     significant |= early is not None and abs(early[0]) > AGREEMENT_SIGMAS * early[1]
     resolved = d_alt > AGREEMENT_SIGMAS * math.hypot(min(se_h, early[1] if early else math.inf), u_ref)
     explained = [r for r in references if r["component"] == "dh0_m" and r["agrees"] and significant and resolved]
-    lat_deg = math.degrees(es.latitude)
-    where = f"{abs(lat_deg):.1f} deg {'N' if lat_deg >= 0 else 'S'}"
-    text = (f"The fitted entry state is {dh:+.4g} +/- {se_h:.2g} m in altitude, {fitted['dv0_mps']:+.4g} +/- "
-            f"{se['dv0_mps']:.2g} m/s in speed and {math.degrees(dg):+.3g} +/- {math.degrees(se_g):.2g} deg in "
-            "flight-path angle from the sidecar's")  # fmt: skip
-    text += (f" (the first samples alone: {early[0]:+.4g} +/- {early[1]:.2g} m)." if early else ".")
-    if explained:
-        r = explained[0]
-        text += (f" The altitude offset agrees with the altitude reference at {where} ({r['predicted']:+.4g} +/- "
-                 f"{u_ref:.2g} m, {r['z']:.1f} standard errors away): {r['reading']}.")  # fmt: skip
-    elif significant:
-        text += (f" No altitude reference explains it (the WGS-84 surface lies {d_alt:.4g} m inside the model's "
-                 f"sphere at {where}): a reading error, a time tag or a state converted in another frame "
-                 "remain.")  # fmt: skip
+    text = _offset_statement(fitted, se, early, explained, significant, es.latitude, d_alt, u_ref)
     return {
         "offsets": {k: {"value": fitted[k], "stderr": se[k]} for k in names},
         "stderr_inflation": inflation,

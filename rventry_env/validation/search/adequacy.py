@@ -40,20 +40,12 @@ MAD_SE = 1.17  # standard error x sqrt(n) of a MAD scale of normal values (rms: 
 MAD_DIFF_SE = 2.0  # the same of the 4th-difference MAD estimate (overlapping differences; conservative)
 
 
-def adequacy(fit, sigma_by_group: dict, source: str, group_names: list, groups: np.ndarray, sigma: np.ndarray,
-             estimated_is: dict | None = None, robust_noise: dict | None = None) -> dict:  # fmt: skip
-    """Test the residual of ``fit`` against the noise.
+def _size_tests(fit, sigma_by_group: dict, source: str, group_names: list, groups: np.ndarray,
+                robust_noise: dict | None) -> tuple[dict, bool]:  # fmt: skip
+    """The size test per observation group: the residual's scale over the noise's (robust where the
+    noise's robust scale is known, else rms), with its z against :data:`Z_CRIT`.
 
-    :param fit: the final :class:`~rventry_env.validation.search.fit.FitResult`.
-    :param sigma_by_group: noise standard deviation per group.
-    :param source: ``"declared"`` or ``"estimated"`` (from record differences) or
-        ``"baseline residual"`` (no noise known: the size test is skipped).
-    :param group_names: observation group names, in the order of ``fit.rss_by_group``.
-    :param groups: group index per channel.
-    :param sigma: noise per channel (the weights).
-    :param estimated_is: per group, what the difference estimate is (noise or an upper bound).
-    :param robust_noise: the noise's robust scale per group (declared, or the record's MAD
-        estimate); without it the size test compares rms values.
+    :return: the figures per group, and whether every tested group is consistent with the noise.
     """
     n_tot = sum(fit.n_by_group)
     k = fit.n_params
@@ -86,11 +78,12 @@ def adequacy(fit, sigma_by_group: dict, source: str, group_names: list, groups: 
         ok = (not tested) or z <= Z_CRIT
         size_ok &= ok
         size[g] = {**entry, "z": z if tested else None, "consistent": ok}
-    w = whiteness(fit.residual / sigma[None, :])
+    return size, size_ok
+
+
+def _reasons(fit, size: dict, source: str, w: dict, white_ok: bool, start_ok: bool) -> list[str]:
+    """Why the model does not explain the record, one phrase per failed test."""
     p = w["ljung_box_p"]
-    white_ok = p is None or p >= ALPHA
-    start_ok = not fit.extra.get("initial_state_at_bound")
-    unexplained = not (size_ok and white_ok and start_ok)
     reasons = []
     for g, d in size.items():
         if not d["consistent"]:
@@ -106,6 +99,31 @@ def adequacy(fit, sigma_by_group: dict, source: str, group_names: list, groups: 
     if not start_ok:
         reasons.append("the initial state ended on its noise bound ("
                        + ", ".join(fit.extra["initial_state_at_bound"]) + ")")  # fmt: skip
+    return reasons
+
+
+def adequacy(fit, sigma_by_group: dict, source: str, group_names: list, groups: np.ndarray, sigma: np.ndarray,
+             estimated_is: dict | None = None, robust_noise: dict | None = None) -> dict:  # fmt: skip
+    """Test the residual of ``fit`` against the noise.
+
+    :param fit: the final :class:`~rventry_env.validation.search.fit.FitResult`.
+    :param sigma_by_group: noise standard deviation per group.
+    :param source: ``"declared"`` or ``"estimated"`` (from record differences) or
+        ``"baseline residual"`` (no noise known: the size test is skipped).
+    :param group_names: observation group names, in the order of ``fit.rss_by_group``.
+    :param groups: group index per channel.
+    :param sigma: noise per channel (the weights).
+    :param estimated_is: per group, what the difference estimate is (noise or an upper bound).
+    :param robust_noise: the noise's robust scale per group (declared, or the record's MAD
+        estimate); without it the size test compares rms values.
+    """
+    size, size_ok = _size_tests(fit, sigma_by_group, source, group_names, groups, robust_noise)
+    w = whiteness(fit.residual / sigma[None, :])
+    p = w["ljung_box_p"]
+    white_ok = p is None or p >= ALPHA
+    start_ok = not fit.extra.get("initial_state_at_bound")
+    unexplained = not (size_ok and white_ok and start_ok)
+    reasons = _reasons(fit, size, source, w, white_ok, start_ok)
     if unexplained:
         statement = ("The identified model does not explain the record: " + "; ".join(reasons)
                      + ". An effect outside the candidate set remains (or the declared noise is too small).")  # fmt: skip

@@ -221,6 +221,38 @@ def _alias_reason(lift: bool, r_answer: int, answer: np.ndarray) -> str:
     return _REASONS["drag"]
 
 
+def _alias_members(vec: dict, dims: int, answer: np.ndarray, target: np.ndarray, n_level: int, carried: list,
+                   c_ref: float, rho_names: list, values: dict, level: float) -> list[dict]:  # fmt: skip
+    """Every set of level causes (up to ``max(n_level, 2)``) that spans the answer's uniform part exactly,
+    or (a pair) ties one extra cause to a single-cause answer, with the parameters that reproduce
+    ``target``; each listed with the carried effects.
+    """
+    r_answer = _rank(answer)
+    members = []
+    max_size = max(n_level, 2)
+    for n in range(1, max_size + 1):
+        for sub in itertools.combinations(vec, n):
+            v = np.array([vec[e][:dims] for e in sub]).T
+            if _rank(v) != n:
+                continue  # redundant within itself
+            exact = n == r_answer and same_span(v, answer)
+            tied = (not exact) and r_answer == 1 and n == 2 and _rank(np.hstack([v, answer])) == 2
+            if not (exact or tied):
+                continue
+            coef, *_ = np.linalg.lstsq(v, target[:dims], rcond=None)
+            if tied and np.any(np.abs(coef) < 1e-12 * max(1.0, float(np.max(np.abs(coef))))):
+                continue  # one of the pair unchanged: it is the single member again
+            if not np.allclose(v @ coef, target[:dims], atol=1e-9):
+                continue
+            params, member_effects = _member_parameters(sub, coef, c_ref, rho_names, values, level)
+            members.append({
+                "effects": [e for e in EFFECT_NAMES if e in member_effects + carried],
+                "parameters": {k: float(v) for k, v in params.items()},
+                "tied": bool(tied),
+            })  # fmt: skip
+    return members
+
+
 def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: float) -> list[dict]:
     """Every explanation that fits exactly as well as ``effects`` with ``values``.
 
@@ -257,28 +289,7 @@ def alias_groups(values: dict, effects, structure: Structure, start_lift_scale: 
     answer = np.array([vec[e][:dims] for e in level_part]).T
     r_answer = _rank(answer)
     carried = [e for e in effects if e not in LEVEL_CAUSES]
-    members = []
-    max_size = max(len(level_part), 2)
-    for n in range(1, max_size + 1):
-        for sub in itertools.combinations(vec, n):
-            v = np.array([vec[e][:dims] for e in sub]).T
-            if _rank(v) != n:
-                continue  # redundant within itself
-            exact = n == r_answer and same_span(v, answer)
-            tied = (not exact) and r_answer == 1 and n == 2 and _rank(np.hstack([v, answer])) == 2
-            if not (exact or tied):
-                continue
-            coef, *_ = np.linalg.lstsq(v, target[:dims], rcond=None)
-            if tied and np.any(np.abs(coef) < 1e-12 * max(1.0, float(np.max(np.abs(coef))))):
-                continue  # one of the pair unchanged: it is the single member again
-            if not np.allclose(v @ coef, target[:dims], atol=1e-9):
-                continue
-            params, member_effects = _member_parameters(sub, coef, c_ref, rho_names, values, level)
-            members.append({
-                "effects": [e for e in EFFECT_NAMES if e in member_effects + carried],
-                "parameters": {k: float(v) for k, v in params.items()},
-                "tied": bool(tied),
-            })  # fmt: skip
+    members = _alias_members(vec, dims, answer, target, len(level_part), carried, c_ref, rho_names, values, level)
     if len(members) <= 1:
         return []
     reason = _alias_reason(lift, r_answer, answer)

@@ -329,6 +329,31 @@ def _pair_structure(ctx: FitContext, pair: tuple, fits: list[FitResult]):
     return dataclasses.replace(st, density_knots=dk or st.density_knots, mach_knots=mk or st.mach_knots)
 
 
+def _pair_candidates(ctx: FitContext, state: SearchState) -> dict:
+    """The admissible pairs of the best unstretched first-step fits, with each other and with every
+    effect without a free parameter, other than the answer itself.
+
+    :return: label -> (the pair's structure, its better member's fit to start from).
+    """
+    c0 = ctx.setup.start_lift_scale
+    ranked = [row["effect"] for row in state.steps[0]["tried"] if not row["at_bound"]]
+    top = [e for e in ranked if e in state.first][:PAIR_CANDIDATES]
+    # an effect without a free parameter (J2 at its known value, the measured density) ranks low
+    # alone, since it only corrects the model next to the effect it was missing: pair it with each
+    fixed = [e for e in state.first if e in FIXED_EFFECTS and e not in top]
+    pairs = list(itertools.combinations(top, 2)) + [(a, b) for a in top for b in fixed]
+    candidates = {}
+    for pair in pairs:
+        if set(pair) == set(state.chosen):
+            continue
+        members = [state.first[e] for e in pair]
+        st = _pair_structure(ctx, pair, members)
+        if not admissible(pair, st, c0):
+            continue
+        candidates[" + ".join(pair)] = (st, min(members, key=lambda f: f.bic))
+    return candidates
+
+
 def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: float, say=_quiet) -> bool:
     """Fit every admissible pair of the best single candidates, so a true pair is not lost to an alias.
 
@@ -346,22 +371,7 @@ def try_pairs(ctx: FitContext, state: SearchState, max_effects: int, threshold: 
     """
     if max_effects < 2:
         return False
-    c0 = ctx.setup.start_lift_scale
-    ranked = [row["effect"] for row in state.steps[0]["tried"] if not row["at_bound"]]
-    top = [e for e in ranked if e in state.first][:PAIR_CANDIDATES]
-    # an effect without a free parameter (J2 at its known value, the measured density) ranks low
-    # alone, since it only corrects the model next to the effect it was missing: pair it with each
-    fixed = [e for e in state.first if e in FIXED_EFFECTS and e not in top]
-    pairs = list(itertools.combinations(top, 2)) + [(a, b) for a in top for b in fixed]
-    candidates = {}
-    for pair in pairs:
-        if set(pair) == set(state.chosen):
-            continue
-        members = [state.first[e] for e in pair]
-        st = _pair_structure(ctx, pair, members)
-        if not admissible(pair, st, c0):
-            continue
-        candidates[" + ".join(pair)] = (st, min(members, key=lambda f: f.bic))
+    candidates = _pair_candidates(ctx, state)
     # one Gauss-Newton step from the better member (exact Jacobian, one replay) screens every pair; the
     # PAIR_KEEP best are fitted in full
     screened = {}

@@ -205,6 +205,26 @@ def _profile_start(profile: str, old: Structure, new: Structure, values: np.ndar
     return np.interp(new.mach_knots[:-1], old.mach_knots, np.append(values, 0.0))
 
 
+def _ranking_row(f: FitResult, label: str, bic: float, b_best: float, b_cur: float) -> dict:
+    """One fit's row of the ranking: its effective BIC against the best and the current model's, and
+    what makes it credible or not."""
+    row = {
+        "effect": label,
+        "effects": list(f.effects),
+        "bic": bic,
+        "delta_bic": bic - b_best,
+        "improvement_over_current": b_cur - bic,
+        "bic_white": f.bic,
+        "credible": f.credible,
+        "at_bound": f.extra["at_bound"],
+        "initial_state_at_bound": f.extra["initial_state_at_bound"],
+        "implausible": f.extra["implausible"],
+    }
+    if "j2_check" in f.extra:
+        row["j2_check"] = f.extra["j2_check"]
+    return row
+
+
 def compare_fits(current: FitResult, fits: list[FitResult], sigma: np.ndarray, threshold: float,
                  labels: list[str] | None = None) -> dict:  # fmt: skip
     """Rank fits against the current model with BIC counted on the effective sample size.
@@ -231,22 +251,7 @@ def compare_fits(current: FitResult, fits: list[FitResult], sigma: np.ndarray, t
     b_best = b(fits[order[0]])
     table = []
     for i in order:
-        f = fits[i]
-        row = {
-            "effect": labels[i],
-            "effects": list(f.effects),
-            "bic": b(f),
-            "delta_bic": b(f) - b_best,
-            "improvement_over_current": b_cur - b(f),
-            "bic_white": f.bic,
-            "credible": f.credible,
-            "at_bound": f.extra["at_bound"],
-            "initial_state_at_bound": f.extra["initial_state_at_bound"],
-            "implausible": f.extra["implausible"],
-        }
-        if "j2_check" in f.extra:
-            row["j2_check"] = f.extra["j2_check"]
-        table.append(row)
+        table.append(_ranking_row(fits[i], labels[i], b(fits[i]), b_best, b_cur))
     credible = [i for i in order if fits[i].credible]
     acc = credible[0] if credible and b_cur - b(fits[credible[0]]) > threshold else None
     prov = None

@@ -135,6 +135,60 @@ def parse_effects(specs: list[str]) -> dict[str, str]:
     return out
 
 
+def _with_effect(w: truth.TruthWorld, name: str, values: list[float]) -> truth.TruthWorld:
+    """``w`` with the world effect ``name`` at ``values`` (checked: their number and range); the record
+    effects (a time offset, a bank or angle-of-attack bias) are only checked here."""
+    if name == "wind":
+        if len(values) > 2:
+            raise ValueError("--effect wind takes EAST or EAST,NORTH (m/s)")
+        return replace(w, wind_east=values[0], wind_north=values[1] if len(values) > 1 else 0.0)
+    if name in ("lift_band", "drag_band"):
+        if len(values) != 3 or values[0] <= 0 or not values[1] < values[2]:
+            raise ValueError(f"--effect {name} takes SCALE,LOW_KM,HIGH_KM (scale > 0, low < high)")
+        return replace(w, band_channel=name.split("_")[0], band_scale=values[0], band_low=values[1] * 1e3,
+                       band_high=values[2] * 1e3)  # fmt: skip
+    if name == "mach_lift":
+        if len(values) != 2 or values[1] <= 0:
+            raise ValueError("--effect mach_lift takes SCALE,MACH (C_L x SCALE below MACH > 0)")
+        return replace(w, mach_lift_scale=values[0], mach_lift_below=values[1])
+    if name == "density_wave":
+        if len(values) != 2 or values[1] <= 0:
+            raise ValueError("--effect density_wave takes AMPLITUDE,WAVELENGTH_KM (wavelength > 0)")
+        return replace(w, density_amplitude=values[0], density_wavelength=values[1] * 1e3)
+    if name == "mass_loss":
+        if len(values) != 3 or not (0 <= values[0] < 1) or not values[1] < values[2]:
+            raise ValueError("--effect mass_loss takes FRACTION,T0_S,T1_S (0 <= fraction < 1, T0 < T1)")
+        return replace(w, mass_loss=values[0], mass_loss_start=values[1], mass_loss_end=values[2])
+    if name == "wind_shear":
+        if len(values) > 2:
+            raise ValueError("--effect wind_shear takes PEAK_MPS[,REVERSAL_KM]")
+        return replace(w, wind_shear=values[0], shear_altitude=(values[1] * 1e3 if len(values) > 1 else w.shear_altitude))
+    if len(values) != 1:
+        raise ValueError(f"--effect {name} takes one value")
+    v = values[0]
+    if name == "j2_gravity":
+        w = replace(w, j2=v)
+    elif name == "density_profile":
+        w = replace(w, density_amplitude=v)
+    elif name == "lift_coefficient":
+        w = replace(w, cl_scale=v)
+    elif name in ("drag_coefficient", "mass"):
+        if v <= 0:
+            raise ValueError(f"--effect {name}: the scale must be positive, got {v:g}")
+        w = replace(w, cd_scale=v) if name == "drag_coefficient" else replace(w, mass=w.mass * v)
+    elif name == "mach_drag":
+        w = replace(w, mach_drag_amplitude=v)
+    elif name == "side_force":
+        w = replace(w, side_force=v)
+    elif name == "time_offset":
+        if abs(v) > 10.0:
+            raise ValueError(f"--effect time_offset: at most 10 s, got {v:g}")
+    elif name in ("bank_bias", "alpha_bias"):
+        if abs(v) > 30.0:
+            raise ValueError(f"--effect {name}: at most 30 deg, got {v:g}")
+    return w
+
+
 def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
     """The truth model containing ``effects`` (name -> value text); :data:`RECORD_EFFECTS` are not world effects."""
     w = truth.TruthWorld()
@@ -150,60 +204,7 @@ def truth_world(effects: dict[str, str]) -> truth.TruthWorld:
             raise ValueError(f"--effect {name}: cannot read {text!r} as number(s)") from None
         if not all(math.isfinite(v) for v in values):
             raise ValueError(f"--effect {name}: values must be finite, got {text!r}")
-        if name == "wind":
-            if len(values) > 2:
-                raise ValueError("--effect wind takes EAST or EAST,NORTH (m/s)")
-            w = replace(w, wind_east=values[0], wind_north=values[1] if len(values) > 1 else 0.0)
-            continue
-        if name in ("lift_band", "drag_band"):
-            if len(values) != 3 or values[0] <= 0 or not values[1] < values[2]:
-                raise ValueError(f"--effect {name} takes SCALE,LOW_KM,HIGH_KM (scale > 0, low < high)")
-            w = replace(w, band_channel=name.split("_")[0], band_scale=values[0], band_low=values[1] * 1e3,
-                        band_high=values[2] * 1e3)  # fmt: skip
-            continue
-        if name == "mach_lift":
-            if len(values) != 2 or values[1] <= 0:
-                raise ValueError("--effect mach_lift takes SCALE,MACH (C_L x SCALE below MACH > 0)")
-            w = replace(w, mach_lift_scale=values[0], mach_lift_below=values[1])
-            continue
-        if name == "density_wave":
-            if len(values) != 2 or values[1] <= 0:
-                raise ValueError("--effect density_wave takes AMPLITUDE,WAVELENGTH_KM (wavelength > 0)")
-            w = replace(w, density_amplitude=values[0], density_wavelength=values[1] * 1e3)
-            continue
-        if name == "mass_loss":
-            if len(values) != 3 or not (0 <= values[0] < 1) or not values[1] < values[2]:
-                raise ValueError("--effect mass_loss takes FRACTION,T0_S,T1_S (0 <= fraction < 1, T0 < T1)")
-            w = replace(w, mass_loss=values[0], mass_loss_start=values[1], mass_loss_end=values[2])
-            continue
-        if name == "wind_shear":
-            if len(values) > 2:
-                raise ValueError("--effect wind_shear takes PEAK_MPS[,REVERSAL_KM]")
-            w = replace(w, wind_shear=values[0], shear_altitude=(values[1] * 1e3 if len(values) > 1 else w.shear_altitude))
-            continue
-        if len(values) != 1:
-            raise ValueError(f"--effect {name} takes one value")
-        v = values[0]
-        if name == "j2_gravity":
-            w = replace(w, j2=v)
-        elif name == "density_profile":
-            w = replace(w, density_amplitude=v)
-        elif name == "lift_coefficient":
-            w = replace(w, cl_scale=v)
-        elif name in ("drag_coefficient", "mass"):
-            if v <= 0:
-                raise ValueError(f"--effect {name}: the scale must be positive, got {v:g}")
-            w = replace(w, cd_scale=v) if name == "drag_coefficient" else replace(w, mass=w.mass * v)
-        elif name == "mach_drag":
-            w = replace(w, mach_drag_amplitude=v)
-        elif name == "side_force":
-            w = replace(w, side_force=v)
-        elif name == "time_offset":
-            if abs(v) > 10.0:
-                raise ValueError(f"--effect time_offset: at most 10 s, got {v:g}")
-        elif name in ("bank_bias", "alpha_bias"):
-            if abs(v) > 30.0:
-                raise ValueError(f"--effect {name}: at most 30 deg, got {v:g}")
+        w = _with_effect(w, name, values)
     return w
 
 
@@ -303,6 +304,50 @@ def _check_noise_shape(noise_tails: str, start_scatter, entry_offset, observe: s
         raise ValueError("entry_offset: only a reduced record has a sidecar entry state")
 
 
+def _output_path(out: str | Path) -> Path:
+    """The record's path, its folder made, and a sidecar this command wrote beside an earlier record
+    of that name removed."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stale = out.with_suffix(".json")
+    if stale.is_file() and GENERATED_BY in stale.read_text():
+        stale.unlink()  # a sidecar this command wrote for an earlier record of that name
+    return out
+
+
+def _measured_columns(observe: str, t: np.ndarray, r: np.ndarray, v: np.ndarray, h: np.ndarray, noise,
+                      noise_tails: str, start_scatter, rng: np.random.Generator) -> dict:  # fmt: skip
+    """The observation columns of the record: the true positions and velocities (``"ecef"``) or
+    altitude and speed (``"reduced"``) with the measurement noise drawn from ``rng`` (normal or
+    heavy-tailed), and the start's scatter on the positions or altitudes."""
+
+    def draw(sd: float, shape) -> np.ndarray:
+        if noise_tails == "normal":
+            return rng.normal(0.0, sd, shape)
+        return sd * rng.standard_t(3, shape) / math.sqrt(3.0)  # variance of t(3) is 3
+
+    def scatter(shape) -> np.ndarray:
+        out = np.zeros(shape)
+        if start_scatter is not None and start_scatter[1] > 0:
+            early = t <= start_scatter[0]
+            out[early] = rng.normal(0.0, start_scatter[1], out[early].shape)
+        return out
+
+    if observe == "ecef":
+        r_m = r + draw(noise[0], r.shape) + scatter(r.shape)
+        v_m = v + draw(noise[1], v.shape)
+        cols = {n: c for n, c in zip(("x_m", "y_m", "z_m"), r_m.T)}
+        cols.update({n: c for n, c in zip(("vx_mps", "vy_mps", "vz_mps"), v_m.T)})
+    elif observe == "reduced":
+        cols = {
+            "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
+            "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
+        }
+    else:
+        raise ValueError("observe must be 'ecef' or 'reduced'")
+    return cols
+
+
 def simulate_record(
     out: str | Path,
     effects: dict[str, str] | None = None,
@@ -346,38 +391,11 @@ def simulate_record(
     r, v, h = _fly_truth(world, sc, t, dt_tag, effects)
     _check_noise_shape(noise_tails, start_scatter, entry_offset, observe)
     rng = np.random.default_rng(seed)
-
-    def draw(sd: float, shape) -> np.ndarray:
-        if noise_tails == "normal":
-            return rng.normal(0.0, sd, shape)
-        return sd * rng.standard_t(3, shape) / math.sqrt(3.0)  # variance of t(3) is 3
-
-    def scatter(shape) -> np.ndarray:
-        out = np.zeros(shape)
-        if start_scatter is not None and start_scatter[1] > 0:
-            early = t <= start_scatter[0]
-            out[early] = rng.normal(0.0, start_scatter[1], out[early].shape)
-        return out
-
     ctrl = np.array([sc.controls(ti) for ti in t])
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stale = out.with_suffix(".json")
-    if stale.is_file() and GENERATED_BY in stale.read_text():
-        stale.unlink()  # a sidecar this command wrote for an earlier record of that name
-    if observe == "ecef":
-        r_m = r + draw(noise[0], r.shape) + scatter(r.shape)
-        v_m = v + draw(noise[1], v.shape)
-        cols = {n: c for n, c in zip(("x_m", "y_m", "z_m"), r_m.T)}
-        cols.update({n: c for n, c in zip(("vx_mps", "vy_mps", "vz_mps"), v_m.T)})
-    elif observe == "reduced":
-        cols = {
-            "altitude_m": h + draw(noise[0], h.shape) + scatter(h.shape),
-            "speed_rel_mps": np.linalg.norm(v, axis=1) + draw(noise[1], h.shape),
-        }
+    out = _output_path(out)
+    cols = _measured_columns(observe, t, r, v, h, noise, noise_tails, start_scatter, rng)
+    if observe == "reduced":
         write_json(out.with_suffix(".json"), _reduced_sidecar(sc, world, entry_offset), indent=2)
-    else:
-        raise ValueError("observe must be 'ecef' or 'reduced'")
     cols["alpha_rad"] = ctrl[:, 0] + _record_bias(effects, "alpha_bias")
     cols["bank_rad"] = ctrl[:, 1] + _record_bias(effects, "bank_bias")
     write_record(out, t, cols)

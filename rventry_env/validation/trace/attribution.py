@@ -326,23 +326,13 @@ def _mach_text(entry: dict) -> str:
     return f" (Mach {m[0]:.1f}-{m[1]:.1f})" if m else ""
 
 
-def points_to(attribution: list[dict], rivals: list[dict], alpha_dependent: bool = False) -> list[str]:
-    """The physical effects a trace points to, in plain words (most specific first).
-
-    :param alpha_dependent: the vehicle's coefficients depend on the angle of attack (a trim offset
-        then moves drag and lift together, like the density).
+def _drag_and_lift_together(by: dict, alpha_dependent: bool) -> tuple[bool, list[str]]:
+    """Whether drag and vertical lift are traced over overlapping bands, and what that points to:
+    a mass change, the air density (or a trim offset) when they move the same way, a trim change
+    when they move apart.
     """
-    if not attribution:
-        return []
-    by = {e["channel"]: e for e in attribution}
-    out = []
-    whole = attribution[0]["whole_span"]
-    span = whole[1] - whole[0]
-
-    def local(e):
-        return (e["band"][1] - e["band"][0]) < 0.8 * span
-
     together = False
+    out = []
     if "drag" in by and "vertical_lift" in by:
         d, v = by["drag"], by["vertical_lift"]
         together = d["band"][0] <= v["band"][1] and v["band"][0] <= d["band"][1]  # the bands overlap
@@ -359,6 +349,79 @@ def points_to(attribution: list[dict], rivals: list[dict], alpha_dependent: bool
         else:
             out.append(f"a trim (angle-of-attack) change over {_fmt_band(d)}{_mach_text(d)}: drag and lift move in "
                        "opposite directions")  # fmt: skip
+    return together, out
+
+
+def _drag_effect(e: dict, where: str, mach_words: str, local: bool) -> str:
+    """What a drag correction alone points to: C_D varying with Mach, altitude or flight condition, or time."""
+    size = f"C_D x {1 + e['size']:.3f} at the peak"
+    if mach_words:
+        return (f"a drag coefficient that changes {mach_words} ({size}, over {where}): C_D varying with "
+                "Mach in a shape the mach_drag candidate cannot take")  # fmt: skip
+    if e["axis"] == "altitude" and local:
+        return (f"a drag change confined to {where} ({size}) and not to a Mach range: a drag coefficient "
+                "varying with Reynolds number (altitude) or with the angle of attack flown there")  # fmt: skip
+    if e["axis"] == "altitude":
+        return (f"a drag change over the altitudes flown ({size}) that the candidates cannot shape: C_D "
+                "varying with flight condition")  # fmt: skip
+    return (f"a drag change tied to time over {where} ({size}): a configuration or mass change "
+            "(ablation, a jettison) rather than the atmosphere")  # fmt: skip
+
+
+def _lift_effect(e: dict, where: str, mach_words: str, local: bool) -> str:
+    """What a vertical-lift correction alone points to: C_L varying with Mach, altitude or angle of attack."""
+    size = f"L/D {e['size']:+.3f} along the lift"
+    if mach_words:
+        return (f"a lift coefficient that changes {mach_words} ({size}, over {where}): C_L varying with "
+                "Mach, not the atmosphere (which would move the drag too)")  # fmt: skip
+    if local:
+        return (f"a lift change confined to {where} ({size}) and not to a Mach range: an aerodynamic "
+                "coefficient varying with Reynolds number (altitude) or the angle of attack flown there, "
+                "not the atmosphere (which would move the drag too)")  # fmt: skip
+    return (f"a lift change over the whole flight ({size}) with a shape the constant "
+            "lift_coefficient cannot take: C_L varying with Mach or angle of attack")  # fmt: skip
+
+
+def _lateral_effect(e: dict, where: str) -> str:
+    """What a lateral-lift correction points to: a bank bias when steady, a side force when it varies."""
+    coef = np.asarray(e["coefficients"]["value"], float)
+    se = e.get("coefficient_stderr_max") or 0.0
+    steady = float(np.ptp(coef)) <= max(3.0 * se, 0.1 * float(np.max(np.abs(coef))))
+    deg = math.degrees(e["size"])
+    if steady:
+        return (f"a bank-angle bias of {deg:+.2f} deg over {where} (the lift rotated out of the plane of "
+                "symmetry by a constant angle): an error in the bank record (a bias, a reference or sign "
+                "convention), or a side force (sideslip, an asymmetric shape)")  # fmt: skip
+    return (f"a force across the lift over {where} (the lift rotated by up to {deg:+.2f} deg out of the "
+            "plane of symmetry, not constant): a side force (sideslip, an asymmetric shape) or an "
+            "error in the bank record that varies")  # fmt: skip
+
+
+def _wind_effect(e: dict, where: str) -> str:
+    """What a wind correction points to: a wind (a shear when it reverses) the uniform candidate cannot shape."""
+    kind = "that reverses with altitude (a shear)" if e.get("reverses") else "that varies along the flight"
+    if e["axis"] == "time":
+        kind += " (traced over time: a horizontal force or wind not tied to altitude)"
+    return (f"a horizontal wind {kind}, peak {abs(e['size']):.0f} m/s over {where}; the uniform wind "
+            "candidate cannot take its shape")  # fmt: skip
+
+
+def points_to(attribution: list[dict], rivals: list[dict], alpha_dependent: bool = False) -> list[str]:
+    """The physical effects a trace points to, in plain words (most specific first).
+
+    :param alpha_dependent: the vehicle's coefficients depend on the angle of attack (a trim offset
+        then moves drag and lift together, like the density).
+    """
+    if not attribution:
+        return []
+    by = {e["channel"]: e for e in attribution}
+    whole = attribution[0]["whole_span"]
+    span = whole[1] - whole[0]
+
+    def local(e):
+        return (e["band"][1] - e["band"][0]) < 0.8 * span
+
+    together, out = _drag_and_lift_together(by, alpha_dependent)
     for c, e in by.items():
         where = f"{_fmt_band(e)}{_mach_text(e)}"
         mach = e.get("mach_range_of_band") or {}
@@ -369,50 +432,13 @@ def points_to(attribution: list[dict], rivals: list[dict], alpha_dependent: bool
         else:
             mach_words = ""
         if c == "drag" and not together:
-            size = f"C_D x {1 + e['size']:.3f} at the peak"
-            if mach_words:
-                out.append(f"a drag coefficient that changes {mach_words} ({size}, over {where}): C_D varying with "
-                           "Mach in a shape the mach_drag candidate cannot take")  # fmt: skip
-            elif e["axis"] == "altitude" and local(e):
-                out.append(f"a drag change confined to {where} ({size}) and not to a Mach range: a drag coefficient "
-                           "varying with Reynolds number (altitude) or with the angle of attack flown there")  # fmt: skip
-            elif e["axis"] == "altitude":
-                out.append(f"a drag change over the altitudes flown ({size}) that the candidates cannot shape: C_D "
-                           "varying with flight condition")  # fmt: skip
-            else:
-                out.append(f"a drag change tied to time over {where} ({size}): a configuration or mass change "
-                           "(ablation, a jettison) rather than the atmosphere")  # fmt: skip
+            out.append(_drag_effect(e, where, mach_words, local(e)))
         elif c == "vertical_lift" and not together:
-            size = f"L/D {e['size']:+.3f} along the lift"
-            if mach_words:
-                out.append(f"a lift coefficient that changes {mach_words} ({size}, over {where}): C_L varying with "
-                           "Mach, not the atmosphere (which would move the drag too)")  # fmt: skip
-            elif local(e):
-                out.append(f"a lift change confined to {where} ({size}) and not to a Mach range: an aerodynamic "
-                           "coefficient varying with Reynolds number (altitude) or the angle of attack flown there, "
-                           "not the atmosphere (which would move the drag too)")  # fmt: skip
-            else:
-                out.append(f"a lift change over the whole flight ({size}) with a shape the constant "
-                           "lift_coefficient cannot take: C_L varying with Mach or angle of attack")  # fmt: skip
+            out.append(_lift_effect(e, where, mach_words, local(e)))
         elif c == "lateral_lift":
-            coef = np.asarray(e["coefficients"]["value"], float)
-            se = e.get("coefficient_stderr_max") or 0.0
-            steady = float(np.ptp(coef)) <= max(3.0 * se, 0.1 * float(np.max(np.abs(coef))))
-            deg = math.degrees(e["size"])
-            if steady:
-                out.append(f"a bank-angle bias of {deg:+.2f} deg over {where} (the lift rotated out of the plane of "
-                           "symmetry by a constant angle): an error in the bank record (a bias, a reference or sign "
-                           "convention), or a side force (sideslip, an asymmetric shape)")  # fmt: skip
-            else:
-                out.append(f"a force across the lift over {where} (the lift rotated by up to {deg:+.2f} deg out of the "
-                           "plane of symmetry, not constant): a side force (sideslip, an asymmetric shape) or an "
-                           "error in the bank record that varies")  # fmt: skip
+            out.append(_lateral_effect(e, where))
         elif c == "wind":
-            kind = "that reverses with altitude (a shear)" if e.get("reverses") else "that varies along the flight"
-            if e["axis"] == "time":
-                kind += " (traced over time: a horizontal force or wind not tied to altitude)"
-            out.append(f"a horizontal wind {kind}, peak {abs(e['size']):.0f} m/s over {where}; the uniform wind "
-                       "candidate cannot take its shape")  # fmt: skip
+            out.append(_wind_effect(e, where))
     axes = {e["axis"] for e in attribution}
     tied_to_mach = any(e.get("mach_range_of_band") for e in attribution)
     if axes == {"time"} and not tied_to_mach and not any(r["axis"] == "altitude" for r in rivals):
@@ -421,18 +447,15 @@ def points_to(attribution: list[dict], rivals: list[dict], alpha_dependent: bool
     return out
 
 
-def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
-    """Trace the residual of ``final`` to a force channel (see the module docstring).
+def _screen_fits(ctx, final, sigma_entries, n_groups: int, say) -> list[dict]:
+    """Screen every channel and channel pair over altitude and over time, at every knot count.
 
-    :param ctx: the fit context of the record.
-    :param final: the identified fit.
-    :param threshold: the BIC margin the trace must beat the identified model by.
-    :return: the trace: ``attribution`` (a list of channel, axis, band, size, ...), the rivals,
-        the fits tried, what the record would look like with it, and the effects it points to.
+    Each is one linear step from the identified fit (`_Linearized.screen`); a coarser knot count
+    reuses the Jacobian of a finer one that serves it.
+
+    :return: one entry per (channels, axis, knots) with its step, residual, RSS by group and white BIC.
     """
-    n_groups = int(np.max(ctx.groups)) + 1
     n_values = int(np.count_nonzero(np.isfinite(ctx.replay.y)))
-    sigma_entries = np.broadcast_to(ctx.sigma, ctx.replay.y.shape)[np.isfinite(ctx.replay.y)]
     combos = [(c,) for c in CHANNELS] + list(itertools.combinations(CHANNELS, 2))
     fits = []  # (label channels, axis, k, lin, step, r_new, n_params)
     engines = ctx.engines
@@ -454,6 +477,67 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
             lin.release(keep_jacobian=finer is None)
         for lin in replayed:
             lin.release()
+    return fits
+
+
+def _eligible(f: dict, chosen: dict, threshold: float) -> bool:
+    """Whether a fit may lead: refined, inside its physical bounds, and (a pair) better than its members."""
+    if not f.get("refined") or f["outside"]:
+        return False
+    # a pair must beat each of its members alone (same axis), refined alike, by the threshold too
+    return len(f["channels"]) == 1 or all(
+        chosen[((c,), f["axis"])].get("refined") and f["bic"] < chosen[((c,), f["axis"])]["bic"] - threshold
+        for c in f["channels"])  # fmt: skip
+
+
+def _refine_ranked(ctx, final, chosen: dict, threshold: float, sigma_entries, n_groups: int, n_eff: float,
+                   cost_final: float, say) -> None:
+    """Refine the screening's best corrections to convergence, in place (their BIC, residual, bounds).
+
+    The screening is one linear step: a large residual is not linear, so its best are refined to
+    convergence, the best of each axis first, then in the screening's order while an unrefined
+    correction's screened BIC could still beat the best refined one or tie with it (within the
+    threshold: a rival the record cannot tell apart is refined too, so the winner is decided between
+    converged fits). A pair is compared with its members refined alike.
+    """
+    ranked = sorted(chosen.values(), key=lambda f: f["bic"])
+
+    def refine(f) -> int:
+        if f.get("refined"):
+            return 0
+        say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
+        theta, r, at_bound = _refine(ctx, f, final)
+        rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
+        f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True,
+                 cost_ratio=float(r @ r) / cost_final)  # fmt: skip
+        f["outside"] = sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound))
+        return 1
+
+    order = [next(f for f in ranked if f["axis"] == axis) for axis in ("altitude", "time")
+             if any(f["axis"] == axis for f in ranked)]  # fmt: skip
+    order += [f for f in ranked if f not in order]
+    n_refined = 0
+    for f in order:
+        best_bic = min((g["bic"] for g in ranked if _eligible(g, chosen, threshold)), default=math.inf)
+        if n_refined >= 2 and (f["bic_screened"] >= best_bic + threshold or n_refined >= REFINE_BUDGET):
+            break
+        n_refined += refine(f)
+        for c in f["channels"] if len(f["channels"]) == 2 else ():
+            n_refined += refine(chosen[((c,), f["axis"])])  # a pair is compared with its members refined alike
+
+
+def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
+    """Trace the residual of ``final`` to a force channel (see the module docstring).
+
+    :param ctx: the fit context of the record.
+    :param final: the identified fit.
+    :param threshold: the BIC margin the trace must beat the identified model by.
+    :return: the trace: ``attribution`` (a list of channel, axis, band, size, ...), the rivals,
+        the fits tried, what the record would look like with it, and the effects it points to.
+    """
+    n_groups = int(np.max(ctx.groups)) + 1
+    sigma_entries = np.broadcast_to(ctx.sigma, ctx.replay.y.shape)[np.isfinite(ctx.replay.y)]
+    fits = _screen_fits(ctx, final, sigma_entries, n_groups, say)
     base_rss, base_n = final.rss_by_group, final.n_by_group
     best_raw = min(fits, key=lambda f: f["bic_white"])
     lag1 = whiteness(_residual_matrix(best_raw["lin"], best_raw["r"]))["lag1_autocorrelation"]
@@ -471,44 +555,9 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     cost_final = max(float(r_final @ r_final), 1e-300)
     for f in chosen.values():
         f["bic_screened"] = f["bic"]
+    _refine_ranked(ctx, final, chosen, threshold, sigma_entries, n_groups, n_eff, cost_final, say)
     ranked = sorted(chosen.values(), key=lambda f: f["bic"])
-
-    def refine(f) -> int:
-        if f.get("refined"):
-            return 0
-        say(f"trace: refining {' + '.join(f['channels'])} over {f['axis']} ({f['knots']} knots)")
-        theta, r, at_bound = _refine(ctx, f, final)
-        rss, nval = _rss_by_group(r, sigma_entries, f["lin"].group_of, n_groups)
-        f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True,
-                 cost_ratio=float(r @ r) / cost_final)  # fmt: skip
-        f["outside"] = sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound))
-        return 1
-
-    def eligible(f):
-        if not f.get("refined") or f["outside"]:
-            return False
-        # a pair must beat each of its members alone (same axis), refined alike, by the threshold too
-        return len(f["channels"]) == 1 or all(
-            chosen[((c,), f["axis"])].get("refined") and f["bic"] < chosen[((c,), f["axis"])]["bic"] - threshold
-            for c in f["channels"])  # fmt: skip
-
-    # the screening is one linear step: a large residual is not linear, so its best are refined to convergence,
-    # the best of each axis first, then in the screening's order while an unrefined correction's screened BIC
-    # could still beat the best refined one or tie with it (within the threshold: a rival the record cannot
-    # tell apart is refined too, so the winner is decided between converged fits)
-    order = [next(f for f in ranked if f["axis"] == axis) for axis in ("altitude", "time")
-             if any(f["axis"] == axis for f in ranked)]  # fmt: skip
-    order += [f for f in ranked if f not in order]
-    n_refined = 0
-    for f in order:
-        best_bic = min((g["bic"] for g in ranked if eligible(g)), default=math.inf)
-        if n_refined >= 2 and (f["bic_screened"] >= best_bic + threshold or n_refined >= REFINE_BUDGET):
-            break
-        n_refined += refine(f)
-        for c in f["channels"] if len(f["channels"]) == 2 else ():
-            n_refined += refine(chosen[((c,), f["axis"])])  # a pair is compared with its members refined alike
-    ranked = sorted(chosen.values(), key=lambda f: f["bic"])
-    eligible_fits = [f for f in ranked if eligible(f)]
+    eligible_fits = [f for f in ranked if _eligible(f, chosen, threshold)]
     table = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"], "bic_gain": b_final - f["bic"],
               "screened_bic_gain": b_final - f["bic_screened"], "refined": bool(f.get("refined")),
               "cost_ratio": f.get("cost_ratio"), "refine_replays": f.get("refine_nfev"),
