@@ -129,3 +129,31 @@ def test_bad_guess_is_rejected():
         SampledGuess(np.array([0.0, 0.0]), np.zeros((2, 2)), np.zeros((2, 1)))
     with pytest.raises(ValueError, match="NaN or inf"):
         SampledGuess(np.array([0.0, 1.0]), np.array([[0.0, np.nan], [0, 0]]), np.zeros((2, 1)))
+
+
+def test_the_entry_problem_carries_the_papers_boundary_conditions_and_bounds():
+    """Example 2's Table tab:Ex2-BCs and Eq. Ex2-path, as the transcription receives them: the entry
+    state fixed but for alpha and sigma, the impact at the surface at 1219 m/s, vertical, alpha 0,
+    and the rate and alpha bounds (an independent statement of the paper's numbers, not the config's)."""
+    from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
+
+    config = EntryProblemConfig()
+    p = entry_problem(config)
+    re = config.model.planet.radius
+    half = math.sqrt(2.0) / 2.0
+    x0 = [re + 37e3, 0, 0, 0, 1, 7138.0, 0, 0, half, half]
+    assert np.allclose(np.asarray(p.initial_lower)[:10], x0, rtol=0, atol=1e-9)
+    assert np.allclose(np.asarray(p.initial_upper)[:10], x0, rtol=0, atol=1e-9)
+    assert p.initial_lower[10] == 0.0 and p.initial_upper[10] == pytest.approx(math.radians(25.0))  # alpha(0) free
+    assert p.initial_lower[11] < -math.pi and p.initial_upper[11] > math.pi  # sigma(0) free
+    lo, hi = np.asarray(p.final_lower), np.asarray(p.final_upper)
+    assert lo[0] == hi[0] == pytest.approx(re)
+    assert lo[5] == hi[5] == pytest.approx(1219.0)
+    assert lo[10] == hi[10] == 0.0
+    assert lo[6] == hi[6] == 0.0 and lo[9] == hi[9] == 0.0  # eB1 = etaB = 0: vertical impact
+    free = [1, 2, 3, 4, 7, 8, 11]  # held by the path bounds alone
+    assert np.array_equal(lo[free], np.asarray(p.state_lower)[free])
+    assert np.array_equal(hi[free], np.asarray(p.state_upper)[free])
+    assert p.state_lower[10] == 0.0 and p.state_upper[10] == pytest.approx(math.radians(25.0))
+    assert p.control_upper[0] == -p.control_lower[0] == pytest.approx(math.radians(10.0))
+    assert p.control_upper[1] == -p.control_lower[1] == pytest.approx(math.radians(30.0))
