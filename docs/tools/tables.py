@@ -468,6 +468,107 @@ def jax_cpu_table(bench: dict, ppo: dict) -> str:
                       source("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json")])
 
 
+def _per_s(v: float) -> str:
+    """Vehicle-steps/s as the GPU table writes them: millions, or 1e9 from a billion up."""
+    return f"{v / 1e9:.2f}e9" if v >= 1e9 else f"{v / 1e6:.0f}M"
+
+
+def _functional(runs: list, dtype: str, dispersion: str = "standard") -> dict:
+    """A functional-env run list's vehicle-steps/s by vehicle count, for one number type and set."""
+    return {r["num_envs"]: r["vehicle_steps_per_s"] for r in runs if r["dtype"] == dtype and r["dispersion"] == dispersion}
+
+
+def _passed(text: str) -> str:
+    """``N passed in S s`` from a test run's result line."""
+    m = re.search(r"(\d+) passed in ([\d.]+) ?s", text)
+    return f"{m.group(1)} passed in {float(m.group(2)):.0f} s"
+
+
+def jax_gpu_table(h200: dict, h100: dict, kernels: dict) -> str:
+    """The JAX backend on one GPU: the functional env's throughput on an H100 and an H200, where the
+    H100's time goes, the Gymnasium face, agreement with NumPy, the tests and PPO end to end."""
+    f64, f32 = _functional(h100["functional"]["runs"], "float64"), _functional(h100["functional"]["runs"], "float32")
+    b64 = _functional(h100["functional_before_sqrt"]["runs"], "float64")
+    sizes = sorted(f64)
+    r = h200["runs"]
+    s64, s32 = _functional(r["functional_sizes"]["functional"], "float64"), _functional(r["functional_sizes"]["functional"], "float32")
+    p64, p32 = (next(x for x in r["functional_parts"]["functional"] if x["dtype"] == d) for d in ("float64", "float32"))
+    face = r["gymnasium_face_flight_and_agreement"]
+    fl64, fl32 = _functional(face["functional"], "float64", "flight"), _functional(face["functional"], "float32", "flight")
+    (n_flight,) = fl64
+    v, a = face["vector"], face["agreement"]
+    vs, first = v["vehicle_steps_per_s"], v["first_step_s"]
+    ppo = r["jax_ppo_gpu"]
+    compile_s = [x["first_call_s"] for x in r["functional_sizes"]["functional"] if x["dtype"] == "float64"]
+    # the H100's Nsight Compute profile: the kernels launched at every step of the scan (the others run once)
+    step = [k for k in kernels["ncu_kernels_per_step_N_1048576"]["base"] if k["launches"] > 1]
+    n_ncu = 1_048_576
+    physics = [k for k in step if k["registers_per_thread"] == max(x["registers_per_thread"] for x in step)]
+    reset = next(k for k in step if k["kernel"].startswith("loop_select_fusion"))  # gymnax's autoreset select
+    variant = {}
+    for x in kernels["runs"]:
+        variant.setdefault((x["variant"], x["num_envs"]), x["vehicle_steps_per_s"])  # the first run of each
+    big = max(n for _, n in variant)
+    best_64 = max(f64.values())
+    rows = [
+        [f"**H100**, functional env, float64, `{present_command(h100['commands']['functional'])}`, the package as it is now",
+         " and ".join(_per_s(f64[n]) if n != sizes[-1] else f"**{_per_s(f64[n])}**" for n in sizes)
+         + f" vehicle-steps/s (the same machine, before `aero_accel` used `sqrt`: {' and '.join(_per_s(b64[n]) for n in sizes)})",
+         f">= 1e9 on an H100-class card: {_met(best_64 >= 1e9)} ({min(f64.values()) / 1e9:.2f}-{best_64 / 1e9:.2f}e9)"],
+        ["**H100**, the same, float32",
+         " and ".join(_per_s(f32[n]) if n != sizes[-1] else f"**{_per_s(f32[n])}**" for n in sizes) + " vehicle-steps/s", ""],
+        [f"**H100**, where the float64 time goes (Nsight Compute at N = {n_ncu:,}, kernels over 50 us; "
+         "`docs/results/bench_jax_h100_kernels.json`, [docs/env.md](../env.md))",
+         f"{sum(k['time_ms'] for k in step):.1f} ms of kernels a step: the physics step "
+         f"{' + '.join(sig(k['time_ms'], 2) for k in physics)} ms at {physics[0]['registers_per_thread']} registers per thread "
+         f"({' and '.join(format(k['local_load_bytes'] / n_ncu / 1e3, '.2f') for k in physics)} KB of spilled registers per vehicle); "
+         f"**gymnax's autoreset {reset['time_ms']:.2f} ms**, its select with the whole reset fused in, compiled at "
+         f"**{reset['registers_per_thread']} registers** with {reset['local_load_bytes'] / n_ncu / 1e3:.1f} KB per vehicle of "
+         f"local-memory loads. Tried and not kept, none faster at {big / 2**20:.0f}M vehicles: a kernel per RK4 stage "
+         f"({_per_s(variant['stages', n_ncu])} at 1M and {_per_s(variant['stages', big])} at {big / 2**20:.0f}M, against "
+         f"{_per_s(variant['base', n_ncu])} and {_per_s(variant['base', big])}), the reset cut out of the select "
+         f"({_per_s(variant['reset', n_ncu])} at 1M), XLA's unrolling off, multi-output and horizontal fusion off", ""],
+        [f"H200, functional env, float64, `jit` of `lax.scan` over {r['functional_sizes']['functional'][0]['steps']} "
+         f"`vmap`-ed steps with autoreset (`{present_command(r['functional_sizes']['command'])}`), before both changes above",
+         "; ".join(f"N = {n:,}: {_per_s(s64[n])}" + (f" ({_per_s(p64['vehicle_steps_per_s'])} on a second machine of the kind)"
+                                                      if n == p64["num_envs"] else "") for n in sorted(s64))
+         + f" vehicle-steps/s; compilation {min(compile_s):.0f}-{max(compile_s):.0f} s", ""],
+        ["H200, the same, float32",
+         " / ".join((f"**{_per_s(s32[n])}**" if n == max(s32) else _per_s(s32[n]))
+                    + (f" ({_per_s(p32['vehicle_steps_per_s'])} on the second machine)" if n == p32["num_envs"] else "")
+                    for n in sorted(s32)) + " vehicle-steps/s", ""],
+        [f"H200, the autoreset's share (`--functional-sizes {p64['num_envs']} --functional-parts`)",
+         f"`step_env` alone (no autoreset) {_per_s(p64['step_env_only_per_s'])}/s, the whole step "
+         f"{_per_s(p64['vehicle_steps_per_s'])}/s (the H100's kernel profile above puts half the step in the autoreset's "
+         "kernel; why the `step_env`-only scan was no faster was not found)", ""],
+        [f"functional env, `flight` set (NRLMSIS and Gauss-Markov profiles, winds, sensor and navigation errors; pool of "
+         f"256), N = {n_flight:,}", f"float64 {_per_s(fl64[n_flight])}, float32 {_per_s(fl32[n_flight])} vehicle-steps/s", ""],
+        [f"Gymnasium face (`gym.make_vec(..., backend=\"jax\")`), N = {v['num_envs']:,}, against the NumPy vector env on the "
+         f"machine's {face['machine']['cpus']} cores (`{present_command(face['command'])}`, which also gave the `flight` row "
+         "above and the agreement below)",
+         f"NumPy {vs['numpy'] / 1e6:.2f}M; JAX float64 **{vs['jax_float64'] / 1e6:.2f}M ({vs['jax_float64'] / vs['numpy']:.1f}x)**; "
+         f"float32 {vs['jax_float32'] / 1e6:.2f}M vehicle-steps/s; first step {first['jax_float64']:.1f} s / "
+         f"{first['jax_float32']:.1f} s", "(the 2x target is for two cores, where it is not met: table above)"],
+        [f"JAX float64 on the GPU vs NumPy on the CPU, {a['episodes']} whole standard-set episodes, same seed and actions",
+         f"largest observation difference **{sig(a['max_obs_diff_float64'], 2)}**"
+         + (" (the float32 observations equal bit for bit)" if a["max_obs_diff_float64"] == 0 else "")
+         + f"; final positions within {a['impact_position_error_float64_vs_numpy_m']:.1e} m; float32 vs float64: median "
+         f"{a['float32_end_position_error_m']['median']:.1f} m, largest {a['float32_end_position_error_m']['max'] / 1e3:.1f} km, "
+         f"the same ending in {a['float32_same_ending']}/{a['episodes']}", f"<= 1e-5: {_met(a['max_obs_diff_float64'] <= 1e-5)}"],
+        [f"`tests/test_jax.py` on the GPU (`{r['test_jax']['command']}`)",
+         f"{_passed(r['test_jax']['result'])} on the H200; {_passed(h100['tests'])} on the H100 with the package as it is now", ""],
+        ["end-to-end PPO in JAX on the GPU (`rventry train jax-ppo --config rventry_agents/baselines/jax_ppo_gpu.toml "
+         "--max-wall-s 150`: 4,096 vehicles, rollouts of 262,144 steps)",
+         f"**{ppo['env_steps_per_s'] / 1e6:.2f}M env-steps/s** after {ppo['compile_s']:.0f} s of compilation: "
+         f"{ppo['timesteps'] / 1e6:.0f}M steps in {ppo['wall_s']:.0f} s, "
+         + ("one training program compiled" if ppo["train_compilations"] == 1 else f"{ppo['train_compilations']} training programs compiled"),
+         f">= 1e6: {_met(ppo['env_steps_per_s'] >= 1e6)}"],
+    ]  # fmt: skip
+    return "\n".join([md(["", "measured", "target"], rows), "",
+                      source("docs/results/bench_jax_h200.json", "docs/results/bench_jax_h100.json",
+                             "docs/results/bench_jax_h100_kernels.json")])
+
+
 BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
 
 
@@ -636,6 +737,8 @@ TABLES: tuple[Table, ...] = (
           terminal_alpha_tables, ("docs/benchmarks/guidance.md",)),
     Table("jax-cpu", ("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json"), jax_cpu_table,
           ("docs/benchmarks/jax.md",)),
+    Table("jax-gpu", ("docs/results/bench_jax_h200.json", "docs/results/bench_jax_h100.json",
+                      "docs/results/bench_jax_h100_kernels.json"), jax_gpu_table, ("docs/benchmarks/jax.md",)),
     Table("rounds-dagger", ("rventry_agents/data/dagger/rounds.json",), rounds_table("rventry_agents/data/dagger/rounds.json"),
           ("docs/benchmarks/learned_policies.md",)),
     Table("rounds-dagger-flight", ("rventry_agents/data/dagger_flight/rounds.json",),
