@@ -569,6 +569,69 @@ def jax_gpu_table(h200: dict, h100: dict, kernels: dict) -> str:
                              "docs/results/bench_jax_h100_kernels.json")])
 
 
+PPO_RECORDS = (*(f"docs/results/ppo_q_floor/ppo_{s}.json" for s in ("flight", "standard", "wide", "peer-0.1")),
+               "docs/results/bench_seeds_ppo.json", "docs/results/q_floor_dagger_flight_heldout.json",
+               "docs/results/mpc_flight_flight200.json", "rventry_agents/data/ppo_finetune/metadata.json")  # fmt: skip
+
+
+def _bold_ci(r: dict, key: str = "success_rate") -> str:
+    lo, hi = r[f"{key}_ci"]
+    return f"**{rate(r[key])}** [{lo:.2f}, {hi:.2f}]"
+
+
+def ppo_table(flight: dict, standard: dict, wide: dict, peer: dict, seeds: dict, start_floor: dict, mpc: dict,
+              metadata: dict) -> str:
+    """The shipped ``ppo`` held out: with its q floor, as trained, its start, its start with the same floor."""
+    import numpy as np
+
+    from rventry_env.evaluation.seeds import seed_statistics
+    from rventry_env.evaluation.summary import rate_interval
+
+    floor = {"flight": flight["summary"], "standard": standard["summary"], "wide": wide["summary"], "peer-0.1": peer["summary"]}
+    trained, start = seeds["runs"]["ppo"][0]["sets"], seeds["runs"]["dagger-flight"][0]["sets"]
+    margin = start_floor["chosen"]
+    floored = start_floor["success"][next(k for k in start_floor["success"] if k != "none" and float(k) == margin)]
+    n = start_floor["episodes"]
+
+    def start_floor_cell(s: str, interval: bool = False) -> str:
+        if s not in floored:
+            return "no record"
+        if not interval:
+            return rate(floored[s])
+        k = round(floored[s] * n)
+        lo, hi = rate_interval([True] * k + [False] * (n - k))
+        return f"{rate(floored[s])} [{lo:.2f}, {hi:.2f}]"
+
+    m = mpc["summary"]["success_rate"]
+    both = lambda d: f"{rate(d['standard']['success_rate'])} / {rate(d['wide']['success_rate'])}"  # noqa: E731
+    sw_met = floor["standard"]["success_rate"] >= 0.99 and floor["wide"]["success_rate"] >= 0.98
+    runs = [r["sets"]["flight"]["success_rate"] for r in seeds["runs"]["ppo"]]
+    iqm = seed_statistics({"ppo": np.array([[x] for x in runs])})["ppo"]
+    wall, steps = float(metadata["wall_time_s"]), int(metadata["timesteps"])
+    rows = [
+        ["`flight`, basic success", _bold_ci(floor["flight"]), ci(trained["flight"]), ci(start["flight"]),
+         start_floor_cell("flight", True),
+         f">= 0.97, and >= `mpc`'s on the same seeds (`mpc-flight` {rate(m)}): "
+         f"{_met(floor['flight']['success_rate'] >= max(0.97, m))}"],
+        ["`flight`, precision tier", ci(floor["flight"], "precision_success_rate"),
+         rate(trained["flight"]["precision_success_rate"]), rate(start["flight"]["precision_success_rate"]), "no record",
+         f">= 0.80: {_met(floor['flight']['precision_success_rate'] >= 0.80)}"],
+        ["standard / wide, basic", f"**{both(floor)}**", both(trained), both(start),
+         f"{start_floor_cell('standard')} / {start_floor_cell('wide')}", f">= 0.99 / >= 0.98: {_met(sw_met)}"],
+        ["`peer-0.1`, basic", _bold_ci(floor["peer-0.1"]), rate(trained["peer-0.1"]["success_rate"]),
+         rate(start["peer-0.1"]["success_rate"]), start_floor_cell("peer-0.1"),
+         f">= 0.97: {_met(floor['peer-0.1']['success_rate'] >= 0.97)}"],
+        ["training wall time", f"{wall:.0f} s ({steps / 1e6:g}M steps, seed {metadata['seed']})", "", "", "",
+         f"<= 2 h: {_met(wall <= 7200)}"],
+        [f"IQM over {len(runs)} seeds, `flight` (as trained)", "",
+         f"**{iqm['iqm']:.3f}** [{iqm['iqm_ci'][0]:.3f}, {iqm['iqm_ci'][1]:.3f}] (seeds 0-{len(runs) - 1}: "
+         f"{', '.join(f'{x:.3f}' for x in runs)})", rate(start["flight"]["success_rate"]), "", "reported"],
+    ]  # fmt: skip
+    header = [f"`ppo` (PPO-trained), {flight['summary']['episodes']} episodes, seed 0", "measured, with the q floor",
+              "as trained", "its start, `dagger-flight`", "its start with the same q floor", "target"]  # fmt: skip
+    return "\n".join([md(header, rows), "", source(*PPO_RECORDS)])
+
+
 BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
 
 
@@ -728,6 +791,7 @@ TABLES: tuple[Table, ...] = (
     Table("navigation-mpc-flight", ("docs/results/nav_mpc_flight200.json",), navigation_tables,
           ("docs/benchmarks/flight_grade.md",)),
     Table("seeds-ppo", ("docs/results/bench_seeds_ppo.json",), seeds_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("ppo-heldout", PPO_RECORDS, ppo_table, ("docs/benchmarks/learned_policies.md",)),
     *(Table(f"scan-{name}", (f"docs/results/scan_mpc_{name}.json",), scan_table(f"docs/results/scan_mpc_{name}.json"),
             ("docs/benchmarks/guidance.md",))
       for name in ("flight", "aero", "final", "estimator", "split", "dive", "track", "floor")),
