@@ -65,6 +65,12 @@ def sig(v, digits: int = 3) -> str:
     return f"{v:.{decimals}f}"
 
 
+def sci(v: float, decimals: int) -> str:
+    """``v`` in scientific notation without the exponent's padding: 9.22e-7."""
+    mantissa, exponent = f"{v:.{decimals}e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
 def rate(v) -> str:
     """A rate: three decimals where the third is not 0, else two (as ``rventry compare`` prints)."""
     text = f"{v:.3f}"
@@ -632,6 +638,58 @@ def ppo_table(flight: dict, standard: dict, wide: dict, peer: dict, seeds: dict,
     return "\n".join([md(header, rows), "", source(*PPO_RECORDS)])
 
 
+SHIPPED_REFERENCE = "rventry_env/reference/data/entry_reference_v1.json"
+
+
+def reference_table(doc: dict) -> str:
+    """The shipped collocation optimum, from the summary its solve wrote beside it."""
+    d = doc["diagnostics"]
+    exact = "exactly 0" if d["final_eB1"] == 0 and d["final_etaB"] == 0 else f"{d['final_eB1']:.1e}, {d['final_etaB']:.1e}"
+    rows = [
+        ["J*", f"{doc['cost']:.6f}", ""],
+        ["t_f", f"{doc['tf_s']:.3f} s", ""],
+        ["final mesh max relative error", f"{sci(doc['mesh_error'], 2)} ({doc['n_intervals']} intervals, {doc['n_nodes']} nodes)",
+         f"<= {sci(doc['mesh_tolerance'], 0)}"],
+        ["max constraint violation (scaled NLP)", sci(doc["max_constraint_violation"], 1), ""],
+        ["eB1(t_f), etaB(t_f)", exact, "exact"],
+        ["IPOPT iterations per mesh pass", ", ".join(map(str, doc["nlp_iterations_per_pass"])), ""],
+        ["|lambda|, the norm-keeping control, largest", f"{sci(d['max_abs_lambda_per_s'], 1)} /s", "0 (the paper's problem)"],
+        ["the shipped file's solve: wall (CPU), peak memory of the process",
+         f"{doc['solve_time_s']:.1f} s ({doc['solve_cpu_s']:.1f} s), {doc['rss_peak_mb']:.0f} MB", ""],
+    ]  # fmt: skip
+    return "\n".join([md(["quantity (`rventry reference show`)", "measured", "target"], rows), "",
+                      source(SHIPPED_REFERENCE, command=doc.get("command"))])
+
+
+ORBIT_RECORDS = ("docs/results/orbit.json", "docs/results/orbit_n.json")
+
+
+def orbit_table(sweep: dict, chosen: dict) -> str:
+    """Example 1: one period of the orbit in rv-Euler and in spherical coordinates, against the analytic one."""
+    rows = {r["n"]: r for r in chosen["results"]}
+    at = rows[chosen["n1000"]["n"]]
+    n1, n2 = sorted(n for n in rows if n != chosen["n1000"]["n"])[:2]
+    order = {form: math.log(rows[n1][f"{form}_km"] / rows[n2][f"{form}_km"]) / math.log(n2 / n1)
+             for form in ("rv_euler", "spherical")}  # fmt: skip
+    from rventry_env.examples.orbit.numerics import PLATEAU_N as plateau
+
+    floor = sweep["floor_km"]
+    table = [
+        [f"e_r,max at N = {at['n']}, rv-Euler / spherical (`rventry orbit --n {at['n']}`)",
+         f"{sci(at['rv_euler_km'], 2)} km / {sci(at['spherical_km'], 2)} km, ratio {chosen['n1000']['ratio_of_max']:.0f}",
+         '"three orders of magnitude"'],
+        [f"median error ratio after the South-Pole pass, N = {at['n']}", f"{chosen['n1000']['median_ratio_after_south_pole']:.0f}", ""],
+        [f"floor, median over N >= {plateau}, rv-Euler / spherical",
+         f"{sci(floor['rv_euler']['plateau_median'], 1)} km / {sci(floor['spherical']['plateau_median'], 1)} km",
+         '"around 1e-10 km"'],
+        [f"convergence order (N = {n1} -> {n2})", f"{order['rv_euler']:.1f} / {order['spherical']:.1f}", ""],
+    ]  # fmt: skip
+    commands = f"`rventry orbit --json PATH` (the paper's {len(sweep['results'])} values of N) and " \
+               f"`rventry orbit {' '.join(f'--n {n}' for n in sorted(rows))} --json PATH`"  # fmt: skip
+    return "\n".join([md(["quantity", "measured", "paper"], table), "",
+                      f"Records: {', '.join(f'`{p}`' for p in ORBIT_RECORDS)}; written by {commands}."])
+
+
 BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
 
 
@@ -785,6 +843,8 @@ TABLES: tuple[Table, ...] = (
     Table("compare-standard", ("docs/results/compare_standard.json",), compare_headline, (README,)),
     Table("compare-standard-full", ("docs/results/compare_standard.json",), compare_tables,
           ("docs/benchmarks/guidance.md",)),
+    Table("orbit", ORBIT_RECORDS, orbit_table, ("docs/benchmarks/rv_euler.md",)),
+    Table("reference-solution", (SHIPPED_REFERENCE,), reference_table, ("docs/benchmarks/collocation.md",)),
     Table("mpc-benchmark", ("docs/results/bench_mpc_eval.json",), mpc_benchmark, ("docs/benchmarks/guidance.md",)),
     *(Table(f"set-{d}", _set_records(d), set_table(d), ("docs/benchmarks/flight_grade.md",))
       for d in ("flight", "peer", "peer-0.1")),
