@@ -690,6 +690,17 @@ def orbit_table(sweep: dict, chosen: dict) -> str:
                       f"Records: {', '.join(f'`{p}`' for p in ORBIT_RECORDS)}; written by {commands}."])
 
 
+def orbit_sweep_table(sweep: dict) -> str:
+    """Example 1's error against N: every third of ``rventry orbit``'s step counts, and the last."""
+    results = sweep["results"]
+    shown = results[::3] + ([results[-1]] if (len(results) - 1) % 3 else [])
+    rows = [[str(r["n"]), f"{r['rv_euler_km']:.3e}", f"{r['spherical_km']:.3e}", f"{r['spherical_km'] / r['rv_euler_km']:.0f}"]
+            for r in shown]  # fmt: skip
+    return "\n".join([md(["N", "rv-Euler", "spherical", "ratio"], rows), "",
+                      f"Every third row of the {len(results)}, and the last; the command prints all of them.", "",
+                      source(ORBIT_RECORDS[0], command="rventry orbit --json PATH")])
+
+
 BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
 
 
@@ -844,6 +855,7 @@ TABLES: tuple[Table, ...] = (
     Table("compare-standard-full", ("docs/results/compare_standard.json",), compare_tables,
           ("docs/benchmarks/guidance.md",)),
     Table("orbit", ORBIT_RECORDS, orbit_table, ("docs/benchmarks/rv_euler.md",)),
+    Table("orbit-sweep", ORBIT_RECORDS[:1], orbit_sweep_table, ("docs/core.md",)),
     Table("reference-solution", (SHIPPED_REFERENCE,), reference_table, ("docs/benchmarks/collocation.md",)),
     Table("mpc-benchmark", ("docs/results/bench_mpc_eval.json",), mpc_benchmark, ("docs/benchmarks/guidance.md",)),
     *(Table(f"set-{d}", _set_records(d), set_table(d), ("docs/benchmarks/flight_grade.md",))
