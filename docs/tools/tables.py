@@ -849,6 +849,7 @@ def observation_bounds_table(doc: dict) -> str:
 
 
 # ------------------------------------------------------------------ the registry
+EXPLAINED_SCANS = ("aero", "final", "estimator", "split", "dive")  # also shown where the design page explains them
 README = "README.md"
 TABLES: tuple[Table, ...] = (
     Table("compare-standard", ("docs/results/compare_standard.json",), compare_headline, (README,)),
@@ -865,7 +866,7 @@ TABLES: tuple[Table, ...] = (
     Table("seeds-ppo", ("docs/results/bench_seeds_ppo.json",), seeds_table, ("docs/benchmarks/learned_policies.md",)),
     Table("ppo-heldout", PPO_RECORDS, ppo_table, ("docs/benchmarks/learned_policies.md",)),
     *(Table(f"scan-{name}", (f"docs/results/scan_mpc_{name}.json",), scan_table(f"docs/results/scan_mpc_{name}.json"),
-            ("docs/benchmarks/guidance.md",))
+            ("docs/benchmarks/guidance.md", *(("docs/guidance.md",) if name in EXPLAINED_SCANS else ())))
       for name in ("flight", "aero", "final", "estimator", "split", "dive", "track", "floor")),
     Table("effects-flight", effects_records(), effects_table, ("docs/benchmarks/flight_grade.md",)),
     Table("footprint", footprint_records(), footprint_table, ("docs/benchmarks/flight_grade.md",)),
