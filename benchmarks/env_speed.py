@@ -19,7 +19,8 @@ Dispersion sets (``--sets``)
     (profiles, winds, sensors and navigation), measured alternately in one run, best of three
     each; the benchmark's target: ``flight`` >= 50 % of ``standard``.
 
-Run: ``python benchmarks/env_speed.py [--json PATH] [--quick] [--sets]``
+Run: ``python benchmarks/env_speed.py [--json PATH] [--quick] [--sets] [--accuracy]`` (``--accuracy``: that part
+alone, which times nothing and may run on a shared machine)
 """
 
 from __future__ import annotations
@@ -91,13 +92,17 @@ def main():
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--quick", action="store_true", help="fewer steps (noisier figures)")
     ap.add_argument("--sets", action="store_true", help="only the dispersion sets' speed at N = 8192")
+    ap.add_argument("--accuracy", action="store_true", help="only the default step's accuracy (no timing)")
     args = ap.parse_args()
     start_run()
     keep_freed_memory()  # what the rventry command sets: large batches keep their freed heap (envs/allocator.py)
     scale = 0.2 if args.quick else 1.0
     res: dict = {}
-    if args.sets:
-        res["sets"] = time_sets(8192, int(2e5 * scale))
+    if args.sets or args.accuracy:
+        if args.sets:
+            res["sets"] = time_sets(8192, int(2e5 * scale))
+        if args.accuracy:
+            accuracy(res)
         if args.json:
             write_record(args.json, res)
         return
@@ -111,12 +116,17 @@ def main():
         print(f"N = {n:5d}: vector {vec:12,.0f}  sync {sync:10,.0f} vehicle-steps/s  ratio {vec / sync:6.1f}"
               + ("  (target >= 1e6)" if n == 8192 else ""))  # fmt: skip
     res["vector"] = rows
+    accuracy(res)
+    if args.json:
+        write_record(args.json, res)
+
+
+def accuracy(res: dict) -> None:
+    """The default step's accuracy, into ``res["accuracy"]``, printed."""
     res["accuracy"] = step_accuracy()  # integration error alone: the same controls, the same saturation
     for r in res["accuracy"]:
         print(f"{r['scenario']:9s} (peak {r['peak_load_g']:.0f} g) dt {r['dt_s']} s, {r['substeps']} RK4 substeps: impact position error {r['impact_position_error_m']:.3g} m, "
               f"max {r['max_position_error_m']:.3g} m, impact time error {r['impact_time_error_s']:.2g} s (vs DOP853 rtol 1e-12)")  # fmt: skip
-    if args.json:
-        write_record(args.json, res)
 
 
 if __name__ == "__main__":

@@ -65,6 +65,12 @@ def sig(v, digits: int = 3) -> str:
     return f"{v:.{decimals}f}"
 
 
+def sci(v: float, decimals: int) -> str:
+    """``v`` in scientific notation without the exponent's padding: 9.22e-7."""
+    mantissa, exponent = f"{v:.{decimals}e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
 def rate(v) -> str:
     """A rate: three decimals where the third is not 0, else two (as ``rventry compare`` prints)."""
     text = f"{v:.3f}"
@@ -468,6 +474,233 @@ def jax_cpu_table(bench: dict, ppo: dict) -> str:
                       source("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json")])
 
 
+def _per_s(v: float) -> str:
+    """Vehicle-steps/s as the GPU table writes them: millions, or 1e9 from a billion up."""
+    return f"{v / 1e9:.2f}e9" if v >= 1e9 else f"{v / 1e6:.0f}M"
+
+
+def _functional(runs: list, dtype: str, dispersion: str = "standard") -> dict:
+    """A functional-env run list's vehicle-steps/s by vehicle count, for one number type and set."""
+    return {r["num_envs"]: r["vehicle_steps_per_s"] for r in runs if r["dtype"] == dtype and r["dispersion"] == dispersion}
+
+
+def _passed(text: str) -> str:
+    """``N passed in S s`` from a test run's result line."""
+    m = re.search(r"(\d+) passed in ([\d.]+) ?s", text)
+    return f"{m.group(1)} passed in {float(m.group(2)):.0f} s"
+
+
+def jax_gpu_table(h200: dict, h100: dict, kernels: dict) -> str:
+    """The JAX backend on one GPU: the functional env's throughput on an H100 and an H200, where the
+    H100's time goes, the Gymnasium face, agreement with NumPy, the tests and PPO end to end."""
+    f64, f32 = _functional(h100["functional"]["runs"], "float64"), _functional(h100["functional"]["runs"], "float32")
+    b64 = _functional(h100["functional_before_sqrt"]["runs"], "float64")
+    sizes = sorted(f64)
+    r = h200["runs"]
+    s64, s32 = _functional(r["functional_sizes"]["functional"], "float64"), _functional(r["functional_sizes"]["functional"], "float32")
+    p64, p32 = (next(x for x in r["functional_parts"]["functional"] if x["dtype"] == d) for d in ("float64", "float32"))
+    face = r["gymnasium_face_flight_and_agreement"]
+    fl64, fl32 = _functional(face["functional"], "float64", "flight"), _functional(face["functional"], "float32", "flight")
+    (n_flight,) = fl64
+    v, a = face["vector"], face["agreement"]
+    vs, first = v["vehicle_steps_per_s"], v["first_step_s"]
+    ppo = r["jax_ppo_gpu"]
+    compile_s = [x["first_call_s"] for x in r["functional_sizes"]["functional"] if x["dtype"] == "float64"]
+    # the H100's Nsight Compute profile: the kernels launched at every step of the scan (the others run once)
+    step = [k for k in kernels["ncu_kernels_per_step_N_1048576"]["base"] if k["launches"] > 1]
+    n_ncu = 1_048_576
+    physics = [k for k in step if k["registers_per_thread"] == max(x["registers_per_thread"] for x in step)]
+    reset = next(k for k in step if k["kernel"].startswith("loop_select_fusion"))  # gymnax's autoreset select
+    variant = {}
+    for x in kernels["runs"]:
+        variant.setdefault((x["variant"], x["num_envs"]), x["vehicle_steps_per_s"])  # the first run of each
+    big = max(n for _, n in variant)
+    best_64 = max(f64.values())
+    rows = [
+        [f"**H100**, functional env, float64, `{present_command(h100['commands']['functional'])}`, the package as it is now",
+         " and ".join(_per_s(f64[n]) if n != sizes[-1] else f"**{_per_s(f64[n])}**" for n in sizes)
+         + f" vehicle-steps/s (the same machine, before `aero_accel` used `sqrt`: {' and '.join(_per_s(b64[n]) for n in sizes)})",
+         f">= 1e9 on an H100-class card: {_met(best_64 >= 1e9)} ({min(f64.values()) / 1e9:.2f}-{best_64 / 1e9:.2f}e9)"],
+        ["**H100**, the same, float32",
+         " and ".join(_per_s(f32[n]) if n != sizes[-1] else f"**{_per_s(f32[n])}**" for n in sizes) + " vehicle-steps/s", ""],
+        [f"**H100**, where the float64 time goes (Nsight Compute at N = {n_ncu:,}, kernels over 50 us; "
+         "`docs/results/bench_jax_h100_kernels.json`, [docs/env.md](../env.md))",
+         f"{sum(k['time_ms'] for k in step):.1f} ms of kernels a step: the physics step "
+         f"{' + '.join(sig(k['time_ms'], 2) for k in physics)} ms at {physics[0]['registers_per_thread']} registers per thread "
+         f"({' and '.join(format(k['local_load_bytes'] / n_ncu / 1e3, '.2f') for k in physics)} KB of spilled registers per vehicle); "
+         f"**gymnax's autoreset {reset['time_ms']:.2f} ms**, its select with the whole reset fused in, compiled at "
+         f"**{reset['registers_per_thread']} registers** with {reset['local_load_bytes'] / n_ncu / 1e3:.1f} KB per vehicle of "
+         f"local-memory loads. Tried and not kept, none faster at {big / 2**20:.0f}M vehicles: a kernel per RK4 stage "
+         f"({_per_s(variant['stages', n_ncu])} at 1M and {_per_s(variant['stages', big])} at {big / 2**20:.0f}M, against "
+         f"{_per_s(variant['base', n_ncu])} and {_per_s(variant['base', big])}), the reset cut out of the select "
+         f"({_per_s(variant['reset', n_ncu])} at 1M), XLA's unrolling off, multi-output and horizontal fusion off", ""],
+        [f"H200, functional env, float64, `jit` of `lax.scan` over {r['functional_sizes']['functional'][0]['steps']} "
+         f"`vmap`-ed steps with autoreset (`{present_command(r['functional_sizes']['command'])}`), before both changes above",
+         "; ".join(f"N = {n:,}: {_per_s(s64[n])}" + (f" ({_per_s(p64['vehicle_steps_per_s'])} on a second machine of the kind)"
+                                                      if n == p64["num_envs"] else "") for n in sorted(s64))
+         + f" vehicle-steps/s; compilation {min(compile_s):.0f}-{max(compile_s):.0f} s", ""],
+        ["H200, the same, float32",
+         " / ".join((f"**{_per_s(s32[n])}**" if n == max(s32) else _per_s(s32[n]))
+                    + (f" ({_per_s(p32['vehicle_steps_per_s'])} on the second machine)" if n == p32["num_envs"] else "")
+                    for n in sorted(s32)) + " vehicle-steps/s", ""],
+        [f"H200, the autoreset's share (`--functional-sizes {p64['num_envs']} --functional-parts`)",
+         f"`step_env` alone (no autoreset) {_per_s(p64['step_env_only_per_s'])}/s, the whole step "
+         f"{_per_s(p64['vehicle_steps_per_s'])}/s (the H100's kernel profile above puts half the step in the autoreset's "
+         "kernel; why the `step_env`-only scan was no faster was not found)", ""],
+        [f"functional env, `flight` set (NRLMSIS and Gauss-Markov profiles, winds, sensor and navigation errors; pool of "
+         f"256), N = {n_flight:,}", f"float64 {_per_s(fl64[n_flight])}, float32 {_per_s(fl32[n_flight])} vehicle-steps/s", ""],
+        [f"Gymnasium face (`gym.make_vec(..., backend=\"jax\")`), N = {v['num_envs']:,}, against the NumPy vector env on the "
+         f"machine's {face['machine']['cpus']} cores (`{present_command(face['command'])}`, which also gave the `flight` row "
+         "above and the agreement below)",
+         f"NumPy {vs['numpy'] / 1e6:.2f}M; JAX float64 **{vs['jax_float64'] / 1e6:.2f}M ({vs['jax_float64'] / vs['numpy']:.1f}x)**; "
+         f"float32 {vs['jax_float32'] / 1e6:.2f}M vehicle-steps/s; first step {first['jax_float64']:.1f} s / "
+         f"{first['jax_float32']:.1f} s", "(the 2x target is for two cores, where it is not met: table above)"],
+        [f"JAX float64 on the GPU vs NumPy on the CPU, {a['episodes']} whole standard-set episodes, same seed and actions",
+         f"largest observation difference **{sig(a['max_obs_diff_float64'], 2)}**"
+         + (" (the float32 observations equal bit for bit)" if a["max_obs_diff_float64"] == 0 else "")
+         + f"; final positions within {a['impact_position_error_float64_vs_numpy_m']:.1e} m; float32 vs float64: median "
+         f"{a['float32_end_position_error_m']['median']:.1f} m, largest {a['float32_end_position_error_m']['max'] / 1e3:.1f} km, "
+         f"the same ending in {a['float32_same_ending']}/{a['episodes']}", f"<= 1e-5: {_met(a['max_obs_diff_float64'] <= 1e-5)}"],
+        [f"`tests/test_jax.py` on the GPU (`{r['test_jax']['command']}`)",
+         f"{_passed(r['test_jax']['result'])} on the H200; {_passed(h100['tests'])} on the H100 with the package as it is now", ""],
+        ["end-to-end PPO in JAX on the GPU (`rventry train jax-ppo --config rventry_agents/baselines/jax_ppo_gpu.toml "
+         "--max-wall-s 150`: 4,096 vehicles, rollouts of 262,144 steps)",
+         f"**{ppo['env_steps_per_s'] / 1e6:.2f}M env-steps/s** after {ppo['compile_s']:.0f} s of compilation: "
+         f"{ppo['timesteps'] / 1e6:.0f}M steps in {ppo['wall_s']:.0f} s, "
+         + ("one training program compiled" if ppo["train_compilations"] == 1 else f"{ppo['train_compilations']} training programs compiled"),
+         f">= 1e6: {_met(ppo['env_steps_per_s'] >= 1e6)}"],
+    ]  # fmt: skip
+    return "\n".join([md(["", "measured", "target"], rows), "",
+                      source("docs/results/bench_jax_h200.json", "docs/results/bench_jax_h100.json",
+                             "docs/results/bench_jax_h100_kernels.json")])
+
+
+PPO_RECORDS = (*(f"docs/results/ppo_q_floor/ppo_{s}.json" for s in ("flight", "standard", "wide", "peer-0.1")),
+               "docs/results/bench_seeds_ppo.json", "docs/results/q_floor_dagger_flight_heldout.json",
+               "docs/results/mpc_flight_flight200.json", "rventry_agents/data/ppo_finetune/metadata.json")  # fmt: skip
+
+
+def _bold_ci(r: dict, key: str = "success_rate") -> str:
+    lo, hi = r[f"{key}_ci"]
+    return f"**{rate(r[key])}** [{lo:.2f}, {hi:.2f}]"
+
+
+def ppo_table(flight: dict, standard: dict, wide: dict, peer: dict, seeds: dict, start_floor: dict, mpc: dict,
+              metadata: dict) -> str:
+    """The shipped ``ppo`` held out: with its q floor, as trained, its start, its start with the same floor."""
+    import numpy as np
+
+    from rventry_env.evaluation.seeds import seed_statistics
+    from rventry_env.evaluation.summary import rate_interval
+
+    floor = {"flight": flight["summary"], "standard": standard["summary"], "wide": wide["summary"], "peer-0.1": peer["summary"]}
+    trained, start = seeds["runs"]["ppo"][0]["sets"], seeds["runs"]["dagger-flight"][0]["sets"]
+    margin = start_floor["chosen"]
+    floored = start_floor["success"][next(k for k in start_floor["success"] if k != "none" and float(k) == margin)]
+    n = start_floor["episodes"]
+
+    def start_floor_cell(s: str, interval: bool = False) -> str:
+        if s not in floored:
+            return "no record"
+        if not interval:
+            return rate(floored[s])
+        k = round(floored[s] * n)
+        lo, hi = rate_interval([True] * k + [False] * (n - k))
+        return f"{rate(floored[s])} [{lo:.2f}, {hi:.2f}]"
+
+    m = mpc["summary"]["success_rate"]
+    both = lambda d: f"{rate(d['standard']['success_rate'])} / {rate(d['wide']['success_rate'])}"  # noqa: E731
+    sw_met = floor["standard"]["success_rate"] >= 0.99 and floor["wide"]["success_rate"] >= 0.98
+    runs = [r["sets"]["flight"]["success_rate"] for r in seeds["runs"]["ppo"]]
+    iqm = seed_statistics({"ppo": np.array([[x] for x in runs])})["ppo"]
+    wall, steps = float(metadata["wall_time_s"]), int(metadata["timesteps"])
+    rows = [
+        ["`flight`, basic success", _bold_ci(floor["flight"]), ci(trained["flight"]), ci(start["flight"]),
+         start_floor_cell("flight", True),
+         f">= 0.97, and >= `mpc`'s on the same seeds (`mpc-flight` {rate(m)}): "
+         f"{_met(floor['flight']['success_rate'] >= max(0.97, m))}"],
+        ["`flight`, precision tier", ci(floor["flight"], "precision_success_rate"),
+         rate(trained["flight"]["precision_success_rate"]), rate(start["flight"]["precision_success_rate"]), "no record",
+         f">= 0.80: {_met(floor['flight']['precision_success_rate'] >= 0.80)}"],
+        ["standard / wide, basic", f"**{both(floor)}**", both(trained), both(start),
+         f"{start_floor_cell('standard')} / {start_floor_cell('wide')}", f">= 0.99 / >= 0.98: {_met(sw_met)}"],
+        ["`peer-0.1`, basic", _bold_ci(floor["peer-0.1"]), rate(trained["peer-0.1"]["success_rate"]),
+         rate(start["peer-0.1"]["success_rate"]), start_floor_cell("peer-0.1"),
+         f">= 0.97: {_met(floor['peer-0.1']['success_rate'] >= 0.97)}"],
+        ["training wall time", f"{wall:.0f} s ({steps / 1e6:g}M steps, seed {metadata['seed']})", "", "", "",
+         f"<= 2 h: {_met(wall <= 7200)}"],
+        [f"IQM over {len(runs)} seeds, `flight` (as trained)", "",
+         f"**{iqm['iqm']:.3f}** [{iqm['iqm_ci'][0]:.3f}, {iqm['iqm_ci'][1]:.3f}] (seeds 0-{len(runs) - 1}: "
+         f"{', '.join(f'{x:.3f}' for x in runs)})", rate(start["flight"]["success_rate"]), "", "reported"],
+    ]  # fmt: skip
+    header = [f"`ppo` (PPO-trained), {flight['summary']['episodes']} episodes, seed 0", "measured, with the q floor",
+              "as trained", "its start, `dagger-flight`", "its start with the same q floor", "target"]  # fmt: skip
+    return "\n".join([md(header, rows), "", source(*PPO_RECORDS)])
+
+
+SHIPPED_REFERENCE = "rventry_env/reference/data/entry_reference_v1.json"
+
+
+def reference_table(doc: dict) -> str:
+    """The shipped collocation optimum, from the summary its solve wrote beside it."""
+    d = doc["diagnostics"]
+    exact = "exactly 0" if d["final_eB1"] == 0 and d["final_etaB"] == 0 else f"{d['final_eB1']:.1e}, {d['final_etaB']:.1e}"
+    rows = [
+        ["J*", f"{doc['cost']:.6f}", ""],
+        ["t_f", f"{doc['tf_s']:.3f} s", ""],
+        ["final mesh max relative error", f"{sci(doc['mesh_error'], 2)} ({doc['n_intervals']} intervals, {doc['n_nodes']} nodes)",
+         f"<= {sci(doc['mesh_tolerance'], 0)}"],
+        ["max constraint violation (scaled NLP)", sci(doc["max_constraint_violation"], 1), ""],
+        ["eB1(t_f), etaB(t_f)", exact, "exact"],
+        ["IPOPT iterations per mesh pass", ", ".join(map(str, doc["nlp_iterations_per_pass"])), ""],
+        ["|lambda|, the norm-keeping control, largest", f"{sci(d['max_abs_lambda_per_s'], 1)} /s", "0 (the paper's problem)"],
+        ["the shipped file's solve: wall (CPU), peak memory of the process",
+         f"{doc['solve_time_s']:.1f} s ({doc['solve_cpu_s']:.1f} s), {doc['rss_peak_mb']:.0f} MB", ""],
+    ]  # fmt: skip
+    return "\n".join([md(["quantity (`rventry reference show`)", "measured", "target"], rows), "",
+                      source(SHIPPED_REFERENCE, command=doc.get("command"))])
+
+
+ORBIT_RECORDS = ("docs/results/orbit.json", "docs/results/orbit_n.json")
+
+
+def orbit_table(sweep: dict, chosen: dict) -> str:
+    """Example 1: one period of the orbit in rv-Euler and in spherical coordinates, against the analytic one."""
+    rows = {r["n"]: r for r in chosen["results"]}
+    at = rows[chosen["n1000"]["n"]]
+    n1, n2 = sorted(n for n in rows if n != chosen["n1000"]["n"])[:2]
+    order = {form: math.log(rows[n1][f"{form}_km"] / rows[n2][f"{form}_km"]) / math.log(n2 / n1)
+             for form in ("rv_euler", "spherical")}  # fmt: skip
+    from rventry_env.examples.orbit.numerics import PLATEAU_N as plateau
+
+    floor = sweep["floor_km"]
+    table = [
+        [f"e_r,max at N = {at['n']}, rv-Euler / spherical (`rventry orbit --n {at['n']}`)",
+         f"{sci(at['rv_euler_km'], 2)} km / {sci(at['spherical_km'], 2)} km, ratio {chosen['n1000']['ratio_of_max']:.0f}",
+         '"three orders of magnitude"'],
+        [f"median error ratio after the South-Pole pass, N = {at['n']}", f"{chosen['n1000']['median_ratio_after_south_pole']:.0f}", ""],
+        [f"floor, median over N >= {plateau}, rv-Euler / spherical",
+         f"{sci(floor['rv_euler']['plateau_median'], 1)} km / {sci(floor['spherical']['plateau_median'], 1)} km",
+         '"around 1e-10 km"'],
+        [f"convergence order (N = {n1} -> {n2})", f"{order['rv_euler']:.1f} / {order['spherical']:.1f}", ""],
+    ]  # fmt: skip
+    commands = f"`rventry orbit --json PATH` (the paper's {len(sweep['results'])} values of N) and " \
+               f"`rventry orbit {' '.join(f'--n {n}' for n in sorted(rows))} --json PATH`"  # fmt: skip
+    return "\n".join([md(["quantity", "measured", "paper"], table), "",
+                      f"Records: {', '.join(f'`{p}`' for p in ORBIT_RECORDS)}; written by {commands}."])
+
+
+def orbit_sweep_table(sweep: dict) -> str:
+    """Example 1's error against N: every third of ``rventry orbit``'s step counts, and the last."""
+    results = sweep["results"]
+    shown = results[::3] + ([results[-1]] if (len(results) - 1) % 3 else [])
+    rows = [[str(r["n"]), f"{r['rv_euler_km']:.3e}", f"{r['spherical_km']:.3e}", f"{r['spherical_km'] / r['rv_euler_km']:.0f}"]
+            for r in shown]  # fmt: skip
+    return "\n".join([md(["N", "rv-Euler", "spherical", "ratio"], rows), "",
+                      f"Every third row of the {len(results)}, and the last; the command prints all of them.", "",
+                      source(ORBIT_RECORDS[0], command="rventry orbit --json PATH")])
+
+
 BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
 
 
@@ -616,19 +849,24 @@ def observation_bounds_table(doc: dict) -> str:
 
 
 # ------------------------------------------------------------------ the registry
+EXPLAINED_SCANS = ("aero", "final", "estimator", "split", "dive")  # also shown where the design page explains them
 README = "README.md"
 TABLES: tuple[Table, ...] = (
     Table("compare-standard", ("docs/results/compare_standard.json",), compare_headline, (README,)),
     Table("compare-standard-full", ("docs/results/compare_standard.json",), compare_tables,
           ("docs/benchmarks/guidance.md",)),
+    Table("orbit", ORBIT_RECORDS, orbit_table, ("docs/benchmarks/rv_euler.md",)),
+    Table("orbit-sweep", ORBIT_RECORDS[:1], orbit_sweep_table, ("docs/core.md",)),
+    Table("reference-solution", (SHIPPED_REFERENCE,), reference_table, ("docs/benchmarks/collocation.md",)),
     Table("mpc-benchmark", ("docs/results/bench_mpc_eval.json",), mpc_benchmark, ("docs/benchmarks/guidance.md",)),
     *(Table(f"set-{d}", _set_records(d), set_table(d), ("docs/benchmarks/flight_grade.md",))
       for d in ("flight", "peer", "peer-0.1")),
     Table("navigation-mpc-flight", ("docs/results/nav_mpc_flight200.json",), navigation_tables,
           ("docs/benchmarks/flight_grade.md",)),
     Table("seeds-ppo", ("docs/results/bench_seeds_ppo.json",), seeds_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("ppo-heldout", PPO_RECORDS, ppo_table, ("docs/benchmarks/learned_policies.md",)),
     *(Table(f"scan-{name}", (f"docs/results/scan_mpc_{name}.json",), scan_table(f"docs/results/scan_mpc_{name}.json"),
-            ("docs/benchmarks/guidance.md",))
+            ("docs/benchmarks/guidance.md", *(("docs/guidance.md",) if name in EXPLAINED_SCANS else ())))
       for name in ("flight", "aero", "final", "estimator", "split", "dive", "track", "floor")),
     Table("effects-flight", effects_records(), effects_table, ("docs/benchmarks/flight_grade.md",)),
     Table("footprint", footprint_records(), footprint_table, ("docs/benchmarks/flight_grade.md",)),
@@ -636,6 +874,8 @@ TABLES: tuple[Table, ...] = (
           terminal_alpha_tables, ("docs/benchmarks/guidance.md",)),
     Table("jax-cpu", ("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json"), jax_cpu_table,
           ("docs/benchmarks/jax.md",)),
+    Table("jax-gpu", ("docs/results/bench_jax_h200.json", "docs/results/bench_jax_h100.json",
+                      "docs/results/bench_jax_h100_kernels.json"), jax_gpu_table, ("docs/benchmarks/jax.md",)),
     Table("rounds-dagger", ("rventry_agents/data/dagger/rounds.json",), rounds_table("rventry_agents/data/dagger/rounds.json"),
           ("docs/benchmarks/learned_policies.md",)),
     Table("rounds-dagger-flight", ("rventry_agents/data/dagger_flight/rounds.json",),
