@@ -203,7 +203,7 @@ def jax_ppo_speed(timesteps: int, config: str | None = None) -> dict:
     out = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_jax_ppo"
     code = (
         "from rventry_agents.jax_ppo import load_config, train_jax_ppo\n"
-        f"cfg = load_config({config!r})\n"
+        f"cfg = load_config({config!r}).to_dict()\n"
         "chunk = int(cfg['env']['num_envs']) * int(cfg['ppo']['num_steps']) * 16\n"
         "cfg['train']['chunk_timesteps'] = chunk\n"
         f"train_jax_ppo(cfg, timesteps=max({timesteps}, 3 * chunk), out={str(out)!r}, progress=lambda s: None)\n"

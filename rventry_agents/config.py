@@ -489,21 +489,6 @@ def read_json(path: str | Path, kind: type = dict):
     return value
 
 
-def read_config(path: str | Path | dict | None, default: Path, sections: tuple[str, ...]) -> tuple[dict, str]:
-    """An untyped training configuration: a TOML file (``default`` when None) or an already-loaded
-    dict, with every one of ``sections``; returns it and where it came from, for messages. (For
-    trainers that have no schema yet; a schema's :meth:`Section.load` checks every key.)"""
-    if isinstance(path, dict):
-        cfg, where = path, "config"
-    else:
-        where = Path(path) if path is not None else default
-        cfg = read_toml(where)
-    for section in sections:
-        if section not in cfg:
-            raise ValueError(f"{where}: missing section [{section}]")
-    return cfg, str(where)
-
-
 def check_algorithm(algorithm: str) -> str:
     if algorithm not in ALGORITHMS:
         raise ValueError(f"unknown algorithm {algorithm!r}; known: {', '.join(ALGORITHMS)}")
@@ -522,4 +507,4 @@ def algorithm_class(algorithm: str):
 
 
 __all__ = ["ALGORITHMS", "ConfigError", "Section", "algorithm_class", "check_algorithm", "check_field",
-           "describe", "dispersion", "read_config", "read_json", "read_toml", "setting", "widths"]  # fmt: skip
+           "describe", "dispersion", "read_json", "read_toml", "setting", "widths"]  # fmt: skip

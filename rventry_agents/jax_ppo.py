@@ -18,7 +18,6 @@ It writes into its output directory:
 from __future__ import annotations
 
 import math
-
 import shlex
 import sys
 import time
@@ -26,38 +25,31 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_agents.jax_ppo_config import DEFAULT_CONFIG, JaxPPOConfig, load_config
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import Dispersion
 from rventry_env.util.files import write_json
 
-DEFAULT_CONFIG = Path(__file__).resolve().parent / "baselines" / "jax_ppo.toml"
-SECTIONS = ("env", "ppo", "train")
 
-
-def load_config(path=None) -> dict:
-    from rventry_agents.train import read_config
-
-    cfg, _ = read_config(path, DEFAULT_CONFIG, SECTIONS)
-    return cfg
-
-
-def make_env(cfg: dict):
+def make_env(cfg: JaxPPOConfig):
     from rventry_env.envs.functional import RvEntryFunctional
 
-    e = cfg["env"]
+    e = cfg.env
     return RvEntryFunctional(
-        dt=e.get("dt"), substeps=e.get("substeps"), dispersion=Dispersion.parse(e.get("dispersion")),
-        max_episode_steps=e.get("max_episode_steps", 2000), dtype=e.get("dtype", "float32"), reward=RewardWeights(),
+        dt=e.dt, substeps=e.substeps, dispersion=Dispersion.parse(e.dispersion), max_episode_steps=e.max_episode_steps,
+        dtype=e.dtype, reward=RewardWeights(),
     )  # fmt: skip
 
 
-def make_algorithm(cfg: dict, env, total_timesteps: int):
+def make_algorithm(cfg: JaxPPOConfig, env, total_timesteps: int):
+    from dataclasses import asdict
+
     from rejax import PPO
 
-    p = dict(cfg["ppo"])
+    p = asdict(cfg.ppo)
     agent_kwargs = {"hidden_layer_sizes": tuple(p.pop("hidden_layer_sizes")), "activation": p.pop("activation")}
     return PPO.create(
-        env=env, env_params=env.default_params, num_envs=cfg["env"]["num_envs"], total_timesteps=total_timesteps,
+        env=env, env_params=env.default_params, num_envs=cfg.env.num_envs, total_timesteps=total_timesteps,
         eval_freq=total_timesteps, skip_initial_evaluation=True, agent_kwargs=agent_kwargs, **p,
     )  # fmt: skip
 
@@ -139,22 +131,22 @@ def train_jax_ppo(config=None, timesteps: int | None = None, seed: int | None = 
     check_writable(folders=(out,))  # a file in the way is named before anything runs
     prefer_fused_cpu_runtime()
     cfg = load_config(config)
-    with jax_x64(cfg["env"].get("dtype", "float32") == "float64"):
+    with jax_x64(cfg.env.dtype == "float64"):
         return _train(cfg, timesteps, seed, out, progress, max_wall_s)
 
 
-def _train(cfg: dict, timesteps, seed, out, progress, max_wall_s) -> dict:
+def _train(cfg: JaxPPOConfig, timesteps, seed, out, progress, max_wall_s) -> dict:
     import jax
 
-    t = cfg["train"]
-    total = int(timesteps if timesteps is not None else t["total_timesteps"])
-    seed = int(seed if seed is not None else t["seed"])
-    chunk = min(int(t["chunk_timesteps"]), total)
+    t = cfg.train
+    total = int(timesteps if timesteps is not None else t.total_timesteps)
+    seed = int(seed if seed is not None else t.seed)
+    chunk = min(t.chunk_timesteps, total)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     env = make_env(cfg)
     algo = make_algorithm(cfg, env, chunk)
-    eval_params = env.make_params(dispersion=t.get("eval_dispersion", "standard"))
+    eval_params = env.make_params(dispersion=t.eval_dispersion)
     traces = []  # one entry per trace of the training program: each trace is a compilation
 
     def train_chunk(train_state):
@@ -162,7 +154,7 @@ def _train(cfg: dict, timesteps, seed, out, progress, max_wall_s) -> dict:
         return algo.train(train_state=train_state)
 
     train = jax.jit(train_chunk)
-    evaluate = make_evaluator(env, algo, int(t["eval_episodes"]))
+    evaluate = make_evaluator(env, algo, t.eval_episodes)
     ts = settled_state(algo.init_state(jax.random.PRNGKey(seed)))
     steps, history, wall0 = 0, [], time.perf_counter()
     chunk_rates = []
@@ -175,7 +167,7 @@ def _train(cfg: dict, timesteps, seed, out, progress, max_wall_s) -> dict:
         if history:  # the first chunk includes the compilation
             chunk_rates.append((done - steps) / dt)
         steps = done
-        ev = evaluate(ts, eval_params, jax.random.PRNGKey(t["eval_seed"]))
+        ev = evaluate(ts, eval_params, jax.random.PRNGKey(t.eval_seed))
         rec = {"timesteps": steps, "wall_s": time.perf_counter() - wall0, "chunk_s": dt, **ev}
         history.append(rec)
         progress(f"{steps:>12,d} steps  {rec['wall_s']:8.0f} s  success {ev['success_rate']:.2f}  "
@@ -190,7 +182,7 @@ def _train(cfg: dict, timesteps, seed, out, progress, max_wall_s) -> dict:
                  "obs_rms": getattr(ts, "obs_rms_state", None)})[0]}  # fmt: skip
     np.savez(out / "params.npz", **flat)
     meta = {
-        "command": " ".join(shlex.quote(a) for a in sys.argv), "config": cfg, "seed": seed, "timesteps": steps,
+        "command": " ".join(shlex.quote(a) for a in sys.argv), "config": cfg.to_dict(), "seed": seed, "timesteps": steps,
         "wall_s": time.perf_counter() - wall0, "max_wall_s": max_wall_s, "compile_s": compile_s, "env_steps_per_s": rate,
         "device": str(jax.devices()[0]), "evaluations": history,
         # how many training programs were compiled: 1 when every chunk ran the first one's
@@ -226,4 +218,4 @@ def plot_learning_curve(evaluations: list[dict], path: str | Path, title: str = 
     return save_figure(fig, path)
 
 
-__all__ = ["train_jax_ppo", "plot_learning_curve", "settled_state", "load_config", "make_env", "make_evaluator", "DEFAULT_CONFIG"]
+__all__ = ["DEFAULT_CONFIG", "load_config", "make_env", "make_evaluator", "plot_learning_curve", "settled_state", "train_jax_ppo"]

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from rventry_agents.config import ALGORITHMS, ConfigError, algorithm_class, read_config, read_json  # noqa: F401
+from rventry_agents.config import ALGORITHMS, ConfigError, algorithm_class, read_json  # noqa: F401
 from rventry_agents.sb3_config import (  # noqa: F401  (the trainer's names for its config)
     BASELINES,
     DEFAULT_CONFIG,

@@ -476,3 +476,24 @@ def test_a_corrupt_dagger_run_is_refused_on_resume_naming_the_file(tmp_path):
         (run.out / "data_round_0.npz").write_bytes(b"junk")
         with pytest.raises(ValueError, match=message):
             run_rounds(run, RunClock(), resume=True, progress_bar=False)
+
+
+def test_the_jax_ppo_baseline_config_is_typed_and_refuses_a_misspelled_key():
+    from rventry_agents.jax_ppo_config import DEFAULT_CONFIG as JAX_PPO, JaxPPOConfig
+    from rventry_agents.jax_ppo_config import load_config as load_jax_ppo
+
+    for path in sorted(JAX_PPO.parent.glob("jax_ppo*.toml")):  # the two-core and the GPU baselines
+        shipped = load_jax_ppo(path)
+        assert load_jax_ppo(shipped.to_dict()) == shipped, path.name
+    cfg = load_jax_ppo()
+    assert Path(JAX_PPO).name == "jax_ppo.toml" and isinstance(cfg, JaxPPOConfig)
+    assert cfg.env.num_envs == 256 and cfg.ppo.hidden_layer_sizes == (256, 256) and cfg.train.eval_dispersion == "standard"
+    assert load_jax_ppo(cfg.to_dict()) == cfg and json.loads(json.dumps(cfg.to_dict())) == cfg.to_dict()
+    bad = cfg.to_dict()
+    bad["ppo"]["num_minibatch"] = 4
+    with pytest.raises(ConfigError, match=r"\[ppo\] unknown key 'num_minibatch'; did you mean 'num_minibatches'"):
+        load_jax_ppo(bad)
+    odd = cfg.to_dict()
+    odd["ppo"]["num_minibatches"] = 3
+    with pytest.raises(ConfigError, match=r"num_minibatches \(3\) must divide a rollout's 16,384 steps"):
+        load_jax_ppo(odd)

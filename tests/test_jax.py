@@ -383,7 +383,7 @@ def test_rejax_ppo_trains_on_the_functional_env(tmp_path):
 
     code = (
         "from rventry_agents.jax_ppo import load_config, train_jax_ppo\n"
-        "cfg = load_config()\n"
+        "cfg = load_config().to_dict()\n"
         "cfg['env']['num_envs'] = 16\n"
         "cfg['ppo'].update(num_steps=32, hidden_layer_sizes=[32, 32])\n"
         "cfg['train'].update(chunk_timesteps=2048, eval_episodes=4)\n"
