@@ -34,8 +34,9 @@ class EnvSection(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
-class PPOSection(Section):
-    """``[ppo]``: rejax PPO's settings and the networks (actor and critic alike)."""
+class RejaxPPOSection(Section):
+    """rejax PPO's settings and the networks (actor and critic alike), as both JAX learners read them
+    (the baseline's defaults; :class:`~rventry_agents.scratch_config.PPOSection` sets its own)."""
 
     num_steps: int = setting(64, ge=1)
     num_minibatches: int = setting(4, ge=1)
@@ -48,9 +49,15 @@ class PPOSection(Section):
     vf_coef: float = setting(0.5, ge=0)
     max_grad_norm: float = setting(0.5, gt=0)
     normalize_observations: bool = True
-    normalize_rewards: bool = True
     hidden_layer_sizes: tuple[int, ...] = widths((256, 256))
     activation: Literal["tanh", "relu"] = "tanh"
+
+
+@dataclass(frozen=True, kw_only=True)
+class PPOSection(RejaxPPOSection):
+    """``[ppo]``: rejax PPO's settings, and whether the rewards are normalized."""
+
+    normalize_rewards: bool = True
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -92,4 +99,4 @@ def load_config(path: str | Path | dict | JaxPPOConfig | None = None) -> JaxPPOC
     return JaxPPOConfig.load(DEFAULT_CONFIG if path is None else path)
 
 
-__all__ = ["DEFAULT_CONFIG", "EnvSection", "JaxPPOConfig", "PPOSection", "TrainSection", "load_config"]
+__all__ = ["DEFAULT_CONFIG", "EnvSection", "JaxPPOConfig", "PPOSection", "RejaxPPOSection", "TrainSection", "load_config"]

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Literal
 
 from rventry_agents.config import ConfigError, Section, setting, widths
+from rventry_agents.jax_ppo_config import RejaxPPOSection
 from rventry_env.envs.reward import RewardWeights
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo_scratch.toml"
@@ -109,23 +110,15 @@ class ShapingSection(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
-class PPOSection(Section):
-    """``[ppo]``: rejax PPO's settings and the networks (actor and critic alike)."""
+class PPOSection(RejaxPPOSection):
+    """``[ppo]``: rejax PPO's settings and the networks (actor and critic alike), with this learner's
+    defaults, and the exploration noise's starting log standard deviation; the rewards are always
+    normalized."""
 
-    num_steps: int = setting(64, ge=1)
     num_minibatches: int = setting(8, ge=1)
     num_epochs: int = setting(4, ge=1)
-    learning_rate: float = setting(3e-4, gt=0)
-    gamma: float = setting(0.999, gt=0, le=1)
-    gae_lambda: float = setting(0.95, ge=0, le=1)
-    clip_eps: float = setting(0.2, gt=0)
-    ent_coef: float = setting(0.0, ge=0)
-    vf_coef: float = setting(0.5, ge=0)
-    max_grad_norm: float = setting(0.5, gt=0)
     hidden_layer_sizes: tuple[int, ...] = widths((64, 64))
-    activation: Literal["tanh", "relu"] = "tanh"
     log_std_init: float = setting(-1.0, lt=2)
-    normalize_observations: bool = True
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -171,5 +164,13 @@ def load_config(path: str | Path | dict | None = None) -> ScratchConfig:
     return ScratchConfig.load(DEFAULT_CONFIG if path is None else path)
 
 
-__all__ = ["ScratchConfig", "EnvSection", "CurriculumSection", "ShapingSection", "PPOSection", "TrainSection",
-           "DEFAULT_CONFIG", "load_config"]  # fmt: skip
+__all__ = [
+    "DEFAULT_CONFIG",
+    "CurriculumSection",
+    "EnvSection",
+    "PPOSection",
+    "ScratchConfig",
+    "ShapingSection",
+    "TrainSection",
+    "load_config",
+]  # fmt: skip
