@@ -149,3 +149,20 @@ def test_the_functional_env_its_params_and_state_pickle_and_step_alike():
         if bool(one[3]):
             break
     assert bool(one[3]) and k > 10
+
+
+def test_an_unpickled_functional_env_with_shaping_equals_its_original():
+    """gymnax compiles with the env static, compared by value: a copy (or an equal shaping) reuses the program."""
+    pytest.importorskip("gymnax")
+    from rventry_env.envs.functional import RvEntryFunctional
+    from rventry_env.envs.shaping import PotentialShaping
+
+    energies, ranges = np.array([1e6, 2e6, 3e6]), np.array([0.0, 1e5, 4e5])
+    env = RvEntryFunctional(shaping=PotentialShaping("energy", 0.999, energies=energies, ranges=ranges))
+    copy = pickle.loads(pickle.dumps(env))
+    assert copy == env and hash(copy) == hash(env)
+    same = RvEntryFunctional(shaping=PotentialShaping("energy", 0.999, energies=energies.copy(), ranges=ranges.copy()))
+    assert same == env
+    other = RvEntryFunctional(shaping=PotentialShaping("energy", 0.999, energies=energies, ranges=ranges * 2))
+    assert other != env
+    assert RvEntryFunctional(shaping=PotentialShaping("range", 0.999)) != env

@@ -194,7 +194,7 @@ class RvEntryFunctional(environment.Environment):
     # gymnax's step/reset are jitted with ``self`` static: hash and compare by configuration
     def _key(self):
         return (type(self), self.model, self.task, self.reward, self.dtype, self.flight_grade, self.pool_size,
-                id(self.shaping), self.time_limit_is_failure)  # fmt: skip
+                self.shaping, self.time_limit_is_failure)  # fmt: skip
 
     def __hash__(self):
         return hash(self._key())

@@ -92,6 +92,17 @@ class PotentialShaping:
         """F = gamma Phi(s') - Phi(s), with Phi(s') = 0 where the step ended the episode for good."""
         return self.gamma * ns.where(terminal, 0.0, phi_after) - phi_before
 
+    def key(self) -> tuple:
+        """The shaping's value, arrays included: equal shapings pay equal rewards (an unpickled copy too)."""
+        arrays = tuple(None if a is None else (a.shape, a.tobytes()) for a in (self.energies, self.ranges))
+        return (self.potential, self.gamma, self.weight, *arrays)
+
+    def __eq__(self, other):
+        return isinstance(other, PotentialShaping) and self.key() == other.key()
+
+    def __hash__(self):
+        return hash(self.key())
+
     def describe(self) -> dict:
         out = {"potential": self.potential, "gamma": self.gamma, "weight_per_km": self.weight}
         if self.energies is not None:
