@@ -17,6 +17,8 @@ data, so every chunk runs the first one's program. After each chunk the run:
 * moves the curriculum's window back where the policy lands from its frontier;
 * flies the deterministic policy on ``select_episodes`` of the rung's own episodes (JAX, keys
   from ``select_seed``) and keeps the best by the task metric as ``policy.npz``;
+* keeps the policy that has just landed the frontier, where the window moves, in
+  ``milestones/window_<W>s/`` (later chunks may forget the late flight while they learn further back);
 * writes ``checkpoint/`` whole (the training state, the curriculum, the history), from which
   ``resume=True`` goes on after an interruption.
 
@@ -273,6 +275,9 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress) -> dict:
             best = rec
             rec["best"] = True
             trainer.env.export(out / "policy.npz", trainer.algo, ts)
+        c = rec.get("curriculum")
+        if c and c["next_window_s"] > c["window_s"]:
+            save_milestone(out, trainer, ts, rec)
         progress(_line(rec))
         write_json(out / "evaluations.json", history)
         Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps)
@@ -283,6 +288,37 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress) -> dict:
     write_json(out / "metadata.json", meta)
     plot_learning_curve(history, out / "learning_curve.png", f"PPO from scratch (rejax) on the {cfg.env.rung} rung")
     return meta
+
+
+def save_milestone(out: Path, trainer: Trainer, ts, rec: dict) -> Path:
+    """The policy that has just landed the curriculum's frontier, kept as ``milestones/window_<W>s/``
+    (its ``policy.npz`` and ``metadata.json``): the run's best policy for starts up to W s before
+    impact, which later chunks may forget while they learn further back. ``rventry evaluate``
+    and ``studies/ladder.py`` take the folder as an agent."""
+    c = rec["curriculum"]
+    folder = out / "milestones" / f"window_{c['window_s']:04.0f}s"
+    tmp = folder.with_name(folder.name + ".tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    trainer.env.export(tmp / "policy.npz", trainer.algo, ts)
+    cfg = trainer.cfg
+    write_json(tmp / "metadata.json", {
+        "task": trainer.task.record(), "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": rec["timesteps"],
+        "wall_s": rec["wall_s"], "config": cfg.to_dict(), "window_s": c["window_s"], "frontier": c["frontier"],
+        "probes": rec.get("probes", {}),
+        "provenance": _provenance(cfg, rec["timesteps"], milestone=f"landed {c['frontier_success']:.2f} of the starts "
+                                  f"{FRONTIER_DEPTH * c['window_s']:.0f}-{c['window_s']:.0f} s before impact"),
+    })  # fmt: skip
+    shutil.rmtree(folder, ignore_errors=True)
+    tmp.rename(folder)
+    return folder
+
+
+def _provenance(cfg: ScratchConfig, steps: int, **extra) -> dict:
+    """What a policy of this run is: the learner, its start, curriculum, shaping, actions, rung, steps and seed."""
+    return {"algorithm": "PPO (rejax), from scratch", "start": "scratch", "curriculum": cfg.curriculum.kind,
+            "shaping": cfg.shaping.potential, "actions": cfg.env.actions, "rung": cfg.env.rung, "timesteps": steps,
+            **extra, "seed": cfg.train.seed}  # fmt: skip
 
 
 def _rank(rec: dict) -> tuple:
@@ -312,12 +348,9 @@ def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, r
         "actions": cfg.env.actions, "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": steps,
         "wall_s": history[-1]["wall_s"] if history else 0.0, "env_steps_per_s": rate, "device": str(jax.devices()[0]),
         "train_compilations": len(trainer.traces), "package_version": __version__,
-        "provenance": {"algorithm": "PPO (rejax), from scratch", "start": "scratch",
-                       "curriculum": cfg.curriculum.kind, "shaping": cfg.shaping.potential, "actions": cfg.env.actions,
-                       "rung": cfg.env.rung, "timesteps": steps, "selected_at_timesteps": best["timesteps"] if best else None,
-                       "seed": cfg.train.seed},
+        "provenance": _provenance(cfg, steps, selected_at_timesteps=best["timesteps"] if best else None),
         "best_evaluation": best, "final_window_s": trainer.curriculum.window,
     }  # fmt: skip
 
 
-__all__ = ["train_scratch", "Curriculum", "Trainer", "make_shaping"]
+__all__ = ["train_scratch", "Curriculum", "Trainer", "make_shaping", "save_milestone"]

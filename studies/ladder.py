@@ -8,7 +8,8 @@ interval. Steps and wall time are each run's own, on the machine named in the re
 
     # plain stable-baselines3 PPO, the README's quick start, trained on a rung from scratch
     python studies/ladder.py sb3 --rung late --seeds 0 1 2 --timesteps 300000
-    # runs of `rventry train ppo-scratch` (rejax), each evaluated on the rungs named
+    # runs of `rventry train ppo-scratch` (rejax), or their milestones (RUN/milestones/window_<W>s),
+    # each evaluated on the rungs named
     python studies/ladder.py jax RUN [RUN ...] --learner "rejax PPO, reverse curriculum" --rungs late half nominal
     # what runs of `rventry train ppo-scratch` reached as they trained (their windows, probes)
     python studies/ladder.py histories RUN [RUN ...] --json docs/results/scratch_runs.json
@@ -109,7 +110,13 @@ def _sb3(args) -> None:
 
 def _run_metadata(folder: Path) -> dict:
     """A from-scratch run's metadata (for a run stopped before its end, no metadata.json: the same
-    fields from its config and its last chunk's record), with the window its curriculum had reached."""
+    fields from its config and its last chunk's record), with the window its curriculum had reached;
+    or a run's milestone (``milestones/window_<W>s``: the policy that landed the window W)."""
+    if (folder / "metadata.json").is_file() and not (folder / "evaluations.json").is_file():
+        meta = json.loads((folder / "metadata.json").read_text())
+        if "window_s" not in meta:
+            raise ValueError(f"{folder} is neither a run of rventry train ppo-scratch nor one of its milestones")
+        return meta
     last = json.loads((folder / "evaluations.json").read_text())[-1]
     if (folder / "metadata.json").is_file():
         meta = json.loads((folder / "metadata.json").read_text())

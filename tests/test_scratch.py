@@ -99,7 +99,7 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     assert jax.config.jax_enable_x64
 
     from rventry_agents.jax_policy import JaxPolicy
-    from rventry_agents.scratch import Trainer, _initial_state, train_scratch
+    from rventry_agents.scratch import Trainer, _initial_state, save_milestone, train_scratch
     from rventry_env.evaluation.agents import load_agent
     from rventry_env.evaluation.rollout import rollout
     from rventry_env.evaluation.rungs import rung_starts
@@ -130,7 +130,18 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
         obs, state = jax.vmap(trainer.env.reset, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(0), 16),
                                                                      trainer.params)  # fmt: skip
         want = jax.vmap(lambda o: trainer.env.env_action(o, trainer.env.mean_action(trainer.algo, ts, o)))(obs)
+        # the policy that landed a frontier is kept whole, with what it landed
+        front = {"success_rate": 0.75, "episodes": 128}
+        rec = {"timesteps": 4096, "wall_s": 9.0, "probes": {"30-60": 1.0},
+               "curriculum": {"window_s": 75.0, "frontier_success": 0.75, "frontier": front, "next_window_s": 93.75}}
+        kept = save_milestone(tmp_path, trainer, ts, rec)
     assert jax.config.jax_enable_x64  # restored
+    assert kept == tmp_path / "milestones" / "window_0075s" and sorted(p.name for p in kept.iterdir()) == [
+        "metadata.json", "policy.npz"]
+    km = json.loads((kept / "metadata.json").read_text())
+    assert km["window_s"] == 75.0 and km["task"] == TASK.record() and km["frontier"] == front
+    assert km["provenance"]["milestone"] == "landed 0.75 of the starts 64-75 s before impact"
+    assert np.allclose(load_agent(str(kept)).actions(np.asarray(obs)), np.asarray(want), atol=2e-5)
     law = JaxPolicy(tmp_path / "p.npz")
     assert np.allclose(law.actions(np.asarray(obs)), np.asarray(want), atol=2e-5)
     # the run's policy is an agent: flown twice on the same seeds, the same episodes
