@@ -21,7 +21,7 @@ INFO_KEYS = ("r_ecef_m", "time_s", "cost", "navigation_state", "miss_km", "failu
 CASES = {
     "floats_flight": ("numpy", 2, {"dispersion": "flight", "max_episode_steps": 15}, {}),
     "floats_standard_same_step": ("numpy", 2, {"dispersion": "standard", "max_episode_steps": 12,
-                                              "autoreset_mode": "SameStep"}, {}),  # fmt: skip
+                                              "autoreset_mode": "SameStep"}, {}),
     "arrays_flight": ("numpy", 5, {"dispersion": "flight", "max_episode_steps": 15}, {}),
     "arrays_peer_footprint": ("numpy", 5, {"dispersion": "peer", "targets": "footprint", "max_episode_steps": 12}, {}),
     "arrays_wide_disabled": ("numpy", 5, {"dispersion": "wide", "dt": 50.0, "autoreset_mode": "Disabled"}, {}),

@@ -228,7 +228,7 @@ def test_importing_the_package_changes_no_process_setting():
     code = """
 import os, sys
 before = os.environ.get("XLA_FLAGS")
-import rventry_env, rventry_env.envs.jax_vector, rventry_env.envs.functional, rventry_env.cli
+import rventry_env, rventry_env.envs.jax_vector, rventry_env.envs.jax_stepper, rventry_env.envs.functional, rventry_env.cli
 import jax
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.envs import allocator

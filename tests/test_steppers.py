@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from rventry_env.envs.steppers import ArrayStepper, FloatStepper, Stepper
+from rventry_env.envs.steppers import ArrayStepper, FloatStepper, Stepper, Unsupported
 from rventry_env.envs.vector import RvEntryVectorEnv
 
 from stepper_rollouts import CASES, FIXTURE, rollout
@@ -61,7 +61,7 @@ def test_every_stepper_gives_true_forces_render_and_episode_steps_or_refuses_the
         assert np.array_equal(venv.episode_steps, np.ones(n, np.int64))
         assert venv.render()[0].ndim == 3
     base = Stepper(RvEntryVectorEnv(1).stepper.setup)
-    with pytest.raises(ValueError, match="the 'stepper' stepper does not support true_forces"):
+    with pytest.raises(Unsupported, match="the 'stepper' stepper does not support true_forces"):
         base.true_forces
     with pytest.raises(ValueError, match="the 'stepper' stepper does not support render"):
         base.track()
@@ -80,7 +80,7 @@ def test_the_jax_stepper_refuses_what_it_cannot_fly_with_its_name():
     venv = RvEntryJaxVectorEnv(2, max_episode_steps=5)
     assert type(venv) is RvEntryVectorEnv and venv.stepper.name == "jax"
     venv.reset(seed=0)
-    with pytest.raises(ValueError, match="the 'jax' stepper does not support true_forces"):
+    with pytest.raises(NotImplementedError, match="the 'jax' stepper does not support true_forces"):
         venv.true_forces
     for _ in range(3):
         venv.step(np.zeros((2, 2), np.float32))

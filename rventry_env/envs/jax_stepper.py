@@ -26,7 +26,6 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from gymnasium.vector import AutoresetMode
 
 from rventry_env.core.backend import NUMPY, jax_ns
 from rventry_env.core.euler_parameters import dcm

@@ -90,6 +90,11 @@ class Stepped(NamedTuple):
     info_min_q: np.ndarray
 
 
+class Unsupported(ValueError, NotImplementedError):
+    """A feature the env's stepper cannot give, refused with the stepper's name (a ``ValueError`` for a
+    constructor's argument, a ``NotImplementedError`` for a property: either ``except`` catches it)."""
+
+
 class Stepper:
     """The flights of a vector env's copies and their step (see the module docstring).
 
@@ -104,9 +109,9 @@ class Stepper:
         self.nav: np.ndarray | None = None
         self.sensed: np.ndarray | None = None
 
-    def refuse(self, feature: str, hint: str = "") -> ValueError:
+    def refuse(self, feature: str, hint: str = "") -> Unsupported:
         """The error for a feature this stepper cannot give (raise it)."""
-        return ValueError(f"the {self.name!r} stepper does not support {feature}" + (f": {hint}" if hint else ""))
+        return Unsupported(f"the {self.name!r} stepper does not support {feature}" + (f": {hint}" if hint else ""))
 
     def check_features(self, render_mode: str | None, targets: str) -> None:
         """Refuse, at construction, what this stepper cannot fly (default: everything is flown)."""
@@ -367,4 +372,4 @@ def _standing(flight: Flight) -> Transition:
 
 
 __all__ = ["FLOAT_STEP_MAX_COPIES", "ArrayStepper", "FloatStepper", "StepSetup", "Stepped", "Stepper",
-           "numpy_stepper"]  # fmt: skip
+           "Unsupported", "numpy_stepper"]  # fmt: skip

@@ -355,7 +355,7 @@ def _stepper(backend: str, dtype: str, setup: StepSetup) -> Stepper:
     raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
 
 
-def RvEntryJaxVectorEnv(num_envs: int = 1, dtype: str = "float64", **kwargs) -> RvEntryVectorEnv:  # noqa: N802
+def RvEntryJaxVectorEnv(num_envs: int = 1, dtype: str = "float64", **kwargs) -> RvEntryVectorEnv:
     """The vector env with the JAX stepper: ``RvEntryVectorEnv(num_envs, backend="jax", dtype=dtype, ...)``."""
     return RvEntryVectorEnv(num_envs, backend="jax", dtype=dtype, **kwargs)
 
