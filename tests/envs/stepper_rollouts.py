@@ -1,9 +1,9 @@
 """Short seeded rollouts of the vector env on each stepper, recorded as arrays.
 
-``tests/data/stepper_rollouts.npz`` holds these rollouts as the vector env flew them before its
+``tests/envs/data/stepper_rollouts.npz`` holds these rollouts as the vector env flew them before its
 stepping was delegated to stepper objects; ``test_steppers`` flies them again and asserts the very
 same bits. Regenerate (only where a change is meant to move the episodes) with
-``python tests/stepper_rollouts.py``.
+``python tests/envs/stepper_rollouts.py``.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RANK = {
     "util": 0, "core": 1, "physics": 2, "task": 3,
     "envs": 4, "reference": 4, "validation": 4, "examples": 4,

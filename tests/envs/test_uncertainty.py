@@ -149,7 +149,7 @@ def test_a_profile_of_zeros_leaves_the_density_unchanged_exactly():
 @pytest.mark.parametrize("dispersion", ["flight", "peer"])
 def test_vector_env_draws_what_single_envs_draw(dispersion):
     """Copy i of a vector env reset with seed s draws exactly what a single env reset with s + i
-    does (their episodes then agree step for step: tests/test_env.py)."""
+    does (their episodes then agree step for step: tests/envs/test_env.py)."""
     n = 3
     venv = RvEntryVectorEnv(num_envs=n, dispersion=dispersion)
     obs, info = venv.reset(seed=21)
