@@ -4,7 +4,7 @@ Walks :func:`rventry_env.cli.build_parser` (the library's commands and those ins
 add through the ``rventry.commands`` entry points) and writes one section per command and
 subcommand: its help, its usage and a table of its arguments with their defaults. The docs build
 calls :func:`write` each time, so the page can never lag behind the parsers;
-``tests/test_first_hour.py`` checks that it names every subcommand and option.
+``tests/cli/test_first_hour.py`` checks that it names every subcommand and option.
 
     python docs/tools/cli_reference.py docs/reference/cli.md
 """

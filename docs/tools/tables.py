@@ -10,7 +10,7 @@ the Markdown files that show it. In those files the table sits between two marke
 
 ``python docs/tools/tables.py`` rewrites every marked region from its records;
 ``python docs/tools/tables.py --check`` changes nothing and exits 1 naming each region that
-differs from what its records give (``tests/test_docs.py`` runs the same check). To add a table:
+differs from what its records give (``tests/project/test_docs.py`` runs the same check). To add a table:
 write a renderer (records -> Markdown), add one :class:`Table` entry, put the markers where it
 goes, and run the script. A number in a table is never typed by hand.
 
@@ -561,7 +561,7 @@ def jax_gpu_table(h200: dict, h100: dict, kernels: dict) -> str:
          + f"; final positions within {a['impact_position_error_float64_vs_numpy_m']:.1e} m; float32 vs float64: median "
          f"{a['float32_end_position_error_m']['median']:.1f} m, largest {a['float32_end_position_error_m']['max'] / 1e3:.1f} km, "
          f"the same ending in {a['float32_same_ending']}/{a['episodes']}", f"<= 1e-5: {_met(a['max_obs_diff_float64'] <= 1e-5)}"],
-        [f"`tests/test_jax.py` on the GPU (`{r['test_jax']['command']}`)",
+        [f"`tests/envs/test_jax.py` on the GPU (`{r['test_jax']['command']}`)",
          f"{_passed(r['test_jax']['result'])} on the H200; {_passed(h100['tests'])} on the H100 with the package as it is now", ""],
         ["end-to-end PPO in JAX on the GPU (`rventry train jax-ppo --config rventry_agents/baselines/jax_ppo_gpu.toml "
          "--max-wall-s 150`: 4,096 vehicles, rollouts of 262,144 steps)",

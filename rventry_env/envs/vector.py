@@ -2,62 +2,44 @@
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from rventry_env.core.backend import MATH, NUMPY
+from rventry_env.core.backend import NUMPY
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.envs import MAX_EPISODE_STEPS, common
-from rventry_env.envs.observation import observe
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.shaping import PotentialShaping
-from rventry_env.envs.propagation import IDLE, Propagator, StepOutcome
-from rventry_env.envs.transition import Flight, Transition, advance
+from rventry_env.envs.steppers import FLOAT_STEP_MAX_COPIES, Stepped, Stepper, StepSetup, numpy_stepper
 from rventry_env.envs.uncertainty import FlightState
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
 from rventry_env.task.starts import StartStates
-from rventry_env.physics.entry import entry_forces
-from rventry_env.physics.model import EntryModel, scaled_model
+from rventry_env.physics.model import EntryModel
 
 TERMINAL_KEYS = (
     "miss_km", "vertical_error_deg", "speed_error_mps", "alpha_final_deg", "max_load_factor_g",
     "min_dynamic_pressure_pa", "constraint_violation", "terminal_penalty", "failure", "is_success",
 )  # fmt: skip
 RENDER_COPIES = 16
-# up to this many copies, each is stepped on Python floats: faster than arrays this short (1.6-2.3x for
-# one copy, about even at 4 on the flight set), and the same bits
-FLOAT_STEP_MAX_COPIES = 3
-
-
-class Stepped(NamedTuple):
-    """What a backend's step of all copies returns to :meth:`RvEntryVectorEnv.step` (NumPy arrays)."""
-
-    reward: np.ndarray
-    terminated: np.ndarray
-    truncated: np.ndarray
-    alpha_saturated: np.ndarray
-    obs: np.ndarray
-    obs_clipped: np.ndarray
-    info: dict  # common.flight_info's values
-    outcome: Any  # outcome.Outcome, or None where no episode ended
-    info_max_load: np.ndarray
-    info_min_q: np.ndarray
+BACKENDS = ("numpy", "jax")
 
 
 class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     """N independent copies of :class:`~rventry_env.envs.rv_entry.RvEntryEnv`, batched.
 
-    Every copy runs the single environment's propagation code on arrays (state
-    layout: 12 component arrays of length N), so a step of all copies is one pass
-    of array arithmetic with no Python loop over copies. Up to
-    ``FLOAT_STEP_MAX_COPIES`` copies are each propagated on Python floats instead,
-    with the same bits and less overhead. The spaces, rewards, episode ends and
-    info keys are those of the single environment.
+    The copies' flights and their step belong to a stepper (:mod:`rventry_env.envs.steppers`)
+    chosen by ``backend``. With ``"numpy"``, every copy runs the single environment's
+    propagation code on arrays (state layout: 12 component arrays of length N), so a step
+    of all copies is one pass of array arithmetic with no Python loop over copies; up to
+    ``FLOAT_STEP_MAX_COPIES`` copies are each propagated on Python floats instead, with
+    the same bits and less overhead. With ``"jax"`` (the ``[jax]`` extra), the same step
+    runs under ``jax.jit`` (:mod:`rventry_env.envs.jax_stepper`). The spaces, rewards,
+    episode ends and info keys are those of the single environment, whatever the stepper.
 
     Seeding follows :class:`gymnasium.vector.SyncVectorEnv`: ``reset(seed=s)``
     (an integer >= 0, a NumPy integer too) seeds copy i with ``s + i``, a sequence of
@@ -75,6 +57,11 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     :param dt: control step (s). :param substeps: RK4 substeps per control step.
     :param dispersion: see the single environment.
     :param render_mode: ``"rgb_array"``: one picture with the tracks of the first 16 copies.
+    :param backend: ``"numpy"`` (default) or ``"jax"``: which stepper flies the copies.
+    :param dtype: ``"float64"`` (default) or, with ``backend="jax"``, ``"float32"``.
+
+    A feature a stepper cannot give is refused by it, with its name: the ``jax`` stepper
+    does not render, flies the fixed target only and keeps ``true_forces`` on the device.
     :param autoreset_mode: ``AutoresetMode.NEXT_STEP`` (Gymnasium's default: the step
         after an episode ends returns the reset observation, zero reward, and ignores
         the action) or ``AutoresetMode.SAME_STEP`` (the ending step already returns
@@ -102,6 +89,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         starts: StartStates | None = None,
         shaping: PotentialShaping | None = None,
+        backend: str = "numpy",
+        dtype: str = "float64",
     ):
         if int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs}")
@@ -117,18 +106,27 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._rngs: list[np.random.Generator] | None = None
-        # a few copies (an evaluation's episode per task): each stepped on Python floats, see _advance_few
-        few = self.num_envs <= FLOAT_STEP_MAX_COPIES and _evaluates_on_floats(self.model, self._nominal)
-        self._float_prop = Propagator(self.task, MATH, self.reward) if few else None
-        self._float_models: list[EntryModel] = []
+        setup = StepSetup(self.num_envs, self.task, self.model, self.reward, self.max_episode_steps, self._obs_low,
+                          self._obs_high)  # fmt: skip
+        self.stepper = _stepper(backend, dtype, setup)
+        self.stepper.check_features(render_mode, self.task.targets)
+        self.backend = backend
+        self._started = False
 
     # ------------------------------------------------------------------ state
     @property
     def state(self) -> np.ndarray:
         """States of all copies, float64, shape (N, 12), state order of docs/conventions.md (a copy)."""
-        if self._x is None:
+        if not self._started:
             raise RuntimeError("the environment has no state before reset()")
-        return np.stack(self._x, axis=-1)
+        return self.stepper.state
+
+    @property
+    def episode_steps(self) -> np.ndarray:
+        """Control steps each copy's current episode has flown, int64 (N,)."""
+        if not self._started:
+            raise RuntimeError("the environment has no state before reset()")
+        return self.stepper.steps
 
     @property
     def true_forces(self):
@@ -136,9 +134,9 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         copy's own draw (its atmosphere, winds, aerodynamics and mass), after the latest reset or
         step: arrays (N,). For training-time critics and diagnostics: a guidance law never sees them.
         """
-        if self._x is None:
+        if not self._started:
             raise RuntimeError("the environment has no state before reset()")
-        return self._forces
+        return self.stepper.true_forces
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None):
@@ -174,12 +172,8 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._density = np.ones(n)
         self._lift = np.ones(n)
         self._drag = np.ones(n)
-        self._x = tuple(np.empty(n) for _ in range(12))
-        self._t = np.zeros(n)
-        self._steps = np.zeros(n, dtype=np.int64)
-        self._cost = np.zeros(n)
-        self._max_load = np.zeros(n)
-        self._min_q = np.zeros(n)
+        self._started = True  # the stepper holds the flights
+        self.stepper.begin()
         self._prev_done = np.zeros(n, dtype=bool)
         self._frozen = np.zeros(n, dtype=bool)  # DISABLED: copies whose episode ended
         self._phi = np.zeros(n)  # with shaping: each copy's potential
@@ -188,17 +182,16 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._errors = FlightState(n, self.model)
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
         extras = self._reset_copies(np.arange(n), dispersion)
-        self._measure()
+        obs, clipped, values = self.stepper.view(self._errors)
         if self.shaping is not None:
             self._phi = self._potential_now()
-        obs, clipped = self._observe()
-        info = self._info(np.zeros(n, bool), np.zeros(n, bool), clipped)
+        info = self._info_dict(values, np.zeros(n, bool), np.zeros(n, bool), clipped)
         # the draws, for evaluation only: a guidance law is never given them
         info["dispersion_draw"] = self._errors.draw_info(self.dispersion_draw, extras)
         return obs, info
 
     def step(self, actions):
-        if self._x is None:
+        if not self._started:
             raise RuntimeError("call reset() before step()")
         a = common.real_actions(actions, (self.num_envs, 2), "actions")
         mode = self.metadata["autoreset_mode"]
@@ -215,7 +208,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         if np.any(restart):  # NEXT_STEP: these copies start over and ignore their action
             self._reset_copies(np.nonzero(restart)[0])
         restart = restart | self._frozen  # copies not stepped this time
-        st = self._advance_all(a, ~restart)
+        st: Stepped = self.stepper.advance(a, ~restart, self._errors)
         terminated, truncated, obs = st.terminated, st.truncated, st.obs
         ended = terminated | truncated
         infos = self._info_dict(st.info, action_clipped & ~restart, st.alpha_saturated & ~restart, st.obs_clipped)
@@ -239,17 +232,16 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
             infos["final_info"] = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in infos.items()}
             infos["_final_info"] = ended.copy()
             self._reset_copies(idx)
-            self._measure()
+            obs_r, _, _ = self.stepper.view(self._errors)
             if self.shaping is not None:
                 self._phi[idx] = self._potential_now()[idx]
-            obs_r, _ = self._observe()
             obs[idx] = obs_r[idx]
         return obs, reward.astype(np.float64), terminated, truncated, infos
 
     def render(self):
         if self.render_mode is None:
             return None
-        if self._x is None:
+        if not self._started:
             raise RuntimeError("call reset() before render()")
         p = self.task.problem
         return (render_tracks(self._tracks, p.target_latitude, p.target_longitude, "RvEntry-v0 (vector)"),)
@@ -262,27 +254,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         :param dispersion: this reset's dispersion (default: the constructor's).
         """
         x0, t0, started, extras = self._draw(idx, dispersion)
-        if self._errors.any_model:
-            self._model = self._errors.model(self._density, self._lift, self._drag)
-        else:
-            self._model = (
-                self.model if np.all(self._density == 1) and np.all(self._lift == 1) and np.all(self._drag == 1)
-                else scaled_model(self.model, self._density, self._lift, self._drag)
-            )  # fmt: skip
-        if self._float_prop is not None:  # each copy's model as plain numbers
-            self._float_models = [self._copy_model(i) for i in range(self.num_envs)]
-        for c in range(12):
-            self._x[c][idx] = x0[:, c]
-        if started.any():  # start states inside the path bounds, with each copy's own model
-            rows = idx[started]
-            self._x[0][rows] = common.within_path_bounds(self._x, self._model, self.task, NUMPY)[0][rows]
-        self._forces = self._prop.forces(self._x, self._model)
-        self._c_ae = dcm(*self._x[1:5])
-        self._t[idx] = t0
-        self._steps[idx] = 0
-        self._cost[idx] = 0.0
-        self._max_load[idx] = self._forces.aero_accel[idx] / self._g0  # forces/frames re-formed for all copies
-        self._min_q[idx] = self._forces.dynamic_pressure[idx]
+        self.stepper.restart(idx, x0, t0, started, self._errors, (self._density, self._lift, self._drag), self._target)
         if self._tracks is not None:
             for i in idx:
                 if i < len(self._tracks):
@@ -294,70 +266,6 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         """Every copy's shaping potential at its true state now."""
         x = tuple(self.state.T)
         return np.broadcast_to(self._potential(x, dcm(*x[1:5]), NUMPY), (self.num_envs,))
-
-    def _measure(self, elapsed=None, active=None) -> None:
-        """What the vehicles' sensors and navigation make of the truth (the truth itself where
-        no copy's set has sensor or navigation errors)."""
-        if self._errors.any_sensing:
-            nav, self._sensed, feats, nav_c_ae = self._errors.sense(self._x, self._forces, self._c_ae, self._g0,
-                                                                    elapsed, active)  # fmt: skip
-            self._nav = nav
-            self._seen = (tuple(nav[:, j] for j in range(12)), feats, nav_c_ae)
-        else:
-            self._nav = None
-            self._sensed = None
-            self._seen = (self._x, self._forces, self._c_ae)
-
-    def _advance_all(self, a: np.ndarray, active: np.ndarray) -> "Stepped":
-        """One control step of the active copies (actions ``a`` clipped): the backend's part of ``step``."""
-        if self._float_prop is not None:
-            tr = self._advance_few(a, active)
-        else:
-            tr = advance(
-                Flight(self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q),
-                (a[:, 0], a[:, 1]), self._model, self._prop, self.max_episode_steps, self._target, active=active,
-            )  # fmt: skip
-        self._x, self._forces, self._t, self._steps, self._cost, self._max_load, self._min_q = tr.flight
-        self._c_ae = tr.c_ae
-        self._measure(tr.out.elapsed, active)
-        obs, obs_clipped = self._observe()
-        info = common.flight_info(self._x, self._forces, self._c_ae, self._t, self._cost, self._radius, self._g0, NUMPY)
-        return Stepped(tr.reward, tr.terminated, tr.truncated, tr.out.alpha_saturated, obs, obs_clipped, info,
-                       tr.outcome, self._max_load, self._min_q)  # fmt: skip
-
-    def _copy_model(self, i: int) -> EntryModel:
-        """Copy ``i``'s model as plain numbers: the batch model's row ``i``."""
-        scales = (float(self._density[i]), float(self._lift[i]), float(self._drag[i]))
-        if self._errors.any_model:
-            return self._errors.model(*scales, single=True, row=i)
-        return self.model if self._model is self.model else scaled_model(self.model, *scales)
-
-    def _advance_few(self, a: np.ndarray, active: np.ndarray) -> Transition:
-        """The step of a few copies, each on Python floats (the ``MATH`` namespace), as arrays.
-
-        The same code and the same floating-point operations as the array path, so the same
-        bits (``tests/test_env.py`` compares the two over whole episodes of every set), without
-        NumPy's per-call overhead: a few hundred operations on arrays of a few elements cost
-        about 1 us each, ten times their arithmetic. An evaluation flies a re-planning law's
-        episodes one per task, so this is most of the environment's share of their time. A copy
-        not stepped stays as it is, with what the array path reports for it.
-        """
-        steps = []
-        for i in range(self.num_envs):
-            at = lambda c: float(c[i])  # noqa: E731
-            flight = Flight(tuple(map(at, self._x)), _map_leaves(at, self._forces), at(self._t), int(self._steps[i]),
-                            at(self._cost), at(self._max_load), at(self._min_q))  # fmt: skip
-            if not active[i]:
-                steps.append(_standing(flight))
-                continue
-            target = tuple(float(np.broadcast_to(c, (self.num_envs,))[i]) for c in self._target)
-            steps.append(advance(flight, (float(a[i, 0]), float(a[i, 1])), self._float_models[i], self._float_prop,
-                                 self.max_episode_steps, target))  # fmt: skip
-        ended = [t.outcome is not None for t in steps]
-        if any(ended):  # the array path's outcome holds every copy, read only where one ended
-            blank = _map_leaves(_blank, next(t.outcome for t in steps if t.outcome is not None))
-            steps = [t if t.outcome is not None else t._replace(outcome=blank) for t in steps]
-        return _map_leaves(_stack, *steps)
 
     def _draw(self, idx: np.ndarray, dispersion: Dispersion | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
         """Draw new episodes for copies ``idx`` from their generators: their initial states (len(idx), 12),
@@ -393,17 +301,6 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._drag[idx] = 1 + d[:, 2]
         return x0, t0, started, extras
 
-    def _observe(self):
-        x, forces, c_ae = self._seen
-        raw = observe(x, forces, c_ae, self._t, self.task, self._target, self._radius, self._g0, NUMPY)
-        return common.observation_batch(raw, self._obs_low, self._obs_high)
-
-    def _info(self, action_clipped, alpha_saturated, obs_clipped) -> dict:
-        values = common.flight_info(
-            self._x, self._forces, self._c_ae, self._t, self._cost, self._radius, self._g0, NUMPY
-        )
-        return self._info_dict(values, action_clipped, alpha_saturated, obs_clipped)
-
     def _info_dict(self, values: dict, action_clipped, alpha_saturated, obs_clipped) -> dict:
         """The step's info from :func:`common.flight_info`'s values (3-vectors as 3 component arrays)."""
         n = self.num_envs
@@ -414,9 +311,10 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         infos["action_clipped"] = np.asarray(action_clipped, bool)
         infos["alpha_saturated"] = np.broadcast_to(np.asarray(alpha_saturated, bool), (n,)).copy()
         infos["observation_clipped"] = np.asarray(obs_clipped, bool)
-        if self._sensed is not None:
-            infos["sensed_accel_b"] = self._sensed.copy()
-        infos["navigation_state"] = self.state if self._nav is None else self._nav.copy()
+        sensed, nav = self.stepper.sensed, self.stepper.nav
+        if sensed is not None:
+            infos["sensed_accel_b"] = sensed.copy()
+        infos["navigation_state"] = self.state if nav is None else nav.copy()
         infos["target_e"] = self._targets.copy()
         for k in TERMINAL_KEYS:
             infos[k] = np.full(n, "", dtype=object) if k == "failure" else np.zeros(n, dtype=float)
@@ -439,51 +337,27 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     def _record(self, only=None):
         if self._tracks is None:
             return
-        lat, lon = common.latitude_longitude(self._c_ae[0], NUMPY)
+        t, altitude, speed, lat, lon = self.stepper.track()
         for i in range(len(self._tracks)) if only is None else only:
-            self._tracks[i].append(self._t[i], self._x[0][i] - self._radius, self._x[5][i], lat[i], lon[i])
+            self._tracks[i].append(t[i], altitude[i], speed[i], lat[i], lon[i])
 
 
-def _evaluates_on_floats(model: EntryModel, x) -> bool:
-    """Whether every part of ``model`` evaluates on Python floats (a tabulated atmosphere, say,
-    evaluates on arrays only)."""
-    try:
-        entry_forces(tuple(float(c) for c in x), model, MATH)
-    except TypeError:
-        return False
-    return True
+def _stepper(backend: str, dtype: str, setup: StepSetup) -> Stepper:
+    """The stepper ``backend`` flies ``setup``'s copies with."""
+    if backend == "numpy":
+        if dtype != "float64":
+            raise ValueError(f"backend='numpy' computes in float64; dtype={dtype!r} needs backend='jax'")
+        return numpy_stepper(setup)
+    if backend == "jax":
+        from rventry_env.envs.jax_stepper import JaxStepper
+
+        return JaxStepper(setup, dtype)
+    raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
 
 
-def _map_leaves(fn, tree, *more):
-    """``fn`` applied to every number of nested named tuples and tuples (leaf by leaf across
-    ``tree`` and ``more`` of the same structure; None stays None)."""
-    if tree is None:
-        return None
-    if isinstance(tree, tuple):
-        items = [_map_leaves(fn, *parts) for parts in zip(tree, *more)]
-        return type(tree)(*items) if hasattr(tree, "_fields") else tuple(items)
-    return fn(tree, *more)
+def RvEntryJaxVectorEnv(num_envs: int = 1, dtype: str = "float64", **kwargs) -> RvEntryVectorEnv:
+    """The vector env with the JAX stepper: ``RvEntryVectorEnv(num_envs, backend="jax", dtype=dtype, ...)``."""
+    return RvEntryVectorEnv(num_envs, backend="jax", dtype=dtype, **kwargs)
 
 
-def _stack(*values) -> np.ndarray:
-    """The copies' numbers of one quantity as the array path's array."""
-    v = values[0]
-    if isinstance(v, (bool, np.bool_)):
-        return np.array(values, dtype=bool)
-    if isinstance(v, str):
-        return np.array(values, dtype=object)
-    if isinstance(v, (int, np.integer)):
-        return np.array(values, dtype=np.int64)
-    return np.array(values, dtype=float)
-
-
-def _blank(v):
-    """The outcome's value for a copy that did not end (never read)."""
-    return "" if isinstance(v, str) else type(v)(0)
-
-
-def _standing(flight: Flight) -> Transition:
-    """A copy not stepped: as it is, no time, no reward, no ending (what the array path reports)."""
-    zero = 0.0 * flight.t
-    out = StepOutcome(flight.x, flight.forces, zero, IDLE, zero, zero, flight.max_load, flight.min_q, False)
-    return Transition(flight, dcm(*flight.x[1:5]), out, -(zero + zero), False, False, None)
+__all__ = ["RvEntryVectorEnv", "RvEntryJaxVectorEnv", "Stepped", "TERMINAL_KEYS", "FLOAT_STEP_MAX_COPIES"]

@@ -143,7 +143,7 @@ def _fly(venv: RvEntryVectorEnv, policy: GuidanceLaw, obs, info, record_history:
         ended = (term | trunc) & ~done
         for k in keys:
             final[k][ended] = info[k][ended]
-        lengths[ended] = venv._steps[ended]
+        lengths[ended] = venv.episode_steps[ended]
         if np.any(ended):
             navigation[ended] = navigation_at_end(venv.state[ended], info["navigation_state"][ended],
                                                   info["target_e"][ended], venv.task, venv.model.planet.radius)  # fmt: skip

@@ -38,7 +38,7 @@ so the sign of C_L (negative at small alpha and high Mach) is kept. The filter
 reports k_D, k_LD = k_L / k_D and their standard deviations (first-order
 propagation for the ratio). With the defaults and the standard dispersions the
 estimate is within 0.5 % of the truth after the first measurement (measured by
-``tests/test_estimation.py``); with 0.05 m/s^2 white noise on every axis, within 0.5 %
+``tests/guidance/test_estimation.py``); with 0.05 m/s^2 white noise on every axis, within 0.5 %
 after 2 s.
 
 Everything is batched: one filter per vehicle, arrays of length N.

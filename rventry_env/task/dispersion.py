@@ -231,7 +231,7 @@ def disperse_state(x: tuple, d: tuple, ns) -> tuple:
     the lift direction along: the bank angle relative to the vertical plane (the
     conventional mu) is unchanged, as the vertical plane turns with B. This equals the
     round trip through spherical coordinates and the east-down frame rule to rounding
-    (tests/test_jax.py). Undefined at a pole and in vertical flight, like the angles themselves
+    (tests/envs/test_jax.py). Undefined at a pole and in vertical flight, like the angles themselves
     (:func:`apply_state_dispersion` refuses them there; altitude and speed still apply). Plain
     component arithmetic, so NumPy and JAX (the functional environment's reset) share it.
     """

@@ -20,7 +20,7 @@ the identification's assumptions or code:
 Shared with the identification is only what a flight record *means*: the
 conventional bank angle mu (0 = lift up, positive toward b1 x up, measured about
 the Earth-relative velocity) and that lift is normal to the air-relative velocity
-(docs/conventions.md). ``tests/test_validation_truth.py`` cross-checks this model against
+(docs/conventions.md). ``tests/validation/test_validation_truth.py`` cross-checks this model against
 the rv-Euler entry dynamics without effects, and each effect against its
 force-model part.
 """

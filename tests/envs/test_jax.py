@@ -157,7 +157,7 @@ def test_whole_dispersed_episodes_agree_with_numpy_float64():
     for miss_np, miss_j, f_np, f_j, r_np, r_j in finals.values():
         assert miss_j == pytest.approx(miss_np, rel=1e-9) and f_j == f_np
         np.testing.assert_allclose(r_j, r_np, atol=1e-4)
-    assert venv_j.unwrapped._step_fn._cache_size() == 1  # compiled once for the whole run
+    assert venv_j.unwrapped.stepper.step_fn._cache_size() == 1  # compiled once for the whole run
 
 
 @pytest.mark.slow
@@ -174,7 +174,7 @@ def test_flight_grade_sets_fly_the_same_episodes_per_draw_in_jax(name):
         np.testing.assert_allclose(r_j, r_np, atol=1e-4)
     assert max(venv_j.sensing_difference.values()) <= 1e-9
     u = venv_j.unwrapped
-    assert u._fn.sensing == (name == "flight") and u._step_fn._cache_size() == 1
+    assert u.stepper.sensing == (name == "flight") and u.stepper.step_fn._cache_size() == 1
 
 
 @pytest.mark.slow
@@ -194,7 +194,7 @@ def test_autoresets_into_another_set_structure_keep_flying_with_numpy():
         np.testing.assert_array_equal(out[1][3], out[0][3])
         np.testing.assert_allclose(out[1][4]["navigation_state"], out[0][4]["navigation_state"], rtol=1e-9)
         ends.append(out[0][2] | out[0][3])
-    assert venvs[1].unwrapped._fn.sensing
+    assert venvs[1].unwrapped.stepper.sensing
     assert ends[0][0] and not ends[0][1:].any()  # copy 0 alone ended first
 
 

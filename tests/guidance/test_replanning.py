@@ -145,7 +145,7 @@ def test_rollout_hands_a_law_the_navigation_state_and_the_sensors_not_the_truth_
     np.testing.assert_array_equal(first.navigation_state, info["navigation_state"])
     np.testing.assert_array_equal(first.sensed_accel_b, info["sensed_accel_b"])
     assert np.all(np.abs(first.navigation_state[:, 0] - venv.state[:, 0]) > 1e-3)
-    assert np.all(np.abs(first.sensed_accel_b - np.stack(venv._forces.aero_b, axis=-1)) > 0)
+    assert np.all(np.abs(first.sensed_accel_b - np.stack(venv.true_forces.aero_b, axis=-1)) > 0)
     # the target is part of the mission a law is told, not of the draw
     assert set(Measurement.__dataclass_fields__) == {"observation", "time_s", "navigation_state", "sensed_accel_b",
                                                      "flying", "target_e"}  # fmt: skip

@@ -161,7 +161,7 @@ def test_the_cli_reference_lists_every_subcommand_and_option():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "docs" / "tools" / "cli_reference.py"
+    path = Path(__file__).resolve().parents[2] / "docs" / "tools" / "cli_reference.py"
     spec = importlib.util.spec_from_file_location("cli_reference", path)
     cli_reference = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(cli_reference)

@@ -28,7 +28,7 @@ from rventry_env.task import EntryTask
 from rventry_env.evaluation.agents import load_agent
 from rventry_env.evaluation.rollout import rollout
 
-from dagger_configs import DISTIL, SMALL  # noqa: E402  (tests/ is on the path)
+from dagger_configs import DISTIL, SMALL  # noqa: E402  (tests/agents/ is on the path)
 
 
 def test_with_beta_one_the_expert_flies_and_every_step_is_labelled():

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RANK = {
     "util": 0, "core": 1, "physics": 2, "task": 3,
     "envs": 4, "reference": 4, "validation": 4, "examples": 4,
@@ -228,7 +228,7 @@ def test_importing_the_package_changes_no_process_setting():
     code = """
 import os, sys
 before = os.environ.get("XLA_FLAGS")
-import rventry_env, rventry_env.envs.jax_vector, rventry_env.envs.functional, rventry_env.cli
+import rventry_env, rventry_env.envs.jax_vector, rventry_env.envs.jax_stepper, rventry_env.envs.functional, rventry_env.cli
 import jax
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.envs import allocator

@@ -24,7 +24,7 @@ from rventry_env.cli import main
 from rventry_env.util.files import OutputError, check_writable, write_json
 from script_modules import load_script
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 fuzz = load_script("studies/fuzz_cli")
 
 

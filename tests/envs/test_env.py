@@ -17,6 +17,7 @@ import rventry_env  # noqa: F401  (registers RvEntry-v0 once Gymnasium is loaded
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.rv_entry import RvEntryEnv
 from rventry_env.task import Dispersion, EntryProblem, EntryTask
+from rventry_env.envs.steppers import FLOAT_STEP_MAX_COPIES, ArrayStepper
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.physics import EntryModel, J2Gravity, PointMassGravity, entry_rhs
@@ -368,7 +369,7 @@ def _few_copies_episode(dispersion, seed, on_floats, n=1, steps=None, **kw):
     steps), actions drawn from ``seed``."""
     venv = RvEntryVectorEnv(num_envs=n, task=TASK, dispersion=dispersion, **kw)
     if not on_floats:
-        venv._float_prop = None  # the array path, as for many copies
+        venv.stepper = ArrayStepper(venv.stepper.setup)  # the array path, as for many copies
     rng = np.random.default_rng(seed)
     out = [copy.deepcopy(venv.reset(seed=seed))]
     ended = np.zeros(n, bool)
@@ -431,11 +432,12 @@ def test_a_model_that_evaluates_on_arrays_only_keeps_a_single_copy_on_arrays():
     h = np.linspace(0.0, 150e3, 61)
     model = EntryModel(atmosphere=TabulatedAtmosphere(tuple(h), tuple(1.225 * np.exp(-h / 7200.0))))
     venv = RvEntryVectorEnv(num_envs=1, task=TASK, model=model)
-    assert venv._float_prop is None  # TabulatedAtmosphere refuses Python floats
+    assert venv.stepper.name == "arrays"  # TabulatedAtmosphere refuses Python floats
     venv.reset(seed=0)
     obs, *_ = venv.step(np.zeros((1, 2), np.float32))
     assert np.all(np.isfinite(obs))
-    assert RvEntryVectorEnv(num_envs=1, task=TASK)._float_prop is not None
+    assert RvEntryVectorEnv(num_envs=1, task=TASK).stepper.name == "floats"
+    assert RvEntryVectorEnv(num_envs=FLOAT_STEP_MAX_COPIES + 1, task=TASK).stepper.name == "arrays"
 
 
 def test_vector_env_autoreset_next_step_and_same_step():

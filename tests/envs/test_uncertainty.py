@@ -149,7 +149,7 @@ def test_a_profile_of_zeros_leaves_the_density_unchanged_exactly():
 @pytest.mark.parametrize("dispersion", ["flight", "peer"])
 def test_vector_env_draws_what_single_envs_draw(dispersion):
     """Copy i of a vector env reset with seed s draws exactly what a single env reset with s + i
-    does (their episodes then agree step for step: tests/test_env.py)."""
+    does (their episodes then agree step for step: tests/envs/test_env.py)."""
     n = 3
     venv = RvEntryVectorEnv(num_envs=n, dispersion=dispersion)
     obs, info = venv.reset(seed=21)
@@ -166,11 +166,11 @@ def test_the_flight_set_draws_a_different_profile_per_vehicle_and_leaves_the_tru
     _, info = venv.reset(seed=0)
     lf = info["dispersion_draw"]["density_log_factor"]
     assert lf.shape == (4, GRID_M.size) and np.all(np.std(lf, axis=0)[:60] > 0)
-    rho = venv._model.atmosphere.density(np.full(4, 30e3), NUMPY)
+    rho = venv.stepper.model.atmosphere.density(np.full(4, 30e3), NUMPY)
     assert len(set(np.round(rho, 12))) == 4
     # the law sees a navigation state off the truth, and a sensed acceleration off the true one
     assert np.all(np.abs(info["navigation_state"][:, 0] - venv.state[:, 0]) > 0)
-    truth_accel = np.stack(venv._forces.aero_b, axis=-1)
+    truth_accel = np.stack(venv.true_forces.aero_b, axis=-1)
     assert np.all(np.abs(info["sensed_accel_b"] - truth_accel) > 0)
     assert info["dispersion_draw"]["climate"].shape == (4, 5)
 

@@ -20,9 +20,9 @@ from rventry_agents.dagger_config import DaggerConfig
 from rventry_agents.dagger_config import load_config as load_dagger_config
 from rventry_agents.sb3_config import BASELINES, DEFAULT_CONFIG, FINETUNE_CONFIG, load_config
 
-AGENTS = Path(__file__).resolve().parents[1] / "rventry_agents"
+AGENTS = Path(__file__).resolve().parents[2] / "rventry_agents"
 DATA = AGENTS / "data"
-RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
+RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results"
 # every config shipped in the package, with its algorithm (None: a DAgger config); the JAX trainer's are its own
 SHIPPED_CONFIGS = {
     "ppo.toml": "ppo", "ppo_finetune.toml": "ppo", "baselines/ppo.toml": "ppo",

@@ -16,7 +16,7 @@ import pytest
 import rventry_env  # noqa: F401  (registers RvEntry-v0)
 from rventry_env.evaluation.rungs import RUNGS, rung
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("name", list(RUNGS))

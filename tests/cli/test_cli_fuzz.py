@@ -19,7 +19,7 @@ import pytest
 
 from rventry_env.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _corpus(tmp: Path) -> list[tuple[list[str], str]]:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TOOLS = ROOT / "docs" / "tools"
 RUN = ("python", "bash")
 MARK = re.compile(r"^<!-- code: (slow|skip|ci) \((.+)\) -->$")

@@ -14,7 +14,7 @@ from rventry_env.evaluation.manifest import (MANIFEST, build_manifest, shipped_p
                                              task_record, write_manifests)  # fmt: skip
 from rventry_env.task import EntryTask
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _tree(tmp_path, *policies):

@@ -3,7 +3,7 @@
 A function's length is its ``end_lineno - lineno + 1`` (decorators not counted, docstring
 counted); a nested function is counted on its own as well as within its parent. Run this file
 as a script to print every function over 60 lines, longest first:
-``python tests/test_function_length.py``.
+``python tests/project/test_function_length.py``.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("rventry_env", "rventry_agents")
 LONG = 60  # lines: a function over this is long ...
 MAX_LONG = 10  # ... and at most this many may be

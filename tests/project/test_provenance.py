@@ -10,7 +10,7 @@ import pytest
 
 from rventry_env.util.provenance import RunRecord, write_record
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCRIPTS = sorted([*(ROOT / "benchmarks").glob("*.py"), *(ROOT / "studies").glob("*.py")])
 
 

@@ -25,7 +25,7 @@ from rventry_agents.dagger import (
 )
 from rventry_agents.imitation import N_FEATURES, network_bytes
 
-from dagger_configs import DISTIL  # noqa: E402  (tests/ is on the path)
+from dagger_configs import DISTIL  # noqa: E402  (tests/agents/ is on the path)
 from dagger_configs import SMALL as _SMALL  # noqa: E402
 
 SMALL = _SMALL.replace("[select]\nepisodes = 3", "[select]\nepisodes = 2")  # one selection episode fewer
