@@ -963,7 +963,7 @@ def apollo4_table(doc: dict) -> str:
     """Apollo 4's altitude rms: the published reconstruction, the declared state replayed, and ``rventry identify``."""
     from rventry_env.validation.apollo4 import PUBLISHED_RMS_ALTITUDE_M as published
 
-    km = lambda m: f"{sig(m / 1e3)} km"  # noqa: E731
+    km = lambda m: f"{m / 1e3:.3g} km"  # noqa: E731  (3 significant figures, no padding: 5.4, 27.1, 0.33)
     d, b, a = doc["declared_entry_state"], doc["before"], doc["after"]
     found = " + ".join(f"`{e}`" for e in doc["effects"])
     params = ", ".join(f"`{k}` = {v:.3f} +/- {doc['parameter_stderr'][k]:.3f}" for k, v in doc["parameters"].items())
@@ -999,7 +999,7 @@ def env_accuracy_table(doc: dict) -> str:
         by = {r["substeps"]: r for r in rows_in if r["scenario"] == scenario}
         peak = max(r["peak_load_g"] for r in by.values())
         rows.append([SCENARIOS.get(scenario, scenario), f"{sig(peak, 2)} g",
-                     *(f"{sig(by[k]['impact_position_error_m'], 2)} m" + (" at impact" if k == substeps[0] and not rows else "")
+                     *(f"{sig(by[k]['impact_position_error_m'], 3)} m" + (" at impact" if k == substeps[0] and not rows else "")
                        for k in substeps)])  # fmt: skip
     header = ["scenario", "peak load", *(f"dt = {dt:g} s, {k} RK4 substep" + ("s" if k > 1 else "") + (" (default)" if k == 1 else "")
                                         for k in substeps)]  # fmt: skip
@@ -1061,6 +1061,54 @@ def scan_defaults_table(doc: dict) -> str:
             f"{doc['wall_s']:.0f} s on {doc['workers']} workers{_load_text(doc)}: the times are this machine's.")
     return "\n".join([md(header, rows), "", text, "", source(SCAN_DEFAULTS, command=doc.get("command"))])
 
+
+BASELINES = "docs/results/bench_baselines.json"
+JAX_BASELINES = ("rventry_agents/data/baselines/jax_ppo_evaluations.json",
+                 "rventry_agents/data/baselines/jax_ppo_gpu_evaluations.json")
+BASELINE_NAMES = {"ppo": ("PPO", "ppo-plain"), "recurrent_ppo": ("RecurrentPPO", "recurrent-ppo-plain"),
+                  "sac": ("SAC", "sac-plain")}
+# the JAX learner's runs, evaluated by themselves (128 standard vehicles in JAX): label, command, machine
+JAX_RUNS = (("PPO end to end in JAX", "rventry train jax-ppo --config rventry_agents/baselines/jax_ppo.toml --out "
+             "runs/baseline_jax_ppo --max-wall-s 2400", "rejax on the functional env, two shared CPU cores; not shipped"),
+            ("PPO end to end in JAX on a GPU", "rventry train jax-ppo --config rventry_agents/baselines/jax_ppo_gpu.toml "
+             "--out runs/jax_ppo_gpu --max-wall-s 150", "one NVIDIA H200; not shipped"))  # fmt: skip
+
+
+def _steps(n: float) -> str:
+    return f"{n / 1e6:.0f}M" if n >= 1e7 else f"{n / 1e6:.1f}M"
+
+
+def baselines_table(doc: dict, jax_cpu: list, jax_gpu: list) -> str:
+    """The plain-RL baselines held out (``studies/baselines.py``), and the JAX learner's runs by their own evaluation."""
+    rows = []
+    for run in doc["runs"].values():
+        name, agent = BASELINE_NAMES.get(run["algorithm"], (run["algorithm"], None))
+        t, st, wd, nom = run["training"], run["standard"], run["wide"], run["nominal"]
+        command = re.sub(r"^\S*rventry ", "rventry ", t["command"]).replace(" --no-progress", "")
+        label = f"{name} (`{command}`" + (f"; shipped as `{agent}`)" if agent else ")")
+        miss = st["percentiles"]["miss_km"]
+        rows.append([label, _steps(t["timesteps"]), f"{t['wall_time_s']:,.0f} s", f"**{st['success_rate']:.2f}**",
+                     f"**{wd['success_rate']:.2f}**", f"{sig(miss['p50'])} / {sig(miss['p95'])} km",
+                     f"{sig(st['percentiles']['vertical_error_deg']['p50'])} deg", f"{1 - st['constraint_violation_rate']:.2f}",
+                     f"{sig(nom['miss_km'])} km", sig(nom["cost_ratio"])])  # fmt: skip
+    missing = "not evaluated"
+    for (label, command, where), evals in zip(JAX_RUNS, (jax_cpu, jax_gpu)):
+        last = evals[-1]
+        best = min(evals, key=lambda e: e["miss_km_p50"])
+        miss = f"{sig(last['miss_km_p50'])} km median at the end" + (
+            f"; best {sig(best['miss_km_p50'])} km at {_steps(best['timesteps'])} steps" if best is not last else "")
+        rows.append([f"{label} (`{command}`; {where})", _steps(last["timesteps"]),
+                     f"{last['wall_s']:,.0f} s ({last['timesteps'] / last['wall_s']:,.0f} env-steps/s)",
+                     f"{last['success_rate']:.2f} (its own evaluation: 128 standard vehicles in JAX)", missing,
+                     miss + " (its own evaluation)", missing, missing, missing, missing])  # fmt: skip
+    header = ["baseline (config in `rventry_agents/baselines/`)", "steps", "wall", "standard success", "wide success",
+              "miss p50 / p95, standard", "vertical error p50, standard", "no path violation, standard", "nominal miss",
+              "nominal J/J*"]  # fmt: skip
+    text = (f"Held out: the nominal flight and {doc['episodes']} standard and {doc['episodes']} wide episodes from seed "
+            f"{doc['seed']}, flown by each run's selected model.")
+    return "\n".join([md(header, rows), "", text, "", source(BASELINES, *JAX_BASELINES,
+                      command=(doc.get("provenance") or {}).get("command"))])  # fmt: skip
+
 # ------------------------------------------------------------------ the registry
 EXPLAINED_SCANS = ("aero", "final", "estimator", "split", "dive")  # also shown where the design page explains them
 README = "README.md"
@@ -1107,6 +1155,7 @@ TABLES: tuple[Table, ...] = (
     Table("env-accuracy", (ENV_ACCURACY,), env_accuracy_table, ("docs/benchmarks/environment.md",)),
     Table("random-actions", (RANDOM_ACTIONS,), random_actions_table, ("docs/benchmarks/environment.md",)),
     Table("scan-defaults", (SCAN_DEFAULTS,), scan_defaults_table, ("docs/benchmarks/guidance.md",)),
+    Table("baselines", (BASELINES, *JAX_BASELINES), baselines_table, ("docs/benchmarks/learned_policies.md",)),
 )  # fmt: skip
 
 
@@ -1137,6 +1186,12 @@ def problems() -> list[str]:
     known = {t.name for t in TABLES}
     shown: dict[str, list[str]] = {}
     for t in TABLES:
+        missing = [p for p in t.records if not (ROOT / p).is_file()]
+        if missing:
+            out.append(f"table {t.name!r}: no record {', '.join(missing)}")
+            for f in t.files:
+                shown.setdefault(f, []).append(t.name)
+            continue
         body = rendered(t)
         for f in t.files:
             found = regions((ROOT / f).read_text()) if (ROOT / f).exists() else {}
