@@ -1022,14 +1022,13 @@ def random_actions_table(doc: dict) -> str:
     """Random actions, bad model fields and extreme reset states: every episode ends cleanly, or is refused by name."""
     t, m, s = doc["totals"], doc["models"], doc["states"]
     endings = t["endings"]
-    order = [k for k in ("impact", "skip_out", "stall", "non_finite_state", "time_limit") if k in endings]
+    order = [k for k in ("impact", "skip-out", "stall", "non-finite state", "time limit") if k in endings]
     order += [k for k in endings if k not in order]
     rows = [["crash or NumPy warning", f"{t['crash']:,}"],
             ["non-finite observation or reward", f"{t['non-finite observation'] + t['non-finite reward']:,}"],
             ["observation outside its bounds", f"{t['observation out of bounds']:,}"],
             ["an ended episode without the end keys", f"{t['ended without an end key']:,}"],
-            ["random actions, endings: " + " / ".join(k.replace("_", "-").replace("non-finite-state", "non-finite state")
-                                                      for k in order), " / ".join(f"{endings[k]:,}" for k in order)],
+            ["random actions, endings: " + " / ".join(order), " / ".join(f"{endings[k]:,}" for k in order)],
             ["bad model fields: refused as the part is built, naming the part and field / accepted and flown (16 episodes "
              "each) / refused without naming it", f"{m.get('refused, naming the field', 0):,} / {m.get('accepted', 0):,} / "
              f"{m.get('refused without naming the field', 0):,}"],
