@@ -1021,7 +1021,12 @@ def _load_text(doc: dict) -> str:
 def random_actions_table(doc: dict) -> str:
     """Random actions, bad model fields and extreme reset states: every episode ends cleanly, or is refused by name."""
     t, m, s = doc["totals"], doc["models"], doc["states"]
-    endings = t["endings"]
+    endings: dict[str, int] = {}  # the random-action episodes' (the totals add the model and state sweeps' flights)
+    for case in doc["cases"].values():
+        for counts in case.values():
+            for k, v in counts.items():
+                if k.startswith("ending: "):
+                    endings[k[8:]] = endings.get(k[8:], 0) + v
     order = [k for k in ("impact", "skip-out", "stall", "non-finite state", "time limit") if k in endings]
     order += [k for k in endings if k not in order]
     rows = [["crash or NumPy warning", f"{t['crash']:,}"],
@@ -1037,7 +1042,7 @@ def random_actions_table(doc: dict) -> str:
              f"{s.get('refused without naming the component', 0):,}"]]  # fmt: skip
     ran = (doc.get("provenance") or {}).get("command")
     text = (f"{doc['episodes_vector']:,} vector-env and {doc['episodes_single']:,} single-env episodes of random "
-            f"actions, {doc['wall_time_s']:.0f} s{_load_text(doc)}.")
+            f"actions, {doc['wall_time_s']:,.0f} s{_load_text(doc)}.")
     return "\n".join([md(["check", "count"], rows), "", text, "",
                       source(RANDOM_ACTIONS, command=ran)])  # fmt: skip
 
