@@ -1229,7 +1229,7 @@ def write_all() -> list[str]:
         path = ROOT / f
         text = old = path.read_text()
         for t in TABLES:
-            if f in t.files:
+            if f in t.files and all((ROOT / p).is_file() for p in t.records):  # a missing record: --check names it
                 text = replace_region(text, t.name, rendered(t))
         if text != old:
             path.write_text(text)
