@@ -1047,7 +1047,7 @@ def random_actions_table(doc: dict) -> str:
                       source(RANDOM_ACTIONS, command=ran)])  # fmt: skip
 
 
-SCAN_DEFAULTS = "docs/results/scan_mpc.json"
+SCAN_DEFAULTS = "docs/results/scan_mpc.json"  # its Table joins the registry with the record (studies/mpc_settings.py --scan)
 
 
 def scan_defaults_table(doc: dict) -> str:
@@ -1162,7 +1162,6 @@ TABLES: tuple[Table, ...] = (
     Table("apollo4", (APOLLO4,), apollo4_table, ("docs/benchmarks/identification.md", "docs/validation.md")),
     Table("env-accuracy", (ENV_ACCURACY,), env_accuracy_table, ("docs/benchmarks/environment.md",)),
     Table("random-actions", (RANDOM_ACTIONS,), random_actions_table, ("docs/benchmarks/environment.md",)),
-    Table("scan-defaults", (SCAN_DEFAULTS,), scan_defaults_table, ("docs/benchmarks/guidance.md",)),
     Table("baselines", (BASELINES, *JAX_BASELINES), baselines_table, ("docs/benchmarks/learned_policies.md",)),
 )  # fmt: skip
 
