@@ -162,6 +162,16 @@ def test_a_table_that_disagrees_with_its_record_is_caught(tmp_path, monkeypatch)
     assert tables.problems() == [] and "6368" in page.read_text()
 
 
+def test_a_table_whose_record_is_missing_is_named(tmp_path, monkeypatch):
+    tables = tool("tables")
+    t = next(t for t in tables.TABLES if t.name == "mpc-benchmark")
+    (tmp_path / "page.md").write_text("x\n<!-- table: mpc-benchmark -->\nold\n<!-- end table -->\n")
+    (tmp_path / "README.md").write_text("")
+    monkeypatch.setattr(tables, "ROOT", tmp_path)
+    monkeypatch.setattr(tables, "TABLES", (tables.Table(t.name, t.records, t.render, ("page.md",)),))
+    assert tables.problems() == ["table 'mpc-benchmark': no record docs/results/bench_mpc_eval.json"]
+
+
 def test_the_glossary_page_is_the_glossarys():
     from rventry_env.task.glossary import glossary_markdown
 
