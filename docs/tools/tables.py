@@ -733,7 +733,7 @@ def ladder_summary(doc: dict) -> str:
     for e in doc["entries"]:
         trained = sorted({r.get("trained_on", e["rung"]) for r in e["runs"]})
         where = "" if trained == [e["rung"]] else f", trained on `{'`, `'.join(trained)}`"
-        by_rung.setdefault(e["rung"], []).append(f"{e['learner']}{where}: {e['iqm']:.2f} ({e['seeds']} seeds)")
+        by_rung.setdefault(e["rung"], []).append(f"{e['learner']}{where}: {e['iqm']:.2f} ({e['seeds']} seed{'s' if e['seeds'] != 1 else ''})")
     lines = [f"- `{r}`: " + "; ".join(by_rung[r]) for r in RUNGS if r in by_rung]
     return "\n".join([*lines, "", "Success IQM over training seeds on 100 held-out episodes of each rung; every run "
                        "with its steps and wall time is in [the ladder](docs/benchmarks/learned_policies.md#the-ladder)."])
