@@ -59,9 +59,6 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
     :param render_mode: ``"rgb_array"``: one picture with the tracks of the first 16 copies.
     :param backend: ``"numpy"`` (default) or ``"jax"``: which stepper flies the copies.
     :param dtype: ``"float64"`` (default) or, with ``backend="jax"``, ``"float32"``.
-
-    A feature a stepper cannot give is refused by it, with its name: the ``jax`` stepper
-    does not render, flies the fixed target only and keeps ``true_forces`` on the device.
     :param autoreset_mode: ``AutoresetMode.NEXT_STEP`` (Gymnasium's default: the step
         after an episode ends returns the reset observation, zero reward, and ignores
         the action) or ``AutoresetMode.SAME_STEP`` (the ending step already returns
@@ -70,6 +67,9 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         episode ended stays frozen at its final state, is not stepped again and reports
         neither reward nor ending until the next ``reset``: what an evaluation of one
         episode per copy wants).
+
+    A feature a stepper cannot give is refused by it, with its name: the ``jax`` stepper
+    does not render, flies the fixed target only and keeps ``true_forces`` on the device.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4, "autoreset_mode": AutoresetMode.NEXT_STEP}
