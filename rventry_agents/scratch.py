@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 import shlex
-import shutil
 import sys
 import time
 from dataclasses import replace
@@ -41,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from rventry_agents.scratch_config import ScratchConfig, load_config
-from rventry_env.util.files import write_json
+from rventry_env.util.files import output_set, write_json
 
 FRONTIER_DEPTH = 0.85  # the frontier: starts between this share of the window and all of it
 
@@ -245,8 +244,6 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
 
 
 def _train(cfg: ScratchConfig, out: Path, resume: bool, progress) -> dict:
-    import jax
-
     from rventry_agents.scratch_state import Checkpoint, plot_learning_curve, record_chunk
 
     trainer = Trainer(cfg, out, cfg.train.seed)
@@ -297,20 +294,17 @@ def save_milestone(out: Path, trainer: Trainer, ts, rec: dict) -> Path:
     and ``studies/ladder.py`` take the folder as an agent."""
     c = rec["curriculum"]
     folder = out / "milestones" / f"window_{c['window_s']:04.0f}s"
-    tmp = folder.with_name(folder.name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    trainer.env.export(tmp / "policy.npz", trainer.algo, ts)
+    folder.mkdir(parents=True, exist_ok=True)
     cfg = trainer.cfg
-    write_json(tmp / "metadata.json", {
-        "task": trainer.task.record(), "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": rec["timesteps"],
-        "wall_s": rec["wall_s"], "config": cfg.to_dict(), "window_s": c["window_s"], "frontier": c["frontier"],
-        "probes": rec.get("probes", {}),
-        "provenance": _provenance(cfg, rec["timesteps"], milestone=f"landed {c['frontier_success']:.2f} of the starts "
-                                  f"{FRONTIER_DEPTH * c['window_s']:.0f}-{c['window_s']:.0f} s before impact"),
-    })  # fmt: skip
-    shutil.rmtree(folder, ignore_errors=True)
-    tmp.rename(folder)
+    with output_set():  # the policy and its metadata replaced together, or neither
+        trainer.env.export(folder / "policy.npz", trainer.algo, ts)
+        write_json(folder / "metadata.json", {
+            "task": trainer.task.record(), "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": rec["timesteps"],
+            "wall_s": rec["wall_s"], "config": cfg.to_dict(), "window_s": c["window_s"], "frontier": c["frontier"],
+            "probes": rec.get("probes", {}),
+            "provenance": _provenance(cfg, rec["timesteps"], milestone=f"landed {c['frontier_success']:.2f} of the starts "
+                                      f"{FRONTIER_DEPTH * c['window_s']:.0f}-{c['window_s']:.0f} s before impact"),
+        })  # fmt: skip
     return folder
 
 
