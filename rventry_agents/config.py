@@ -342,7 +342,11 @@ def _build(cls, data: dict, path: tuple, where: str):
 def _relocate(exc: ConfigError, where: str, path: tuple):
     if exc.located:
         raise exc
-    raise ConfigError(f"{_where(where, path)}{exc}", located=True) from None
+    head, text = _where(where, path), str(exc)
+    section = head.split(": ", 1)[1]  # a section's own check may name its section already
+    if section and text.startswith(section):
+        text = text[len(section):]
+    raise ConfigError(f"{head}{text}", located=True) from None
 
 
 def _required(f: dataclasses.Field) -> bool:

@@ -99,7 +99,7 @@ class Curriculum:
         p = 1.0 if self.rung.before_impact_s else self.c.probability
         lo = min(self.c.latest_s, w)
         return reference_starts((lo, w), p if probability is None else probability, far_weight=self.c.far_weight,
-                                **self.c.perturbations())  # fmt: skip
+                                step_weighted=self.c.step_weighted, **self.c.perturbations())  # fmt: skip
 
     def frontier(self):
         """Start states near the window's far end, every episode from them."""

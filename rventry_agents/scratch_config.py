@@ -17,6 +17,7 @@ from typing import Literal
 from rventry_agents.config import ConfigError, Section, setting, widths
 from rventry_agents.jax_ppo_config import RejaxPPOSection
 from rventry_env.envs.reward import RewardWeights
+from rventry_env.reference.starts import STEP_S
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "ppo_scratch.toml"
 
@@ -70,8 +71,11 @@ class CurriculumSection(Section):
     reference-state initialisation); ``"none"``: only the rung's own starts. ``probability`` is the
     share of training episodes started this way; the others start as the rung does. ``far_weight``
     k makes the start density grow as (s - latest_s)^k toward the window's far end, where the
-    frontier is (:class:`~rventry_env.task.starts.StartStates`). Selection and evaluation always fly
-    the rung's own starts.
+    frontier is; ``step_weighted`` instead draws the start with density 1/s, s seconds before
+    impact, so that the window's parts get about equal shares of the steps flown rather than of the
+    episodes (a start s seconds out flies about s steps, so uniform starts fill a rollout mostly
+    from the far end) (:class:`~rventry_env.task.starts.StartStates`). Selection and evaluation
+    always fly the rung's own starts.
     """
 
     kind: Literal["none", "reverse", "uniform"] = "reverse"
@@ -82,6 +86,7 @@ class CurriculumSection(Section):
     advance_at: float = setting(0.5, gt=0, le=1)
     frontier_episodes: int = setting(128, ge=1)
     far_weight: float = setting(0.0, ge=0)
+    step_weighted: bool = False
     altitude_m: float = setting(300.0, ge=0)
     speed_mps: float = setting(20.0, ge=0)
     flight_path_deg: float = setting(0.2, ge=0)
@@ -94,6 +99,12 @@ class CurriculumSection(Section):
         if self.latest_s > self.first_window_s:
             raise ConfigError(f"[curriculum] latest_s ({self.latest_s:g}) must not exceed first_window_s "
                               f"({self.first_window_s:g})")  # fmt: skip
+        if self.step_weighted and self.far_weight:
+            raise ConfigError("[curriculum] step_weighted and far_weight both shape where in the window episodes "
+                              "start; give one of them")  # fmt: skip
+        if self.step_weighted and self.latest_s <= STEP_S:
+            raise ConfigError(f"[curriculum] step_weighted draws starts with density 1/s, so latest_s must exceed the "
+                              f"start table's {STEP_S:g} s step, got {self.latest_s:g}")  # fmt: skip
 
     def perturbations(self) -> dict:
         return {k: getattr(self, k) for k in ("altitude_m", "speed_mps", "flight_path_deg", "heading_deg", "alpha_deg",

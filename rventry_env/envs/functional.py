@@ -98,6 +98,7 @@ class StartParams(NamedTuple):
     probability: Any  # the share of episodes that start from the table
     half_widths: Any  # (6,) the perturbations of PERTURBATIONS
     far_weight: Any  # the start time's density grows toward the window's far end as (s - earliest)^far_weight
+    step_weighted: Any  # 1: density 1/s in the seconds s before the table's end instead (0: not)
 
 
 class FlightPool(NamedTuple):
@@ -306,7 +307,7 @@ class RvEntryFunctional(environment.Environment):
             k = np.shape(params.starts.times)[:1]
             f = self.ns.float_dtype
             s = jax.ShapeDtypeStruct
-            ref = ref._replace(starts=StartParams(s(k, f), s(k + (12,), f), s((2,), f), s((), f), s((6,), f), s((), f)))
+            ref = ref._replace(starts=StartParams(s(k, f), s(k + (12,), f), s((2,), f), s((), f), s((6,), f), s((), f), s((), f)))
         return ref
 
     def start_params(self, starts, model: EntryModel | None = None) -> StartParams | None:
@@ -319,7 +320,8 @@ class RvEntryFunctional(environment.Environment):
         f = self.ns.float_dtype
         return StartParams(jnp.asarray(starts.times, f), jnp.asarray(starts.states, f),
                            jnp.asarray(starts.window_times(), f), jnp.asarray(starts.probability, f),
-                           jnp.asarray(starts.half_widths, f), jnp.asarray(starts.far_weight, f))  # fmt: skip
+                           jnp.asarray(starts.half_widths, f), jnp.asarray(starts.far_weight, f),
+                           jnp.asarray(starts.step_weighted, f))  # fmt: skip
 
     def _pool(self, model: EntryModel, dispersion: Dispersion, seed: int) -> FlightPool:
         """The pool of flight-grade draws (zeros for a set without them)."""
@@ -370,8 +372,8 @@ class RvEntryFunctional(environment.Environment):
         environments' rule: :meth:`~rventry_env.task.starts.StartStates.draw`)."""
         ns = self.ns
         u = uniforms(key, DRAWS, ns.float_dtype, offset=_START_OFFSET)
-        k = jnp.clip(jnp.searchsorted(sp.times, window_time(u[1], sp.window, sp.far_weight, jnp)), 0,
-                     sp.times.shape[0] - 1)  # fmt: skip
+        t = window_time(u[1], sp.window, sp.far_weight, jnp, sp.times[-1], sp.step_weighted > 0.5)
+        k = jnp.clip(jnp.searchsorted(sp.times, t), 0, sp.times.shape[0] - 1)
         row = sp.states[k]
         x = perturbed(tuple(row[i] for i in range(12)), tuple((2.0 * u[2:] - 1.0) * sp.half_widths),
                       self.task.problem.alpha_max, ns)  # fmt: skip
@@ -580,6 +582,7 @@ def _check_start_params(sp: StartParams, radius: float, task) -> None:
         before = tuple(float(np.clip(end - w, 0.0, span)) if -1e-3 <= end - w <= span + 1e-3 else float(end - w)
                        for w in window[::-1])  # fmt: skip
         starts = StartStates(times, states, before, probability=float(sp.probability), far_weight=float(sp.far_weight),
+                             step_weighted=bool(float(sp.step_weighted) > 0.5),
                              label="EnvParams.starts", **dict(zip(PERTURBATIONS, (float(v) for v in sp.half_widths))))  # fmt: skip
         common.check_starts(starts, radius, task)
     except ValueError as e:

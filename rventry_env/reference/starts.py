@@ -12,14 +12,15 @@ STEP_S = 1.0  # the table's spacing: the environment's default control step
 
 def reference_starts(before_impact_s: tuple[float, float] | None = None, probability: float = 1.0, *,
                      reference: Reference | None = None, step_s: float = STEP_S, label: str | None = None,
-                     **perturbations: float) -> StartStates:  # fmt: skip
+                     far_weight: float = 0.0, step_weighted: bool = False, **perturbations: float) -> StartStates:  # fmt: skip
     """Start states taken from the reference trajectory, ``before_impact_s`` = (earliest, latest)
     seconds before its impact (default: anywhere from its entry to one step before impact).
 
     The table holds the reference's states every ``step_s`` seconds, counted back from the impact
     (the impact state itself, on the surface, is left out); an episode started from it runs its
     clock from the reference's time there. ``perturbations`` are :class:`StartStates`' half-widths
-    (``altitude_m``, ``speed_mps``, ``flight_path_deg``, ``heading_deg``, ``alpha_deg``, ``sigma_deg``).
+    (``altitude_m``, ``speed_mps``, ``flight_path_deg``, ``heading_deg``, ``alpha_deg``, ``sigma_deg``);
+    ``far_weight`` and ``step_weighted`` shape the start time's density (:class:`StartStates`).
     """
     ref = load_reference() if reference is None else reference
     if not (isinstance(step_s, (int, float)) and 0 < step_s < ref.tf - ref.t0):
@@ -33,7 +34,8 @@ def reference_starts(before_impact_s: tuple[float, float] | None = None, probabi
                          f"before impact back to the entry), got {before_impact_s!r}")  # fmt: skip
     if label is None:
         label = f"reference, {lo:g}-{hi:g} s before impact"
-    return StartStates(times, ref.state(times), (lo - step_s, hi - step_s), probability, label=label, **perturbations)
+    return StartStates(times, ref.state(times), (lo - step_s, hi - step_s), probability, label=label,
+                       far_weight=far_weight, step_weighted=step_weighted, **perturbations)  # fmt: skip
 
 
 __all__ = ["reference_starts"]

@@ -51,6 +51,11 @@ class StartStates:
     :param far_weight: k >= 0: the start time's density within the window grows as
         (s - earliest)^k with s the seconds before the table's end, so that a reverse curriculum's
         frontier, the window's far end, gets more episodes (0: uniform).
+    :param step_weighted: draw the start time with density 1/s instead (log-uniform in s, which
+        must then be > 0 across the window), so that each part of the window gets about the same
+        number of steps flown rather than of episodes: a start s seconds before the table's end
+        flies about s seconds to the end of the task when the table ends near it, as the
+        reference's does (one step before impact). Not with ``far_weight``.
     :param altitude_m, speed_mps, flight_path_deg, heading_deg, alpha_deg, sigma_deg: uniform
         half-widths of the perturbations of the picked state (alpha is then held in [0, alpha_max]).
     :param label: what the table is, for records and messages.
@@ -61,6 +66,7 @@ class StartStates:
     before_end_s: tuple[float, float]
     probability: float = 1.0
     far_weight: float = 0.0
+    step_weighted: bool = False
     altitude_m: float = 0.0
     speed_mps: float = 0.0
     flight_path_deg: float = 0.0
@@ -94,12 +100,21 @@ class StartStates:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"start states: {name} must be a finite half-width >= 0, got {v!r}")
+        if not isinstance(self.step_weighted, (bool, np.bool_)):
+            raise ValueError(f"start states: step_weighted must be True or False, got {self.step_weighted!r}")
+        if self.step_weighted and self.far_weight:
+            raise ValueError("start states: step_weighted and far_weight both shape the start time's density; "
+                             "give one of them")  # fmt: skip
+        if self.step_weighted and not window[0] > 0:
+            raise ValueError("start states: step_weighted draws the start with density 1/s in the seconds s before "
+                             f"the table's end, so the window must end before it: got before_end_s {window!r}")  # fmt: skip
         t.setflags(write=False)
         x.setflags(write=False)
         object.__setattr__(self, "times", t)
         object.__setattr__(self, "states", x)
         object.__setattr__(self, "before_end_s", window)
         object.__setattr__(self, "probability", float(p))
+        object.__setattr__(self, "step_weighted", bool(self.step_weighted))
 
     @property
     def half_widths(self) -> np.ndarray:
@@ -121,8 +136,8 @@ class StartStates:
 
     def pick(self, u) -> tuple:
         """The table row and time for uniform numbers ``u`` in [0, 1) (arrays or numbers; NumPy)."""
-        k = np.clip(np.searchsorted(self.times, window_time(u, self.window_times(), self.far_weight, np)), 0,
-                    self.times.size - 1)  # fmt: skip
+        t = window_time(u, self.window_times(), self.far_weight, np, float(self.times[-1]), self.step_weighted)
+        k = np.clip(np.searchsorted(self.times, t), 0, self.times.size - 1)
         return k, self.times[k]
 
     def draw(self, rng: np.random.Generator, alpha_max: float):
@@ -138,17 +153,26 @@ class StartStates:
 
     def describe(self) -> dict:
         """A JSON-friendly description (the table by its size and span, not its numbers)."""
-        out = {n: getattr(self, n) for n in ("label", "before_end_s", "probability", "far_weight", *PERTURBATIONS)}
+        out = {n: getattr(self, n) for n in ("label", "before_end_s", "probability", "far_weight", "step_weighted",
+                                            *PERTURBATIONS)}  # fmt: skip
         out.update(rows=int(self.times.size), span_s=float(self.times[-1] - self.times[0]))
         out["before_end_s"] = list(self.before_end_s)
         return out
 
 
-def window_time(u, window, far_weight, xp):
+def window_time(u, window, far_weight, xp, end=None, step_weighted=False):
     """The table time for a uniform number ``u``: within ``window`` = (earliest, latest) table times,
-    with density growing as (latest - t)^far_weight toward the earliest (the far end). NumPy or JAX."""
+    with density growing as (latest - t)^far_weight toward the earliest (the far end), or where
+    ``step_weighted`` (a bool, or 0/1 in JAX), with density 1/(end - t), ``end`` the table's last
+    time. NumPy or JAX."""
     frac = xp.power(u, 1.0 / (1.0 + far_weight))  # density (frac)^k on [0, 1)
-    return window[1] - frac * (window[1] - window[0])
+    t = window[1] - frac * (window[1] - window[0])
+    if end is None:
+        return t
+    near = xp.maximum(end - window[1], 1e-6)  # seconds before the end, > 0 where step_weighted (checked)
+    far = xp.maximum(end - window[0], near)
+    logs = end - near * xp.power(far / near, u)  # log-uniform in the seconds before the end
+    return xp.where(step_weighted, logs, t)
 
 
 def perturbed(x, d, alpha_max: float, ns) -> tuple:
