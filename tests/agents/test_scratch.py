@@ -10,6 +10,7 @@ import pytest
 
 from rventry_agents.commands import command_rates
 from rventry_agents.config import ConfigError
+from rventry_agents.scratch import Curriculum
 from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config
 from rventry_env.envs.observation import feature_index
 from rventry_env.task import EntryTask
@@ -31,8 +32,14 @@ def test_the_shipped_config_loads_and_a_misspelled_key_is_refused_by_name(tmp_pa
         load_config({"env": {"rung": "tall"}})
     with pytest.raises(ConfigError, match="shorter than one rollout"):
         load_config({"train": {"chunk_timesteps": 1000}})
-    with pytest.raises(ConfigError, match="latest_s"):
-        load_config({"curriculum": {"latest_s": 100.0, "first_window_s": 60.0}})
+    with pytest.raises(ConfigError, match=r"^config: \[curriculum\] latest_s \(100\) must not exceed"):
+        load_config({"curriculum": {"latest_s": 100.0, "first_window_s": 60.0}})  # the section named once
+    with pytest.raises(ConfigError, match="give one of them"):
+        load_config({"curriculum": {"step_weighted": True, "far_weight": 1.0}})
+    with pytest.raises(ConfigError, match="latest_s must exceed the start table's 1 s step"):
+        load_config({"curriculum": {"step_weighted": True, "latest_s": 1.0}})
+    starts = Curriculum(load_config({"curriculum": {"step_weighted": True}})).starts(600.0)
+    assert starts.step_weighted and starts.before_end_s == (19.0, 599.0)
 
 
 def _obs(alpha_deg, mu_deg, gamma_deg=0.0):

@@ -99,6 +99,62 @@ def test_the_functional_env_draws_start_states_by_the_same_rule():
     assert q.min() >= TASK.problem.q_min * (1 + common.START_MARGIN) * (1 - 1e-9)
 
 
+def _seconds_before_impact(starts, n=20000, seed=0):
+    _, t = starts.pick(np.random.default_rng(seed).uniform(size=n))
+    return load_reference().tf - t
+
+
+LO, HI = 20.0, 600.0  # a window in seconds before impact; the table ends 1 s before impact
+SHAPES = {
+    "uniform": ({}, lambda v: (v - LO) / (HI - LO)),
+    "far_weight": ({"far_weight": 2.0}, lambda v: ((v - LO) / (HI - LO)) ** 3),  # density (s - LO)^2
+    "step_weighted": ({"step_weighted": True}, lambda v: np.log((v - 1) / (LO - 1)) / np.log((HI - 1) / (LO - 1))),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_the_start_time_has_the_density_its_table_states(shape):
+    """The Kolmogorov-Smirnov distance to the density's own distribution function (in seconds s before
+    impact; step_weighted's density is 1/(s - 1), the seconds before the table's end) is at the
+    level of sampling noise, and far from the other two densities. The table is on a 1 s grid and a
+    draw takes the first row at or after its time, so a drawn s stands for the draws in [s, s + 1)."""
+    kw, cdf = SHAPES[shape]
+    s = _seconds_before_impact(reference_starts((LO, HI), **kw))
+    grid = np.arange(LO, HI)
+    ecdf = np.searchsorted(np.sort(s), grid, side="right") / s.size
+
+    def distance(f):
+        return np.max(np.abs(ecdf - f(np.minimum(grid + 1.0, HI))))
+
+    assert distance(cdf) < 0.012  # 20,000 draws: 1.36 / sqrt(20,000) = 0.0096 at 95 %
+    for other in set(SHAPES) - {shape}:
+        assert distance(SHAPES[other][1]) > 0.1
+
+
+def test_step_weighted_starts_spread_the_steps_flown_evenly_over_the_window():
+    """What the weighting is for: a start s seconds before impact flies about s steps, so with
+    density 1/s each tenth of the window holds about a tenth of the steps flown; uniform starts give
+    the far tenth 18 % of them and the near tenth 1.6 % ((b^2 - a^2) / (HI^2 - LO^2) for a tenth a..b)."""
+    edges = np.linspace(LO, HI, 11)
+    for kw, near, far in (({"step_weighted": True}, 0.1, 0.1), ({}, 0.0158, 0.184)):
+        s = _seconds_before_impact(reference_starts((LO, HI), **kw), n=200000)
+        share = np.histogram(s, bins=edges, weights=s)[0] / s.sum()
+        assert share[0] == pytest.approx(near, rel=0.1) and share[-1] == pytest.approx(far, rel=0.1)
+
+
+def test_the_jax_env_draws_step_weighted_starts_as_the_numpy_envs_do():
+    pytest.importorskip("jax")
+    from rventry_env.envs.jax_vector import RvEntryJaxVectorEnv
+
+    starts = reference_starts((LO, HI), step_weighted=True)
+    vec = RvEntryVectorEnv(64, starts=starts, dispersion="standard")
+    jx = RvEntryJaxVectorEnv(64, starts=starts, dispersion="standard", dtype="float64")
+    _, vinfo = vec.reset(seed=11)
+    _, jinfo = jx.reset(seed=11)
+    assert np.array_equal(jinfo["time_s"], vinfo["time_s"])
+    assert np.median(load_reference().tf - vinfo["time_s"]) < 150.0  # uniform: 310 s
+
+
 def test_start_states_are_checked_and_refused_with_their_fault_named():
     ref = load_reference()
     t = np.arange(0.0, 100.0)
@@ -117,6 +173,12 @@ def test_start_states_are_checked_and_refused_with_their_fault_named():
         StartStates(t, x, (0, 10), altitude_m=-1.0)
     with pytest.raises(ValueError, match="strictly increasing"):
         StartStates(t[::-1], x, (0, 10))
+    with pytest.raises(ValueError, match="give one of them"):
+        StartStates(t, x, (1, 10), far_weight=1.0, step_weighted=True)
+    with pytest.raises(ValueError, match="window must end before it"):
+        StartStates(t, x, (0, 10), step_weighted=True)
+    with pytest.raises(ValueError, match="step_weighted must be True or False"):
+        StartStates(t, x, (1, 10), step_weighted="yes")
     # a perturbation that can start a vehicle underground is refused by the env, before any episode
     near_impact = reference_starts((1.0, 5.0), altitude_m=5000.0)
     with pytest.raises(ValueError, match="above the surface"):
