@@ -81,6 +81,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     sc.add_argument("--config", help="TOML config (default rventry_agents/ppo_scratch.toml)")
     sc.add_argument("--max-wall-s", type=positive_float, help="stop after the chunk that ends past this wall time (s)")
     sc.add_argument("--resume", action="store_true", help="go on with the interrupted run in --out from its checkpoint")
+    sc.add_argument("--init-from", metavar="RUN",
+                    help="start from another run's checkpoint (its training state, window and history) under this "
+                         "config, in a new --out: a changed curriculum or learning rate from where that run stood")
     sc.set_defaults(func=_run_scratch)
     dag = algos.add_parser("dagger", help="the learned guidance policy: DAgger from the re-planning law (mpc)")
     dag.add_argument("--seed", type=seed, help="fit seed; also shifts the training vehicles (default: the config's)")
@@ -108,7 +111,7 @@ def _run_scratch(args) -> int:
         print(f"rventry train ppo-scratch needs the [jax] extra (pip install -e '.[jax]'): {exc}", file=sys.stderr)
         return 2
     meta = train_scratch(args.config, args.out, seed=args.seed, timesteps=args.timesteps, max_wall_s=args.max_wall_s,
-                         resume=args.resume)  # fmt: skip
+                         resume=args.resume, init_from=args.init_from)  # fmt: skip
     best = meta["best_evaluation"]["select"] if meta["best_evaluation"] else {}
     print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s ({meta['env_steps_per_s'] or float('nan'):,.0f} "
           f"env-steps/s); selected policy: success {best.get('success_rate', float('nan')):.2f} on the selection set; "

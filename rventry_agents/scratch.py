@@ -20,7 +20,8 @@ data, so every chunk runs the first one's program. After each chunk the run:
 * keeps the policy that has just landed the frontier, where the window moves, in
   ``milestones/window_<W>s/`` (later chunks may forget the late flight while they learn further back);
 * writes ``checkpoint/`` whole (the training state, the curriculum, the history), from which
-  ``resume=True`` goes on after an interruption.
+  ``resume=True`` goes on after an interruption, and from which another run may start under a
+  changed config (``init_from``: a new curriculum or learning rate from where this run stood).
 
 A run writes into its output directory ``policy.npz`` (the selected actor,
 :class:`~rventry_agents.jax_policy.JaxPolicy` flies it), ``evaluations.json``,
@@ -178,6 +179,7 @@ class Trainer:
         chunk = cfg.train.chunk_timesteps
         self.algo = _agent(cfg, self.env, self.params, chunk)
         self.traces = []
+        self.init_from = None  # the checkpoint this run started from (another run's), if any
 
         def train_chunk(algo, ts):
             self.traces.append(1)  # one entry per trace of the training program: each is a compilation
@@ -221,15 +223,20 @@ class Trainer:
 
 def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int | None = None,
                   timesteps: int | None = None, max_wall_s: float | None = None, resume: bool = False,
-                  progress=print) -> dict:  # fmt: skip
+                  init_from: str | Path | None = None, progress=print) -> dict:  # fmt: skip
     """Train as the config says (default ``rventry_agents/ppo_scratch.toml``); see the module docstring.
 
     :param timesteps: override ``[train] total_timesteps``; :param seed: ``[train] seed``;
     :param max_wall_s: stop after the chunk that ends past this wall time (s), everything written
         (``[train] max_wall_s``); a resumed run counts its earlier segments' time.
     :param resume: go on with the interrupted run in ``out`` from its last checkpoint.
+    :param init_from: a run folder whose checkpoint this run starts from: its training state, its
+        curriculum's window, its history and its steps and wall time (which the budget counts), under
+        this config, in a new ``out``. The training state must fit the config (the network, the
+        number of environments, the algorithm's settings that size it); the rest may change. The
+        run's metadata and milestones name where it started.
     """
-    from rventry_agents.scratch_state import check_out
+    from rventry_agents.scratch_state import check_out, check_source
     from rventry_env.core.backend import jax_x64, prefer_fused_cpu_runtime
 
     cfg = load_config(config)
@@ -237,24 +244,32 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
     if changes:
         cfg = cfg.replace(train=replace(cfg.train, **changes))
     out = Path(out)
+    if resume and init_from is not None:
+        raise ValueError("give resume (go on with the run in out) or init_from (a new run from another's checkpoint), "
+                         "not both")  # fmt: skip
+    source = None if init_from is None else check_source(Path(init_from), out)
     check_out(out, cfg, resume)
     prefer_fused_cpu_runtime()
     with jax_x64(cfg.env.dtype == "float64"):
-        return _train(cfg, out, resume, progress)
+        return _train(cfg, out, resume, progress, source)
 
 
-def _train(cfg: ScratchConfig, out: Path, resume: bool, progress) -> dict:
+def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path | None = None) -> dict:
     from rventry_agents.scratch_state import Checkpoint, plot_learning_curve, record_chunk
 
     trainer = Trainer(cfg, out, cfg.train.seed)
-    point = Checkpoint.read(out, cfg) if resume else None
+    point = Checkpoint.read(out) if resume else None if source is None else Checkpoint.read(source)
     if point is None:
         ts = _initial_state(trainer.algo, cfg, cfg.train.seed)
         history, wall_before, steps = [], 0.0, 0
-        write_json(out / "config.json", cfg.to_dict())
     else:
         ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, cfg, cfg.train.seed))
         trainer.curriculum.window = point.window
+    trainer.init_from = point.init_from if resume else None if source is None else point.origin()
+    if not resume:
+        write_json(out / "config.json", cfg.to_dict())
+    if source is not None:
+        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config")
     trainer.with_window()
     t0, rates = time.perf_counter(), []
     best = max(history, key=_rank) if history else None
@@ -277,7 +292,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress) -> dict:
             save_milestone(out, trainer, ts, rec)
         progress(_line(rec))
         write_json(out / "evaluations.json", history)
-        Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps)
+        Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps, trainer.init_from)
         budget = cfg.train.max_wall_s
         if budget is not None and rec["wall_s"] >= budget:
             break
@@ -302,17 +317,20 @@ def save_milestone(out: Path, trainer: Trainer, ts, rec: dict) -> Path:
             "task": trainer.task.record(), "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": rec["timesteps"],
             "wall_s": rec["wall_s"], "config": cfg.to_dict(), "window_s": c["window_s"], "frontier": c["frontier"],
             "probes": rec.get("probes", {}),
-            "provenance": _provenance(cfg, rec["timesteps"], milestone=f"landed {c['frontier_success']:.2f} of the starts "
+            "provenance": _provenance(trainer, rec["timesteps"], milestone=f"landed {c['frontier_success']:.2f} of the starts "
                                       f"{FRONTIER_DEPTH * c['window_s']:.0f}-{c['window_s']:.0f} s before impact"),
         })  # fmt: skip
     return folder
 
 
-def _provenance(cfg: ScratchConfig, steps: int, **extra) -> dict:
-    """What a policy of this run is: the learner, its start, curriculum, shaping, actions, rung, steps and seed."""
+def _provenance(trainer: Trainer, steps: int, **extra) -> dict:
+    """What a policy of this run is: the learner, its start, curriculum, shaping, actions, rung, steps
+    and seed, and the run whose checkpoint it started from, if any."""
+    cfg = trainer.cfg
+    start = {} if trainer.init_from is None else {"init_from": trainer.init_from}
     return {"algorithm": "PPO (rejax), from scratch", "start": "scratch", "curriculum": cfg.curriculum.kind,
             "shaping": cfg.shaping.potential, "actions": cfg.env.actions, "rung": cfg.env.rung, "timesteps": steps,
-            **extra, "seed": cfg.train.seed}  # fmt: skip
+            **extra, "seed": cfg.train.seed, **start}  # fmt: skip
 
 
 def _rank(rec: dict) -> tuple:
@@ -342,7 +360,7 @@ def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, r
         "actions": cfg.env.actions, "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": steps,
         "wall_s": history[-1]["wall_s"] if history else 0.0, "env_steps_per_s": rate, "device": str(jax.devices()[0]),
         "train_compilations": len(trainer.traces), "package_version": __version__,
-        "provenance": _provenance(cfg, steps, selected_at_timesteps=best["timesteps"] if best else None),
+        "provenance": _provenance(trainer, steps, selected_at_timesteps=best["timesteps"] if best else None),
         "best_evaluation": best, "final_window_s": trainer.curriculum.window,
     }  # fmt: skip
 

@@ -35,6 +35,18 @@ def check_out(out: Path, cfg, resume: bool) -> None:
     out.mkdir(parents=True, exist_ok=True)
 
 
+def check_source(source: Path, out: Path) -> Path:
+    """The run folder another run starts from (``init_from``), refused before anything is compiled
+    unless it holds a checkpoint and is not the new run's own folder."""
+    if not (source / CHECKPOINT / "state.json").is_file():
+        raise ValueError(f"cannot start from {source}: it holds no {CHECKPOINT}/ (a from-scratch run writes one after "
+                         "each chunk)")  # fmt: skip
+    if source.resolve() == out.resolve():
+        raise ValueError(f"--init-from {source} is the new run's own --out; give a new --out, or --resume to go on "
+                         "with that run")  # fmt: skip
+    return source
+
+
 def _resumable(config: dict) -> dict:
     """What a resumed run must share with the run it resumes: all but the budget."""
     train = {k: v for k, v in config.get("train", {}).items() if k not in ("total_timesteps", "max_wall_s")}
@@ -66,18 +78,25 @@ class Checkpoint:
     """``checkpoint/``: the training state (flax's msgpack), the curriculum's window and the history,
     written whole after each chunk (a new folder renamed over the old)."""
 
-    def __init__(self, out: Path, window: float, history: list, wall_s: float, steps: int):
+    def __init__(self, out: Path, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None):
         self.out, self.window, self.history, self.wall_s, self.steps = out, window, history, wall_s, steps
+        self.init_from = init_from  # where the run that wrote it started, if from another run's checkpoint
+
+    def origin(self) -> dict:
+        """This checkpoint as the start of another run: its folder, steps and window (and its own start)."""
+        out = {"run": str(self.out), "timesteps": self.steps, "window_s": self.window}
+        return out if self.init_from is None else {**out, "init_from": self.init_from}
 
     @staticmethod
-    def write(out: Path, ts, window: float, history: list, wall_s: float, steps: int) -> None:
+    def write(out: Path, ts, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None) -> None:
         from flax import serialization
 
         tmp, final, old = out / f"{CHECKPOINT}.tmp", out / CHECKPOINT, out / f"{CHECKPOINT}.old"
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
         atomic_write(tmp / "train_state.msgpack", serialization.to_bytes(ts))
-        write_json(tmp / "state.json", {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history})
+        state = {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history}
+        write_json(tmp / "state.json", state if init_from is None else {**state, "init_from": init_from})
         shutil.rmtree(old, ignore_errors=True)
         if final.exists():
             final.rename(old)
@@ -85,25 +104,34 @@ class Checkpoint:
         shutil.rmtree(old, ignore_errors=True)
 
     @classmethod
-    def read(cls, out: Path, cfg) -> "Checkpoint":
+    def read(cls, out: Path) -> "Checkpoint":
         path = out / CHECKPOINT / "state.json"
         try:
             s = json.loads(path.read_text())
-            return cls(out, float(s["window_s"]), list(s["history"]), float(s["wall_s"]), int(s["timesteps"]))
+            return cls(out, float(s["window_s"]), list(s["history"]), float(s["wall_s"]), int(s["timesteps"]),
+                       s.get("init_from"))  # fmt: skip
         except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise ConfigError(f"cannot resume {out}: {path} is not a checkpoint ({type(exc).__name__}: {exc})") from None
+            raise ConfigError(f"cannot start from {out}: {path} is not a checkpoint ({type(exc).__name__}: {exc})") from None
 
     def restore(self, template):
         """(training state, history, wall time, steps) from the checkpoint; ``template`` a fresh
-        training state of the same config (its structure)."""
+        training state of the config that goes on (its structure and every array's shape)."""
+        import jax
         from flax import serialization
 
         path = self.out / CHECKPOINT / "train_state.msgpack"
         try:
             ts = serialization.from_bytes(template, path.read_bytes())
         except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise ConfigError(f"cannot resume {self.out}: {path} does not hold this config's training state "
+            raise ConfigError(f"cannot start from {self.out}: {path} does not hold this config's training state "
                               f"({type(exc).__name__}: {exc})") from None  # fmt: skip
+        got = jax.tree_util.tree_flatten_with_path(ts)[0]
+        for (where, want), (_, have) in zip(jax.tree_util.tree_flatten_with_path(template)[0], got):
+            if np.shape(want) != np.shape(have):
+                raise ConfigError(f"cannot start from {self.out}: its training state does not fit this config: "
+                                  f"{jax.tree_util.keystr(where)} has shape {np.shape(have)} there and "
+                                  f"{np.shape(want)} here (the network, num_envs and the algorithm's sizes must "
+                                  "match)")  # fmt: skip
         return ts, self.history, self.wall_s, self.steps
 
 
@@ -145,4 +173,4 @@ def plot_learning_curve(history: list[dict], path: Path, title: str) -> Path | N
     return save_figure(fig, path)
 
 
-__all__ = ["CHECKPOINT", "Checkpoint", "check_out", "record_chunk", "plot_learning_curve"]
+__all__ = ["CHECKPOINT", "Checkpoint", "check_out", "check_source", "record_chunk", "plot_learning_curve"]

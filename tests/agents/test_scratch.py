@@ -94,7 +94,8 @@ SMALL = {"env": {"rung": "late", "num_envs": 32}, "ppo": {"num_steps": 32, "num_
 def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     """A few thousand steps of a small config end to end: records written, the exported policy flies what
     the training state's deterministic policy flies, evaluation of it is deterministic, an interrupted
-    run resumes where it stopped, and a changed config is refused on resume. The float64 backend is
+    run resumes where it stopped, a changed config is refused on resume and starts a new run from
+    the checkpoint instead (``init_from``). The float64 backend is
     loaded first, as any other part of a process may have done: it turns on ``jax_enable_x64``, and the
     float32 learner must still train."""
     pytest.importorskip("rejax")
@@ -128,6 +129,24 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     changed["ppo"]["learning_rate"] = 1e-3
     with pytest.raises(ValueError, match=r"config differs .*ppo"):
         train_scratch(changed, out=out, timesteps=4096, resume=True, progress=lambda s: None)
+    # a changed config goes on from the run's checkpoint in a new run, which names where it started
+    window = json.loads((out / "checkpoint" / "state.json").read_text())["window_s"]
+    stepped = json.loads(json.dumps(SMALL))
+    stepped["curriculum"]["step_weighted"] = True
+    other = tmp_path / "other"
+    meta = train_scratch(stepped, out=other, timesteps=3072, init_from=out, progress=lambda s: None)
+    assert [h["timesteps"] for h in json.loads((other / "evaluations.json").read_text())] == [1024, 2048, 3072]
+    start = {"run": str(out), "timesteps": 2048, "window_s": window}
+    assert meta["provenance"]["init_from"] == start and meta["config"]["curriculum"]["step_weighted"]
+    assert json.loads((other / "checkpoint" / "state.json").read_text())["init_from"] == start  # kept on resume
+    wider = json.loads(json.dumps(SMALL))
+    wider["ppo"]["hidden_layer_sizes"] = [24, 16]
+    with pytest.raises(ConfigError, match=r"cannot start from .*run: .*training state"):
+        train_scratch(wider, out=tmp_path / "wider", init_from=out, progress=lambda s: None)
+    with pytest.raises(ValueError, match="is the new run's own --out"):
+        train_scratch(SMALL, out=out, init_from=out, progress=lambda s: None)
+    with pytest.raises(ValueError, match="holds no checkpoint"):
+        train_scratch(SMALL, out=tmp_path / "new", init_from=tmp_path / "wider", progress=lambda s: None)
     # the export flies what the training state's deterministic policy flies
     cfg = load_config(SMALL)
     with jax_x64(False):  # as the trainer runs its float32 learner
