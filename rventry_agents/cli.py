@@ -97,10 +97,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     dag.set_defaults(func=_run_dagger)
     ship = algos.add_parser("ship", help="copy a finished run's selected policy into the package")
     ship.add_argument("run_dir", help="the --out directory of a finished `rventry train` run (ppo-residual, "
-                                      "ppo-finetune, ppo-plain, recurrent-ppo-plain, sac-plain, dagger)")
+                                      "ppo-finetune, ppo-plain, recurrent-ppo-plain, sac-plain, dagger, ppo-scratch), "
+                                      "or a ppo-scratch run's milestones/window_<W>s folder")
     ship.add_argument("--dest", help="destination (default, by what the run trained: a DAgger student to "
                                      "rventry_agents/data/dagger, PPO fine-tuning to data/ppo_finetune, the PPO "
-                                     "residual to data/ppo, a plain baseline to data/baselines/ALGORITHM)")
+                                     "residual to data/ppo, a plain baseline to data/baselines/ALGORITHM, a from-scratch "
+                                     "policy to data/ppo_scratch)")
     ship.set_defaults(func=_ship)
 
 

@@ -10,7 +10,11 @@ Only what evaluation needs travels, with the run's record:
 * a DAgger run (``rventry train dagger``): the selected student (``student.pt`` and
   ``student.json``), ``rounds.json``, ``final.json`` when the run refitted an ensemble,
   ``distil.json`` when it distilled one network, ``flight.json`` when it chose a tracker, the
-  metadata and the learning curve; by default to ``dagger``'s directory.
+  metadata and the learning curve; by default to ``dagger``'s directory;
+* a from-scratch run (``rventry train ppo-scratch``) or one of its milestones
+  (``milestones/window_<W>s/``): the exported actor (``policy.npz``), its metadata (config and
+  provenance) and the run's evaluations and learning curve; by default to ``ppo-scratch``'s
+  directory.
 """
 
 from __future__ import annotations
@@ -20,17 +24,20 @@ from pathlib import Path
 
 from rventry_agents.config import read_json
 from rventry_agents.records import PolicyRecord
-from rventry_env.util.files import atomic_write, write_json
+from rventry_env.util.files import atomic_write, output_set, write_json
 
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
 DAGGER_FILES = ("student.pt", "student.json", "rounds.json", "metadata.json", "learning_curve.png")
 DAGGER_RECORDS = ("final.json", "distil.json", "flight.json")  # written by some runs only
+JAX_FILES = ("policy.npz", "metadata.json")
+JAX_RECORDS = ("evaluations.json", "learning_curve.png")  # the run's: a milestone's are its run folder's
 
 
 def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     """Copy the selected policy of ``run_dir`` to ``dest`` (default: the packaged policy directory).
 
-    :param run_dir: a finished ``rventry train`` output directory (any stable-baselines3 command, or ``dagger``).
+    :param run_dir: a finished ``rventry train`` output directory (any stable-baselines3 command,
+        ``dagger``, ``ppo-scratch``), or a from-scratch run's milestone folder.
     :param dest: where to put it.
     """
     from rventry_agents.config import algorithm_class
@@ -39,6 +46,8 @@ def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
     run_dir = Path(run_dir)
     if (run_dir / "student.json").exists():
         return _ship_dagger(run_dir, dest)
+    if (run_dir / "policy.npz").exists():
+        return _ship_jax(run_dir, dest)
     _check_finished(run_dir, ("model.zip", *RUN_FILES), "training run")
     dest = Path(dest) if dest is not None else default_destination(run_dir)
     SB3Policy(run_dir)  # a policy that does not load (or whose records are corrupt) is not shipped
@@ -70,6 +79,10 @@ def default_destination(run_dir: str | Path) -> Path:
         from rventry_agents.dagger import SHIPPED_DAGGER
 
         return SHIPPED_DAGGER
+    if (run_dir / "policy.npz").exists():
+        from rventry_agents.jax_policy import SHIPPED
+
+        return SHIPPED["ppo-scratch"]
     record = PolicyRecord.read_json(run_dir / "policy.json")
     try:
         return PolicyMode.of_record(record).destination(record.algorithm or "ppo")
@@ -88,6 +101,26 @@ def _write_metadata(run_dir: Path, dest: Path) -> None:
     meta = read_json(run_dir / "metadata.json")
     meta["shipped_from"] = str(run_dir)
     write_json(dest / "metadata.json", meta)
+
+
+def _ship_jax(run_dir: Path, dest: str | Path | None) -> Path:
+    """A from-scratch run's selected actor, or a milestone's, with the run's records."""
+    from rventry_agents.jax_policy import JaxPolicy
+
+    dest = Path(dest) if dest is not None else default_destination(run_dir)
+    _check_finished(run_dir, JAX_FILES, "from-scratch run or milestone")
+    JaxPolicy(run_dir)  # an actor that does not load is not shipped
+    run = run_dir.parent.parent if run_dir.parent.name == "milestones" else run_dir
+    records = {name: run / name for name in JAX_RECORDS if (run / name).is_file()}
+    dest.mkdir(parents=True, exist_ok=True)
+    with output_set():  # the actor and its records replaced together
+        atomic_write(dest / "policy.npz", (run_dir / "policy.npz").read_bytes())
+        for name, path in records.items():
+            atomic_write(dest / name, path.read_bytes())
+        _write_metadata(run_dir, dest)
+    for name in set(JAX_RECORDS) - set(records):
+        (dest / name).unlink(missing_ok=True)  # a previous run's record would describe another policy
+    return dest
 
 
 def _ship_dagger(run_dir: Path, dest: str | Path | None) -> Path:

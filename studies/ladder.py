@@ -179,7 +179,9 @@ def history(folder: Path) -> dict:
         reached.setdefault(f"{w:.0f}", steps)
     best = max(hist, key=lambda h: task_metric_key(h["select"]["success_rate"], h["select"]["miss_km_p50"]))  # as training selects
     load_config(config)  # checked: a run of this trainer
-    return {"run": folder.name, "changed": _changed(config, load_config(DEFAULT_CONFIG).to_dict()),
+    state = folder / "checkpoint" / "state.json"  # a run started from another's checkpoint names it there
+    start = json.loads(state.read_text()).get("init_from") if state.is_file() else None
+    return {"run": folder.name, "init_from": start, "changed": _changed(config, load_config(DEFAULT_CONFIG).to_dict()),
             "timesteps": last["timesteps"], "wall_s": last["wall_s"],
             "window_s": windows[-1][0] if windows else None, "window_reached_at": reached,
             "frontier_success": last["curriculum"]["frontier_success"] if last.get("curriculum") else None,

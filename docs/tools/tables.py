@@ -746,13 +746,18 @@ def scratch_runs_table(doc: dict) -> str:
     for r in doc["runs"]:
         changed = ", ".join(f"{k.split('.', 1)[1]} {v}" for k, v in r["changed"].items()
                             if k not in BUDGET and not (isinstance(v, str) and v.startswith("not in"))) or "none"  # fmt: skip
+        start = r.get("init_from")
+        if start:  # started from another run's checkpoint: its steps and wall time are in this run's
+            changed = (f"from {Path(start['run']).name} at {start['timesteps'] / 1e6:.1f}M steps "
+                       f"(window {start['window_s']:.0f} s); {changed}")  # fmt: skip
         window = "-" if r["window_s"] is None else f"{r['window_s']:.0f} s"
         front = "-" if r["frontier_success"] is None else f"{r['frontier_success']:.2f}"
         rows.append([r["run"], changed, f"{r['timesteps'] / 1e6:.1f}M", f"{r['wall_s'] / 60:.0f} min", window, front,
                      f"{r['select_success']:.2f}"])  # fmt: skip
     return "\n".join([md(header, rows), "", "Window: how far before impact the curriculum started episodes when the "
                       "run stopped; frontier: success from the window's far end; full task: the selected policy's "
-                      "success from the task's own initial state.", "",
+                      "success from the task's own initial state. A run started from another's checkpoint counts "
+                      "that run's steps and wall time in its own.", "",
                       source("docs/results/scratch_runs.json", command="python studies/ladder.py histories RUN ...")])  # fmt: skip
 
 
