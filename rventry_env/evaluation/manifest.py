@@ -146,7 +146,7 @@ def stale(manifest: dict, root: str | Path, task=None, model=None) -> list[str]:
 def shipped_policies(root: Path) -> list[Path]:
     """The shipped policies' folders: every folder of ``rventry_agents/data`` that holds a policy file."""
     data = root / "rventry_agents" / "data"
-    policy_files = ("student.pt", "model.zip", "params.npz")
+    policy_files = ("student.pt", "model.zip", "params.npz", "policy.npz")
     return sorted({p.parent for name in policy_files for p in data.rglob(name)}) if data.is_dir() else []
 
 
