@@ -28,7 +28,7 @@ def _tree(tmp_path, *policies):
 
 def test_every_shipped_policy_has_a_manifest_naming_its_config_task_and_code_and_none_is_stale():
     policies = shipped_policies(ROOT)
-    assert {p.name for p in policies} >= {"dagger", "dagger_flight", "ppo", "ppo_finetune", "ppo", "sac"}
+    assert {p.name for p in policies} >= {"dagger", "dagger_flight", "ppo", "ppo_finetune", "ppo_scratch", "sac"}
     for folder in policies:
         m = json.loads((folder / MANIFEST).read_text())
         assert m["config"]["source"] == "metadata.json:config" and len(m["config"]["sha256"]) == 64, folder
