@@ -281,7 +281,7 @@ class PlanSolver:
 
     def __init__(self, task: EntryTask, model: EntryModel, settings: ReplanningSettings):
         from rventry_env.reference.collocation import CompiledProblem, SolverOptions, transcribe
-        from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
+        from rventry_env.reference.entry_ocp import EntryOcpConfig, entry_ocp
 
         s = self.settings = settings
         p = task.problem
@@ -291,9 +291,9 @@ class PlanSolver:
         if s.vertical_dive_m > 0:  # the plan ends vertical above the target; the law dives from there
             problem = replace(problem, final_altitude=p.final_altitude + s.vertical_dive_m,
                               final_speed=dive_entry_speed(task, model, s.vertical_dive_m))  # fmt: skip
-        config = EntryProblemConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
+        config = EntryOcpConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
                                     soft_path_penalty=s.soft_penalty, aero_scale_parameters=True)  # fmt: skip
-        self.problem = entry_problem(config)
+        self.problem = entry_ocp(config)
         self.compiled = CompiledProblem(self.problem)
         mesh = replanning_mesh(s)
         ipopt = {"mu_init": 1e-4, "warm_start_init_point": "yes",
