@@ -433,7 +433,7 @@ class RvEntryFunctional(environment.Environment):
         if errors is None:
             return model
         from rventry_env.physics.uncertainty import MachVaryingAerodynamics, ProfileAtmosphere, ProfileWind
-        from rventry_env.task.flight import GRID_START_M, GRID_STEP_M
+        from rventry_env.task.flight_grade import GRID_START_M, GRID_STEP_M
 
         row = errors.row
         aero = _unchecked(MachVaryingAerodynamics, base=model.vehicle.aerodynamics, lift_p1=row.aero[0],

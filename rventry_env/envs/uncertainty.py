@@ -22,7 +22,7 @@ from rventry_env.physics.model import EntryModel, scaled_model
 from rventry_env.physics.sensors import accelerometer, propagate_navigation_error, white_noise
 from rventry_env.physics.uncertainty import MachVaryingAerodynamics, ProfileAtmosphere, ProfileWind
 from rventry_env.task import SCALAR_FIELDS, Dispersion
-from rventry_env.task.flight import GRID_M, GRID_POINTS, GRID_START_M, GRID_STEP_M
+from rventry_env.task.flight_grade import GRID_M, GRID_POINTS, GRID_START_M, GRID_STEP_M
 
 
 class Sensed(NamedTuple):

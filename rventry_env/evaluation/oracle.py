@@ -157,7 +157,7 @@ def perfect_sensing(dispersion):
     import dataclasses
 
     from rventry_env.task import Dispersion
-    from rventry_env.task.flight import SENSING_FIELDS
+    from rventry_env.task.flight_grade import SENSING_FIELDS
 
     d = Dispersion.parse(dispersion)
     if d.flight is None:

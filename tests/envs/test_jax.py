@@ -287,10 +287,10 @@ def test_functional_flight_grade_env_flies_a_pool_draw_as_the_numpy_truth_model_
     from rventry_env.core.euler_parameters import dcm
     from rventry_env.envs.observation import observe
     from rventry_env.envs.uncertainty import FlightState
-    from rventry_env.task import FLIGHT_ERRORS
+    from rventry_env.task import FLIGHT_GRADE_ERRORS
 
     quiet = dataclasses.replace(Dispersion.flight_set(),
-                                flight=dataclasses.replace(FLIGHT_ERRORS, accel_noise_mps2=0.0))  # fmt: skip
+                                flight=dataclasses.replace(FLIGHT_GRADE_ERRORS, accel_noise_mps2=0.0))  # fmt: skip
     env = RvEntryFunctional(dispersion=quiet, dtype="float64", pool_size=4)
     params = env.default_params
     _, st = env.reset(jax.random.PRNGKey(5), params)
