@@ -3,7 +3,7 @@ vehicle's sensors and navigation make of the truth.
 
 Shared by :class:`~rventry_env.envs.rv_entry.RvEntryEnv` (one copy) and
 :class:`~rventry_env.envs.vector.RvEntryVectorEnv` (N copies): both keep one
-:class:`FlightState` of N rows, fill row i from copy i's draws, and build from it the truth
+:class:`VehicleErrors` of N rows, fill row i from copy i's draws, and build from it the truth
 model (per-copy arrays for the batch, row 0 as plain numbers and one profile for the single
 env) and, where the set has sensor or navigation errors, the navigation state and the sensed
 features every observation is made of. The truth state is never changed.
@@ -33,8 +33,9 @@ class Sensed(NamedTuple):
     aero_accel: object
 
 
-class FlightState:
-    """The flight-grade draws of N copies, and their sensors' and navigation's running errors."""
+class VehicleErrors:
+    """The flight-grade errors drawn for N vehicles (copies), and their sensors' and navigation's
+    running errors."""
 
     def __init__(self, n: int, model: EntryModel):
         self.n = n
@@ -259,4 +260,4 @@ def _compose(p: tuple, q: tuple) -> tuple:
     )
 
 
-__all__ = ["FlightState", "Sensed", "SensorErrors", "Seen", "sense"]
+__all__ = ["VehicleErrors", "Sensed", "SensorErrors", "Seen", "sense"]
