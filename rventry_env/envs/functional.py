@@ -368,7 +368,7 @@ class RvEntryFunctional(environment.Environment):
         return obs, EnvState(episode, scales, errors, self._potential(episode.x, c_ae))
 
     def _start_from_table(self, key, sp: StartParams, episode: EpisodeState, model: EntryModel) -> EpisodeState:
-        """``episode``, or where this reset's draw says so, a episode from the start table (the NumPy
+        """``episode``, or where this reset's draw says so, an episode from the start table (the NumPy
         environments' rule: :meth:`~rventry_env.task.starts.StartStates.draw`)."""
         ns = self.ns
         u = uniforms(key, DRAWS, ns.float_dtype, offset=_START_OFFSET)

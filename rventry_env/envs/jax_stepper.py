@@ -232,7 +232,7 @@ class JaxStepper(Stepper):
         self._sensor = self._sensor_errors(errors) if sensing else None
         if fn is not self._fn and self._carry is not None:
             # an autoreset drew a set of another structure (a reset's one-off dispersion before it): the
-            # the running episodes go on; the navigation errors start from the host's (zero where nothing sensed before)
+            # episodes go on; the navigation errors start from the host's (zero where nothing sensed before)
             nav = None
             if sensing:
                 nav = self._carry[1] if self._fn.sensing else (self._sensor.dr, self._sensor.dv)
