@@ -25,7 +25,7 @@ from rventry_env.util.files import atomic_write, write_json
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
 DAGGER_FILES = ("student.pt", "student.json", "rounds.json", "metadata.json", "learning_curve.png")
 DAGGER_RECORDS = ("final.json", "distil.json", "deploy.json")  # written by some runs only
-OLD_RECORD_NAMES = {"deploy.json": "flight.json"}  # a run from before the record's name: shipped as the new name
+OLD_RECORD_NAMES = {"deploy.json": "flight.json"}  # an older run's name of a record, shipped as the new one
 
 
 def ship(run_dir: str | Path, dest: str | Path | None = None) -> Path:
