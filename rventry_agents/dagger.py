@@ -14,8 +14,8 @@ A run writes into its output directory:
   (one network costs a third of three per decision; with ``keep_teacher_if_better``, a teacher
   that is one network of the same widths keeps flying if it does better on the selection set),
   and its selection figures;
-* ``flight.json``: with ``[flight] tracking``, the selected network flown on the selection set
-  with each candidate tracker horizon, and the one chosen; with ``[flight] load_relief_margins``,
+* ``deploy.json``: with ``[deploy] tracking``, the selected network flown on the selection set
+  with each candidate tracker horizon, and the one chosen; with ``[deploy] load_relief_margins``,
   then with the chosen tracker and each candidate load-relief margin, and the one chosen;
 * ``student.pt`` and ``student.json``: the network selected on the task metric (a round's, or the
   final ensemble when it does better; with ``[distil]``, the network distilled from it), and how
@@ -59,7 +59,7 @@ from rventry_agents.imitation import (
     network_bytes,
     network_from_bytes,  # fmt: skip
 )
-from rventry_agents.records import RunRecord, StudentFlight, StudentRecord, horizon_keys  # noqa: F401
+from rventry_agents.records import RunRecord, StudentDeploy, StudentRecord, horizon_keys  # noqa: F401
 from rventry_env.task import EntryTask
 from rventry_env.util.files import atomic_write, check_writable, dumps_json, save_figure, write_json
 
@@ -95,10 +95,11 @@ def select_metric(student, cfg: DaggerConfig, task: EntryTask) -> dict:
 
 
 # the config sections that shape the rounds already flown: a resumed run must keep them
-# ([final], [distil] and [flight] come after the rounds, and each checks its own record on resume)
+# ([final], [distil] and [deploy] come after the rounds, and each checks its own record on resume)
 RUN_SECTIONS = {"student": StudentSection, "expert": ExpertSection, "data": DataSection, "fit": FitSection,
                 "select": SelectSection}  # fmt: skip
 RUN_FILE = "run.json"
+DEPLOY_RECORD = "deploy.json"  # [deploy]'s choice (flight.json in runs from before the name)
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,7 @@ class RunSetup:
     members: int
     law: dict  # LearnedGuidance keywords: horizon, load_relief_margin
     trackers: list
-    margins: list  # [flight] load_relief_margins
+    margins: list  # [deploy] load_relief_margins
     fit_seed: int
     expert: str
     expert_settings: tuple  # (name, value) pairs of ReplanningSettings
@@ -208,7 +209,7 @@ def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None
     task = EntryTask()
     law = cfg.student.law(task)
     law.pop("q_floor_margin")  # none: refused by the [student] section
-    trackers = cfg.flight.trackers()
+    trackers = cfg.deploy.trackers()
     for h in (law["horizon"], *trackers):
         h.check_step(task.dt)
     expert = cfg.expert.agent
@@ -217,7 +218,7 @@ def prepare_run(config, out, workers: int, seed: int | None, cluster: str | None
     check_writable(folders=(out,))
     return RunSetup(
         cfg=cfg, out=out, workers=workers, seed=seed, task=task, hidden=cfg.student.hidden, members=cfg.student.members,
-        law=law, trackers=trackers, margins=list(cfg.flight.load_relief_margins),
+        law=law, trackers=trackers, margins=list(cfg.deploy.load_relief_margins),
         fit_seed=cfg.fit.seed if seed is None else seed, expert=expert, expert_settings=cfg.expert.setting_pairs,
         first_seed=cfg.data.train_seed + (0 if seed is None else 1_000 * seed), cluster=cluster,
     )  # fmt: skip
@@ -490,13 +491,13 @@ def distil_selected(run: RunSetup, rounds: Rounds, teacher: Selected, clock: Run
     return best, distilled
 
 
-def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None) -> dict | None:
-    """``[flight]``: the selected network flown with the trained tracker and each candidate, then,
+def choose_deployment(run: RunSetup, best: Selected, distilled: dict | None) -> dict | None:
+    """``[deploy]``: the selected network flown with the trained tracker and each candidate, then,
     with the chosen tracker, with the trained load-relief margin and each candidate margin; the
     best on the task metric is kept at each step (the trained one among equals). Returns the chosen
     record (None: no scan)."""
     if not run.trackers and not run.margins:
-        (run.out / "flight.json").unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
+        (run.out / DEPLOY_RECORD).unlink(missing_ok=True)  # an earlier run's choice, for a tracker this run does not fly
         return None
     law = _law(run, best.law)
     network, horizons, trained = best.network(), [law["horizon"], *run.trackers], law["load_relief_margin"]
@@ -510,7 +511,7 @@ def choose_flight_tracker(run: RunSetup, best: Selected, distilled: dict | None)
         k = max(range(len(relief)), key=lambda j: _select_key(relief[j]))
         record["relief_candidates"] = relief
         chosen, margin = relief[k], margins[k]
-    write_json(run.out / "flight.json", record)
+    write_json(run.out / DEPLOY_RECORD, record)
     _write_selected(run.out, best, {**law, "load_relief_margin": margin}, run.task,
                     tracker=None if i == 0 else run.trackers[i - 1],
                     distilled_from=None if distilled is None else distilled["teacher"],
@@ -559,7 +560,7 @@ def train_dagger(config=None, out="runs/dagger", workers: int = 2, seed: int | N
     rounds = run_rounds(run, clock, resume, progress_bar)
     best, final = refit_ensemble(run, rounds, clock, resume)
     best, distilled = distil_selected(run, rounds, best, clock, resume)
-    tracking = choose_flight_tracker(run, best, distilled)
+    tracking = choose_deployment(run, best, distilled)
     write_run_record(run, rounds, best, final, distilled, tracking, clock)
     return run.out
 
@@ -590,11 +591,11 @@ def choose_tracker(network, horizons: list[Horizon], relief: float | None, cfg: 
     return scan
 
 
-def student_law(student: StudentFlight | dict, task: EntryTask) -> dict:
+def student_law(student: StudentDeploy | dict, task: EntryTask) -> dict:
     """The student's law options (:class:`LearnedGuidance` keywords) from a [student] section, a
-    student.json or a fine-tuned policy's spec (:meth:`~rventry_agents.records.StudentFlight.law`)."""
+    student.json or a fine-tuned policy's spec (:meth:`~rventry_agents.records.StudentDeploy.law`)."""
     if isinstance(student, dict):
-        student = StudentFlight.from_dict({k: v for k, v in student.items() if k in StudentFlight.__dataclass_fields__},
+        student = StudentDeploy.from_dict({k: v for k, v in student.items() if k in StudentDeploy.__dataclass_fields__},
                                           "the student's settings")  # fmt: skip
     return student.law(task)
 

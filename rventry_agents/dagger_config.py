@@ -3,7 +3,12 @@
 ``rventry_agents/dagger.toml`` and ``dagger_flight.toml`` are read by :func:`load_config`, which
 checks every key before anything is flown or written: the student's network and tracker, the
 expert and its re-planning settings, the training and selection sets, the rounds, the fit, and
-what follows the rounds (the ensemble refit, the distillation, the tracker and load-relief scan).
+what follows the rounds (the ensemble refit, the distillation, and ``[deploy]``: the tracker and
+load-relief scan that chooses how the student is deployed).
+
+``[deploy]`` was called ``[flight]`` before: a config or run record with a ``[flight]`` section
+is read as ``[deploy]`` (a TOML file with a FutureWarning asking to rename it); one with both is
+refused.
 """
 
 from __future__ import annotations
@@ -11,14 +16,16 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
-from rventry_agents.config import ConfigError, Section, dispersion, setting, widths
+from rventry_agents.config import ConfigError, Section, dispersion, read_toml, setting, widths
 from rventry_agents.imitation import Horizon
 from rventry_agents.records import StudentNetwork, check_relief_margin
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "dagger.toml"
+OLD_DEPLOY = "flight"  # the old name of [deploy], still read
 @dataclass(frozen=True, kw_only=True)
 class StudentSection(StudentNetwork):
     """``[student]``: the student's network (``members`` > 1: an ensemble, the mean of theirs), the
@@ -129,8 +136,8 @@ class DistilSection(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
-class FlightSection(Section):
-    """``[flight]``: after training, the selected network flown on the selection set with each
+class DeploySection(Section):
+    """``[deploy]``: after training, the selected network flown on the selection set with each
     tracker horizon ``tracking`` ([max_s, min_s] pairs, the altitude over ``tracking_descent_mps``
     between them), then with each load-relief margin of ``load_relief_margins``; the best is kept."""
 
@@ -176,8 +183,16 @@ class DaggerConfig(Section):
     fit: FitSection
     final: FinalSection = FinalSection()
     distil: DistilSection | None = None
-    flight: FlightSection = FlightSection()
+    deploy: DeploySection = DeploySection()
     select: SelectSection
+
+    @classmethod
+    def _pack(cls, data: dict) -> dict:
+        if OLD_DEPLOY in data:  # the section's name before it was [deploy]
+            if "deploy" in data:
+                raise ConfigError(f"[{OLD_DEPLOY}] is the old name of [deploy]; give only [deploy]")
+            data = {("deploy" if k == OLD_DEPLOY else k): v for k, v in data.items()}
+        return data
 
     def __post_init__(self):
         super().__post_init__()
@@ -191,11 +206,17 @@ def load_config(path: str | Path | dict | DaggerConfig | None = None, where: str
     dict as one reads (``where`` names its source).
 
     :raises ConfigError: naming the file, the section and the key.
+    :warns FutureWarning: a TOML file with the old ``[flight]`` section (read as ``[deploy]``).
     """
     if isinstance(path, (dict, DaggerConfig)):
         return DaggerConfig.from_dict(path, where or "config")
-    return DaggerConfig.load(DEFAULT_CONFIG if path is None else path)
+    path = DEFAULT_CONFIG if path is None else path
+    data = read_toml(path)
+    if OLD_DEPLOY in data and "deploy" not in data:
+        warnings.warn(f"{path}: the section [{OLD_DEPLOY}] is now called [deploy]; it is read as [deploy] "
+                      "for now: rename it in the file", FutureWarning, stacklevel=2)  # fmt: skip
+    return DaggerConfig.from_dict(data, str(path))
 
 
-__all__ = ["DEFAULT_CONFIG", "DaggerConfig", "DataSection", "DistilSection", "ExpertSection", "FinalSection",
-           "FitSection", "FlightSection", "RoundSection", "SelectSection", "StudentSection", "load_config"]  # fmt: skip
+__all__ = ["DEFAULT_CONFIG", "DaggerConfig", "DataSection", "DeploySection", "DistilSection", "ExpertSection",
+           "FinalSection", "FitSection", "RoundSection", "SelectSection", "StudentSection", "load_config"]  # fmt: skip

@@ -3,7 +3,7 @@
 A loader reads ``student.json`` (a DAgger student), ``policy.json`` (how to fly a
 stable-baselines3 model) and ``metadata.json`` (a run's command, config and provenance) through
 the classes here, so that a malformed or truncated file is refused naming the file and the key,
-never failing deep inside a loader. :class:`StudentFlight` is also the part of a DAgger
+never failing deep inside a loader. :class:`StudentDeploy` is also the part of a DAgger
 ``[student]`` section that says how a student flies.
 """
 
@@ -36,8 +36,8 @@ HORIZON_KEYS = {"s": "max_s", "min_s": "min_s", "descent_mps": "descent_mps"}
 
 
 @dataclass(frozen=True, kw_only=True)
-class StudentFlight(Section):
-    """How a student network flies: its tracker's horizon and its limiters.
+class StudentDeploy(Section):
+    """How a student network is deployed (how it flies): its tracker's horizon and its limiters.
 
     The horizon is ``tracking_*`` where a tracker was chosen after training, else the labels'
     ``lookahead_*``, which the rounds fly; one control step where neither is given (students
@@ -81,13 +81,13 @@ class StudentFlight(Section):
 
 
 def horizon_keys(h: Horizon, prefix: str) -> dict:
-    """A horizon as :class:`StudentFlight` keys (an unbounded descent rate as None)."""
+    """A horizon as :class:`StudentDeploy` keys (an unbounded descent rate as None)."""
     return {f"{prefix}_s": h.max_s, f"{prefix}_min_s": h.min_s,
             f"{prefix}_descent_mps": h.descent_mps if math.isfinite(h.descent_mps) else None}  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True)
-class StudentNetwork(StudentFlight):
+class StudentNetwork(StudentDeploy):
     """A student's network (``members`` > 1: an ensemble, the mean of theirs) and how it flies."""
 
     hidden: tuple[int, ...] = widths()
@@ -123,7 +123,7 @@ class Scales(Section):
 
 
 @dataclass(frozen=True, kw_only=True)
-class FineTunedSpec(StudentFlight):
+class FineTunedSpec(StudentDeploy):
     """``policy.json``'s ``student``: the student a fine-tuning started from (its name and the
     SHA-256 of its weights), its standardization, and how the fine-tuned actor flies."""
 
@@ -177,7 +177,7 @@ __all__ = [
     "PolicyRecord",
     "RunRecord",
     "Scales",
-    "StudentFlight",
+    "StudentDeploy",
     "StudentNetwork",
     "StudentRecord",
     "check_floor_margin",

@@ -9,7 +9,7 @@ Only what evaluation needs travels, with the run's record:
   the run trained (PPO fine-tuning, the PPO residual or a plain baseline);
 * a DAgger run (``rventry train dagger``): the selected student (``student.pt`` and
   ``student.json``), ``rounds.json``, ``final.json`` when the run refitted an ensemble,
-  ``distil.json`` when it distilled one network, ``flight.json`` when it chose a tracker, the
+  ``distil.json`` when it distilled one network, ``deploy.json`` when it chose a tracker, the
   metadata and the learning curve; by default to ``dagger``'s directory;
 * a from-scratch run (``rventry train ppo-scratch``) or one of its milestones
   (``milestones/window_<W>s/``): the exported actor (``policy.npz``), its metadata (config and
@@ -28,7 +28,8 @@ from rventry_env.util.files import atomic_write, output_set, write_json
 
 RUN_FILES = ("vecnormalize.pkl", "policy.json", "metadata.json", "evaluations.json", "learning_curve.png")
 DAGGER_FILES = ("student.pt", "student.json", "rounds.json", "metadata.json", "learning_curve.png")
-DAGGER_RECORDS = ("final.json", "distil.json", "flight.json")  # written by some runs only
+DAGGER_RECORDS = ("final.json", "distil.json", "deploy.json")  # written by some runs only
+OLD_RECORD_NAMES = {"deploy.json": "flight.json"}  # an older run's name of a record, shipped as the new one
 JAX_FILES = ("policy.npz", "metadata.json")
 JAX_RECORDS = ("evaluations.json", "learning_curve.png")  # the run's: a milestone's are its run folder's
 
@@ -130,11 +131,15 @@ def _ship_dagger(run_dir: Path, dest: str | Path | None) -> Path:
     _check_finished(run_dir, DAGGER_FILES, "DAgger run")
     load_student(run_dir)  # a student that does not load is not shipped
     dest.mkdir(parents=True, exist_ok=True)
+    source = {name: run_dir / name for name in (*DAGGER_FILES, *DAGGER_RECORDS)}
+    for name, old in OLD_RECORD_NAMES.items():
+        if not source[name].exists():
+            source[name] = run_dir / old
     for name in DAGGER_RECORDS:
-        if not (run_dir / name).exists():
+        if not source[name].exists():
             (dest / name).unlink(missing_ok=True)  # a previous run's record would describe another student
-    for name in (*DAGGER_FILES, *DAGGER_RECORDS):
-        if name != "metadata.json" and (run_dir / name).exists():
-            atomic_write(dest / name, (run_dir / name).read_bytes())
+    for name, path in source.items():
+        if name != "metadata.json" and path.exists():
+            atomic_write(dest / name, path.read_bytes())
     _write_metadata(run_dir, dest)
     return dest

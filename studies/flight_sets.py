@@ -83,19 +83,20 @@ def effect_sets() -> dict:
     import dataclasses
 
     from rventry_env.evaluation.oracle import perfect_sensing
-    from rventry_env.task import FLIGHT_ERRORS as F
-    from rventry_env.task import Dispersion, FlightErrors
-    from rventry_env.task.flight import SENSING_FIELDS
+    from rventry_env.task import FLIGHT_GRADE_ERRORS as F
+    from rventry_env.task import Dispersion, FlightGradeErrors
+    from rventry_env.task.flight_grade import SENSING_FIELDS
 
     flight = Dispersion.parse("flight")
     sensing = {k: getattr(F, k) for k in SENSING_FIELDS}
     return {
         "entry state, C_L/C_D, mass": dataclasses.replace(flight, flight=None),
-        "NRLMSIS climatology": Dispersion(flight=FlightErrors(climatology=True)),
-        "density perturbation": Dispersion(flight=FlightErrors(density_bands=F.density_bands)),
-        "winds": Dispersion(flight=FlightErrors(wind_mean_mps=F.wind_mean_mps, wind_bands=F.wind_bands)),
-        "Mach-dependent C_L/C_D": Dispersion(flight=FlightErrors(lift_mach=F.lift_mach, drag_mach=F.drag_mach)),
-        "sensors and navigation": Dispersion(flight=FlightErrors(**sensing)),
+        "NRLMSIS climatology": Dispersion(flight=FlightGradeErrors(climatology=True)),
+        "density perturbation": Dispersion(flight=FlightGradeErrors(density_bands=F.density_bands)),
+        "winds": Dispersion(flight=FlightGradeErrors(wind_mean_mps=F.wind_mean_mps, wind_bands=F.wind_bands)),
+        "Mach-dependent C_L/C_D": Dispersion(flight=FlightGradeErrors(lift_mach=F.lift_mach,
+                                                                       drag_mach=F.drag_mach)),
+        "sensors and navigation": Dispersion(flight=FlightGradeErrors(**sensing)),
         "all but sensors and navigation": perfect_sensing(flight),
     }
 

@@ -37,7 +37,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from rventry_env.task import FLIGHT_ERRORS, NAMED_SETS, EntryTask, PrecisionThresholds
+from rventry_env.task import FLIGHT_GRADE_ERRORS, NAMED_SETS, EntryTask, PrecisionThresholds
 from rventry_env.evaluation.parallel import EvaluationJob, evaluate_many
 from rventry_env.evaluation.agents import peer_settings
 from rventry_env.evaluation.summary import summarize
@@ -73,7 +73,7 @@ VARIANTS = {
 }
 
 # the density perturbation's published statistics (the flight set's bands: what a law may know)
-FLIGHT_BANDS = FLIGHT_ERRORS.density_bands
+FLIGHT_BANDS = FLIGHT_GRADE_ERRORS.density_bands
 # the flight-grade scan: the settings the flight set's failures point to (load-factor breaches in
 # the final pull-down, q dips at a skip's apex where the air is thinner than estimated lower down)
 FLIGHT_VARIANTS = {

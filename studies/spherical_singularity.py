@@ -39,7 +39,7 @@ def main(argv=None) -> int:
     from rventry_env.reference import load_reference
     from rventry_env.reference.collocation.progress import RichMeshTable
     from rventry_env.reference.collocation import SampledGuess, SolverOptions
-    from rventry_env.reference.entry_problem import EntryProblemConfig
+    from rventry_env.reference.entry_ocp import EntryOcpConfig
     from rventry_env.reference.guess import generate_guess
     from rventry_env.reference.pipeline import end_clustered_mesh
     from rventry_env.reference.spherical_entry import (
@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     import numpy as np
 
     ref = load_reference()
-    cfg = EntryProblemConfig()
+    cfg = EntryOcpConfig()
     guesses = {}
     if "reference" in args.guesses:
         guesses["reference"] = spherical_guess_from_reference(ref, cfg)

@@ -67,7 +67,7 @@ from rventry_env.envs.reward import RewardWeights
 from rventry_env.task import SCALAR_FIELDS, Dispersion, apply_state_dispersion, disperse_state
 from rventry_env.envs.outcome import time_limit_penalty
 from rventry_env.envs.shaping import PotentialShaping, check_shaping
-from rventry_env.envs.transition import Flight, advance, observe_flight, start_flight
+from rventry_env.envs.transition import EpisodeState, advance, observe_episode, start_episode
 from rventry_env.task.starts import DRAWS, StartStates, perturbed, window_time
 from rventry_env.physics.model import EntryModel, numeric_leaves, scaled_model, with_numeric_leaves
 
@@ -85,7 +85,7 @@ class EnvParams(NamedTuple):
     gaussian: Any  # True: clipped normals (the dispersion's shape "gaussian"); False: uniform
     clip_sigmas: Any  # where the normals are clipped
     max_steps_in_episode: Any  # time limit in control steps
-    pool: Any = None  # flight-grade environments: the FlightPool the resets pick from
+    pool: Any = None  # flight-grade environments: the ErrorPool the resets pick from
     starts: Any = None  # environments with start states: the StartParams the resets draw from
 
 
@@ -101,7 +101,7 @@ class StartParams(NamedTuple):
     step_weighted: Any  # 1: density 1/s in the seconds s before the table's end instead (0: not)
 
 
-class FlightPool(NamedTuple):
+class ErrorPool(NamedTuple):
     """``pool_size`` vehicles' flight-grade errors (rows), drawn on the host by the NumPy draw."""
 
     log_factors: Any  # (P, K) ln(density / model density) on the altitude grid
@@ -117,10 +117,10 @@ class FlightPool(NamedTuple):
     dv: Any
 
 
-class FlightDraw(NamedTuple):
+class EpisodeErrors(NamedTuple):
     """One episode's flight-grade errors and its navigation errors so far."""
 
-    row: FlightPool  # one row of the pool
+    row: ErrorPool  # one row of the pool
     dr: Any  # (3,)
     dv: Any
 
@@ -128,15 +128,15 @@ class FlightDraw(NamedTuple):
 class EnvState(NamedTuple):
     """One episode's state (a JAX pytree)."""
 
-    flight: Flight
+    episode: EpisodeState
     scales: Any  # (4,) this episode's density, C_L, C_D and mass factors
-    errors: Any = None  # flight-grade environments: this episode's FlightDraw
+    errors: Any = None  # flight-grade environments: this episode's EpisodeErrors
     potential: Any = None  # environments with shaping: the potential of the current state
 
     @property
     def time(self):
         """Control steps taken (gymnax's name)."""
-        return self.flight.steps
+        return self.episode.steps
 
 
 class RvEntryFunctional(environment.Environment):
@@ -282,7 +282,7 @@ class RvEntryFunctional(environment.Environment):
             raise ValueError(f"EnvParams.dispersion / clip_sigmas: {e}") from None
         common.check_max_steps(int(host.max_steps_in_episode), "EnvParams.max_steps_in_episode", optional=False)
         if host.pool is not None:
-            for name, v in zip(FlightPool._fields, host.pool):
+            for name, v in zip(ErrorPool._fields, host.pool):
                 if np.asarray(v).dtype.kind == "f" and not np.all(np.isfinite(v)):
                     raise ValueError(f"EnvParams.pool.{name} contains NaN or inf")
         if host.starts is not None:
@@ -323,19 +323,19 @@ class RvEntryFunctional(environment.Environment):
                            jnp.asarray(starts.half_widths, f), jnp.asarray(starts.far_weight, f),
                            jnp.asarray(starts.step_weighted, f))  # fmt: skip
 
-    def _pool(self, model: EntryModel, dispersion: Dispersion, seed: int) -> FlightPool:
+    def _pool(self, model: EntryModel, dispersion: Dispersion, seed: int) -> ErrorPool:
         """The pool of flight-grade draws (zeros for a set without them)."""
-        from rventry_env.envs.uncertainty import FlightState
+        from rventry_env.envs.uncertainty import VehicleErrors
         from rventry_env.task import draw_extras
 
-        errs = FlightState(self.pool_size, model)
+        errs = VehicleErrors(self.pool_size, model)
         if _flight_grade(dispersion):
             rng = np.random.default_rng(seed)
             for i in range(self.pool_size):
                 errs.assign(i, dispersion, draw_extras(rng, dispersion, self.task.problem))
         f = self.ns.float_dtype
         a = lambda v: jnp.asarray(np.ascontiguousarray(v), f)  # noqa: E731
-        return FlightPool(a(errs.log_factors), a(errs.wind_east), a(errs.wind_north), a(errs.aero), a(errs.bias),
+        return ErrorPool(a(errs.log_factors), a(errs.wind_east), a(errs.wind_north), a(errs.aero), a(errs.bias),
                           a(errs.scale), a(errs.misalignment), a(errs.noise), jnp.asarray(errs.senses), a(errs.dr.T),
                           a(errs.dv.T))  # fmt: skip
 
@@ -358,17 +358,17 @@ class RvEntryFunctional(environment.Environment):
             pick = uniforms(key, 1, ns.float_dtype, offset=2 * d.shape[0])[0]
             i = jnp.minimum((pick * self.pool_size).astype(jnp.int32), self.pool_size - 1)
             row = jax.tree.map(lambda v: v[i], params.pool)
-            errors = FlightDraw(row, row.dr, row.dv)
+            errors = EpisodeErrors(row, row.dr, row.dv)
         model = self._model(params, scales, errors)
-        flight = start_flight(x0, model, self.prop)
+        episode = start_episode(x0, model, self.prop)
         if params.starts is not None:
-            flight = self._start_from_table(key, params.starts, flight, model)
-        c_ae = dcm(*flight.x[1:5])
-        obs, _, _ = self._observe(key, flight, c_ae, model, params, errors, None)
-        return obs, EnvState(flight, scales, errors, self._potential(flight.x, c_ae))
+            episode = self._start_from_table(key, params.starts, episode, model)
+        c_ae = dcm(*episode.x[1:5])
+        obs, _, _ = self._observe(key, episode, c_ae, model, params, errors, None)
+        return obs, EnvState(episode, scales, errors, self._potential(episode.x, c_ae))
 
-    def _start_from_table(self, key, sp: StartParams, flight: Flight, model: EntryModel) -> Flight:
-        """``flight``, or where this reset's draw says so, a flight from the start table (the NumPy
+    def _start_from_table(self, key, sp: StartParams, episode: EpisodeState, model: EntryModel) -> EpisodeState:
+        """``episode``, or where this reset's draw says so, an episode from the start table (the NumPy
         environments' rule: :meth:`~rventry_env.task.starts.StartStates.draw`)."""
         ns = self.ns
         u = uniforms(key, DRAWS, ns.float_dtype, offset=_START_OFFSET)
@@ -378,8 +378,8 @@ class RvEntryFunctional(environment.Environment):
         x = perturbed(tuple(row[i] for i in range(12)), tuple((2.0 * u[2:] - 1.0) * sp.half_widths),
                       self.task.problem.alpha_max, ns)  # fmt: skip
         x = common.within_path_bounds(x, model, self.task, ns)
-        table = start_flight(x, model, self.prop)._replace(t=sp.times[k])
-        return jax.tree.map(lambda a, b: jnp.where(u[0] < sp.probability, a, b), table, flight)
+        table = start_episode(x, model, self.prop)._replace(t=sp.times[k])
+        return jax.tree.map(lambda a, b: jnp.where(u[0] < sp.probability, a, b), table, episode)
 
     def _potential(self, x, c_ae):
         """The shaping potential of the true state (None without shaping)."""
@@ -392,24 +392,24 @@ class RvEntryFunctional(environment.Environment):
         raw = jnp.asarray(check_action(action), dtype=self.ns.float_dtype)
         a = jnp.clip(raw, -1.0, 1.0)
         model = self._model(params, state.scales, state.errors)
-        tr = advance(state.flight, (a[0], a[1]), model, self.prop, params.max_steps_in_episode, self.target)
-        obs, clipped, errors = self._observe(key, tr.flight, tr.c_ae, model, params, state.errors, tr.out.elapsed)
+        tr = advance(state.episode, (a[0], a[1]), model, self.prop, params.max_steps_in_episode, self.target)
+        obs, clipped, errors = self._observe(key, tr.episode, tr.c_ae, model, params, state.errors, tr.out.elapsed)
         done = tr.terminated | tr.truncated
         o = tr.outcome
         reward = tr.reward
         if self.time_limit_is_failure:  # training: a cut is charged like a failure, and is final
             reward = reward - jnp.where(tr.truncated, time_limit_penalty(o.metrics, self.reward, self.ns), 0.0)
-        phi = self._potential(tr.flight.x, tr.c_ae)
+        phi = self._potential(tr.episode.x, tr.c_ae)
         if phi is not None:
             final = tr.terminated | (tr.truncated & self.time_limit_is_failure)
             reward = reward + self.shaping.reward(state.potential, phi, final, self.ns)
         info = {
             "terminated": tr.terminated, "truncated": tr.truncated, "status": tr.out.status,
-            "observation_clipped": clipped, "action_clipped": jnp.any((raw < -1.0) | (raw > 1.0)), "time_s": tr.flight.t, "discount": jnp.where(tr.terminated, 0.0, 1.0),
+            "observation_clipped": clipped, "action_clipped": jnp.any((raw < -1.0) | (raw > 1.0)), "time_s": tr.episode.t, "discount": jnp.where(tr.terminated, 0.0, 1.0),
             **o.metrics._asdict(), "constraint_violation": o.constraint_violation, "is_success": o.is_success,
             "terminal_penalty": o.terminal_penalty,
         }  # fmt: skip
-        return obs, EnvState(tr.flight, state.scales, errors, phi), reward, done, info
+        return obs, EnvState(tr.episode, state.scales, errors, phi), reward, done, info
 
     def observation_space(self, params: EnvParams | None = None):
         return spaces.Box(jnp.asarray(self.obs_low), jnp.asarray(self.obs_high), self.obs_low.shape, jnp.float32)
@@ -433,7 +433,7 @@ class RvEntryFunctional(environment.Environment):
         if errors is None:
             return model
         from rventry_env.physics.uncertainty import MachVaryingAerodynamics, ProfileAtmosphere, ProfileWind
-        from rventry_env.task.flight import GRID_START_M, GRID_STEP_M
+        from rventry_env.task.flight_grade import GRID_START_M, GRID_STEP_M
 
         row = errors.row
         aero = _unchecked(MachVaryingAerodynamics, base=model.vehicle.aerodynamics, lift_p1=row.aero[0],
@@ -443,10 +443,10 @@ class RvEntryFunctional(environment.Environment):
         wind = _unchecked(ProfileWind, start=GRID_START_M, step=GRID_STEP_M, east=row.wind_east, north=row.wind_north)
         return _replaced(model, vehicle=_replaced(model.vehicle, aerodynamics=aero), atmosphere=atmosphere, wind=wind)
 
-    def _observe(self, key, flight: Flight, c_ae, model, params: EnvParams, errors, elapsed):
+    def _observe(self, key, episode: EpisodeState, c_ae, model, params: EnvParams, errors, elapsed):
         """The observation (clipped into the Box), whether it needed clipping, and the episode's errors
         (navigation errors advanced over ``elapsed``): what the sensors and navigation make of the truth."""
-        seen_x, seen_forces, seen_c_ae = flight.x, flight.forces, c_ae
+        seen_x, seen_forces, seen_c_ae = episode.x, episode.forces, c_ae
         if errors is not None:
             from rventry_env.envs.uncertainty import SensorErrors, sense
 
@@ -456,11 +456,11 @@ class RvEntryFunctional(environment.Environment):
             sensor = SensorErrors(tuple(row.bias), tuple(row.scale), tuple(row.misalignment), tuple(noise), row.senses,
                                   tuple(errors.dr), tuple(errors.dv))  # fmt: skip
             base = with_numeric_leaves(self.model, iter(params.model))  # the nominal model: what air data assume
-            seen = sense(flight.x, flight.forces, c_ae, sensor.dr, sensor.dv, sensor, base, elapsed, self.ns)
+            seen = sense(episode.x, episode.forces, c_ae, sensor.dr, sensor.dv, sensor, base, elapsed, self.ns)
             seen_x, seen_forces, seen_c_ae = seen.x, seen.features, seen.c_ae
             errors = errors._replace(dr=jnp.stack(seen.dr), dv=jnp.stack(seen.dv))
-        seen_flight = flight._replace(x=seen_x, forces=seen_forces)
-        raw = jnp.stack(observe_flight(seen_flight, seen_c_ae, model, self.prop, self.target)).astype(jnp.float32)
+        seen_episode = episode._replace(x=seen_x, forces=seen_forces)
+        raw = jnp.stack(observe_episode(seen_episode, seen_c_ae, model, self.prop, self.target)).astype(jnp.float32)
         clipped = jnp.any((raw < self.obs_low) | (raw > self.obs_high))
         return jnp.clip(raw, self.obs_low, self.obs_high), clipped, errors
 
@@ -659,6 +659,6 @@ def _structure(obj):
     return obj
 
 
-__all__ = ["RvEntryFunctional", "EnvParams", "check_action", "ACTION_SHAPE", "EnvState", "FlightPool", "FlightDraw", "StartParams", "DTYPES", "uniforms",
+__all__ = ["RvEntryFunctional", "EnvParams", "check_action", "ACTION_SHAPE", "EnvState", "ErrorPool", "EpisodeErrors", "StartParams", "DTYPES", "uniforms",
            "step_batch",
            "dispersion_draw", "with_mass_factor"]  # fmt: skip

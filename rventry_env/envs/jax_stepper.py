@@ -3,15 +3,15 @@
 ``gym.make_vec("RvEntry-v0", num_envs=N, vectorization_mode="vector_entry_point",
 backend="jax", dtype="float64")`` (or ``"float32"``). Everything a user sees is the
 vector environment's (:class:`~rventry_env.envs.vector.RvEntryVectorEnv`, the one class for every
-backend, which hands its flights to this stepper): spaces, seeding, autoreset modes, infos, errors. Episodes are drawn on the
+backend, which hands its episodes to this stepper): spaces, seeding, autoreset modes, infos, errors. Episodes are drawn on the
 host with the same per-copy ``np_random`` generators and the same
-:class:`~rventry_env.envs.uncertainty.FlightState`, so the same seed flies the same
+:class:`~rventry_env.envs.uncertainty.VehicleErrors`, so the same seed flies the same
 episodes as ``backend="numpy"``, every dispersion set included. The step of all copies
 (:func:`~rventry_env.envs.transition.advance`, the NumPy environment's own code, and the
 sensors and navigation of :func:`~rventry_env.envs.uncertainty.sense`) runs under
 ``jax.jit`` on the default JAX device (CPU, or a GPU where JAX finds one).
 
-What keeps it fast: the flights stay on the device between steps; one compiled call per
+What keeps it fast: the episodes stay on the device between steps; one compiled call per
 step returns everything the host needs in three arrays (observations, the float values
 of the info and the outcome, and the flags), fetched in one transfer; the model's scalar
 numbers are compiled in as constants and only its per-copy arrays (scale factors,
@@ -33,7 +33,7 @@ from rventry_env.envs import common
 from rventry_env.envs.functional import DTYPES, _structure
 from rventry_env.envs.outcome import Outcome, TerminalMetrics, failure_name
 from rventry_env.envs.propagation import Propagator
-from rventry_env.envs.transition import advance, observe_flight, start_flight
+from rventry_env.envs.transition import advance, observe_episode, start_episode
 from rventry_env.envs.uncertainty import SensorErrors, sense
 from rventry_env.envs.steppers import StepSetup, Stepped, Stepper
 from rventry_env.physics.model import numeric_leaves, scaled_model, with_numeric_leaves
@@ -72,61 +72,61 @@ class _Compiled:
 
     def _restart(self, carry, x0, t0, mask, dyn, errors):
         st = self.stepper
-        fresh = start_flight(tuple(x0), self.model(dyn), st._jprop)._replace(t=t0)
+        fresh = start_episode(tuple(x0), self.model(dyn), st._jprop)._replace(t=t0)
         nav = (errors.dr, errors.dv) if self.sensing else None
         if carry is None:
             return fresh, nav
-        flight = jax.tree.map(lambda new, old: jnp.where(mask, new, old), fresh, carry[0])
-        return flight, nav if nav is None else jax.tree.map(lambda new, old: jnp.where(mask, new, old), nav, carry[1])
+        episode = jax.tree.map(lambda new, old: jnp.where(mask, new, old), fresh, carry[0])
+        return episode, nav if nav is None else jax.tree.map(lambda new, old: jnp.where(mask, new, old), nav, carry[1])
 
-    def _seen(self, flight, c_ae, nav, errors, model, elapsed):
+    def _seen(self, episode, c_ae, nav, errors, model, elapsed):
         """The state and features the observation is made of (the navigated ones where sensing errs)."""
         if not self.sensing:
-            return flight, c_ae, None, None, nav
-        seen = sense(flight.x, flight.forces, c_ae, nav[0], nav[1], errors, self.stepper.setup.model, elapsed,
+            return episode, c_ae, None, None, nav
+        seen = sense(episode.x, episode.forces, c_ae, nav[0], nav[1], errors, self.stepper.setup.model, elapsed,
                      self.stepper._ns)  # fmt: skip
-        return flight._replace(x=seen.x, forces=seen.features), seen.c_ae, seen.x, seen.sensed_b, (seen.dr, seen.dv)
+        return episode._replace(x=seen.x, forces=seen.features), seen.c_ae, seen.x, seen.sensed_b, (seen.dr, seen.dv)
 
-    def _pack(self, flight, c_ae, model, nav, errors, elapsed):
+    def _pack(self, episode, c_ae, model, nav, errors, elapsed):
         st, ns = self.stepper, self.stepper._ns
-        seen_flight, seen_c_ae, nav_x, sensed, nav = self._seen(flight, c_ae, nav, errors, model, elapsed)
-        raw = jnp.stack(observe_flight(seen_flight, seen_c_ae, model, st._jprop, st._target)).astype(jnp.float32)
+        seen_episode, seen_c_ae, nav_x, sensed, nav = self._seen(episode, c_ae, nav, errors, model, elapsed)
+        raw = jnp.stack(observe_episode(seen_episode, seen_c_ae, model, st._jprop, st._target)).astype(jnp.float32)
         lo, hi = st.setup.obs_low[:, None], st.setup.obs_high[:, None]
         clipped = jnp.any((raw < lo) | (raw > hi), axis=0)
         obs = jnp.clip(raw, lo, hi).T
-        info = common.flight_info(flight.x, flight.forces, c_ae, flight.t, flight.cost, st.setup.radius, st.setup.g0, ns)
+        info = common.flight_info(episode.x, episode.forces, c_ae, episode.t, episode.cost, st.setup.radius, st.setup.g0, ns)
         if sensed is not None:
             info["sensed_accel_b"] = sensed
-        rows = [*flight.x]
+        rows = [*episode.x]
         for name, _ in _INFO_ROWS:
             v = info[name]
             rows.extend(v if isinstance(v, tuple) else (v,))
         if nav_x is not None:
             rows.extend(nav_x)
-        n = flight.x[0].shape
+        n = episode.x[0].shape
         rows = jnp.stack([jnp.broadcast_to(jnp.asarray(r, ns.float_dtype), n) for r in rows])
         return obs, rows, clipped, nav
 
     def _view(self, carry, dyn, errors):
-        flight, nav = carry
+        episode, nav = carry
         model = self.model(dyn)
-        obs, rows, clipped, _ = self._pack(flight, dcm(*flight.x[1:5]), model, nav, errors, None)
+        obs, rows, clipped, _ = self._pack(episode, dcm(*episode.x[1:5]), model, nav, errors, None)
         return obs, rows, clipped
 
     def _step(self, carry, dyn, a, active, errors):
         st, ns = self.stepper, self.stepper._ns
-        flight, nav = carry
+        episode, nav = carry
         model = self.model(dyn)
-        tr = advance(flight, (a[:, 0], a[:, 1]), model, st._jprop, st.setup.max_episode_steps, st._target, active)
-        obs, rows, clipped, nav = self._pack(tr.flight, tr.c_ae, model, nav, errors, tr.out.elapsed)
+        tr = advance(episode, (a[:, 0], a[:, 1]), model, st._jprop, st.setup.max_episode_steps, st._target, active)
+        obs, rows, clipped, nav = self._pack(tr.episode, tr.c_ae, model, nav, errors, tr.out.elapsed)
         o = tr.outcome
         n = rows.shape[1]
         extra = jnp.stack([jnp.broadcast_to(jnp.asarray(v, ns.float_dtype), (n,)) for v in (
-            tr.reward, tr.flight.max_load, tr.flight.min_q, *o.metrics, o.terminal_penalty, tr.flight.steps)])  # fmt: skip
+            tr.reward, tr.episode.max_load, tr.episode.min_q, *o.metrics, o.terminal_penalty, tr.episode.steps)])  # fmt: skip
         flags = jnp.stack([jnp.broadcast_to(jnp.asarray(v).astype(jnp.int8), (n,)) for v in (
             tr.terminated, tr.truncated, tr.out.alpha_saturated, o.constraint_violation, o.is_success, tr.out.status,
             clipped)])  # fmt: skip
-        return (tr.flight, nav), obs, jnp.concatenate([rows, extra]), flags
+        return (tr.episode, nav), obs, jnp.concatenate([rows, extra]), flags
 
 
 class JaxStepper(Stepper):
@@ -164,7 +164,7 @@ class JaxStepper(Stepper):
             raise self.refuse(f"targets={targets!r} (it flies the fixed target)", "use backend='numpy'")
 
     def __getstate__(self) -> dict:
-        """Pickled without its compiled functions: the copy compiles its own (the flights, on the
+        """Pickled without its compiled functions: the copy compiles its own (the episodes, on the
         device, travel as arrays)."""
         state = dict(self.__dict__)
         fn = state.pop("_fn")
@@ -232,7 +232,7 @@ class JaxStepper(Stepper):
         self._sensor = self._sensor_errors(errors) if sensing else None
         if fn is not self._fn and self._carry is not None:
             # an autoreset drew a set of another structure (a reset's one-off dispersion before it): the
-            # flights go on; the navigation errors start from the host's (zero where nothing sensed before)
+            # episodes go on; the navigation errors start from the host's (zero where nothing sensed before)
             nav = None
             if sensing:
                 nav = self._carry[1] if self._fn.sensing else (self._sensor.dr, self._sensor.dv)

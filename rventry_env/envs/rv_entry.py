@@ -17,7 +17,7 @@ from rventry_env.envs.propagation import FLYING
 from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.shaping import PotentialShaping
-from rventry_env.envs.uncertainty import FlightState, Sensed
+from rventry_env.envs.uncertainty import Sensed, VehicleErrors
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
 from rventry_env.task.starts import StartStates
 from rventry_env.physics.model import EntryModel
@@ -224,7 +224,7 @@ class RvEntryEnv(common.EntryEnvSetup, gym.Env):
         target = self.task.draw_target(self.np_random, self._radius)
         self._target = self._nominal_target if target is None else tuple(float(c) for c in target)
         start = None if self.starts is None or "state" in options else self.starts.draw(self.np_random, self.task.problem.alpha_max)
-        self._errors = FlightState(1, self.model)
+        self._errors = VehicleErrors(1, self.model)
         self._errors.assign(0, dispersion, extras)
         if start is not None:  # a start state: the table's perturbation replaces the initial state's
             x0 = start[1]

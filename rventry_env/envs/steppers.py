@@ -1,10 +1,10 @@
-"""Steppers: how :class:`~rventry_env.envs.vector.RvEntryVectorEnv` holds and steps its copies' flights.
+"""Steppers: how :class:`~rventry_env.envs.vector.RvEntryVectorEnv` holds and steps its copies' episodes.
 
 The vector env is one class. What it keeps itself is the Gymnasium face and the episode book-keeping
 that no backend changes: the spaces, seeding and each copy's generator, the dispersion draws, the
-flight-grade errors (:class:`~rventry_env.envs.uncertainty.FlightState`), the targets, the action
+flight-grade errors (:class:`~rventry_env.envs.uncertainty.VehicleErrors`), the targets, the action
 checks, the autoreset modes, shaping, the infos and the end-of-episode keys, and the render tracks.
-The flights themselves (states, forces, clocks, accumulators) and the one control step of all copies
+The episodes themselves (states, forces, clocks, accumulators) and the one control step of all copies
 belong to a *stepper*, chosen by the env's ``backend``:
 
 =========== ========================================= ===========================================
@@ -26,9 +26,9 @@ with its name, when the env is built (``check_features``) or when the feature is
 The interface (:class:`Stepper`), called by the env in this order:
 
 * ``check_features(render_mode, targets)`` at construction: refuse what this stepper cannot fly;
-* ``begin()`` at every ``reset``: forget the flights (every copy is restarted next);
+* ``begin()`` at every ``reset``: forget the episodes (every copy is restarted next);
 * ``restart(idx, x0, t0, started, errors, scales, target)``: new episodes for copies ``idx``;
-* ``view(errors)`` after a restart: the observation and the flight info of the current flights;
+* ``view(errors)`` after a restart: the observation and the flight info of the current episodes;
 * ``advance(a, active, errors)``: one control step of the active copies, a :class:`Stepped`;
 * ``state``, ``true_forces``, ``steps``, ``nav``, ``sensed`` and ``track()``, read between calls.
 """
@@ -45,7 +45,7 @@ from rventry_env.envs import common
 from rventry_env.envs.observation import observe
 from rventry_env.envs.propagation import IDLE, Propagator, StepOutcome
 from rventry_env.envs.reward import RewardWeights
-from rventry_env.envs.transition import Flight, Transition, advance
+from rventry_env.envs.transition import EpisodeState, Transition, advance
 from rventry_env.physics.entry import entry_forces
 from rventry_env.physics.model import EntryModel, scaled_model
 from rventry_env.task import EntryTask
@@ -96,7 +96,7 @@ class Unsupported(ValueError, NotImplementedError):
 
 
 class Stepper:
-    """The flights of a vector env's copies and their step (see the module docstring).
+    """The episodes of a vector env's copies and their step (see the module docstring).
 
     Between calls a stepper answers ``nav`` (the navigation states (N, 12), None where no copy's set
     has navigation errors) and ``sensed`` (the sensed specific force (N, 3), None likewise).
@@ -125,7 +125,7 @@ class Stepper:
 
         :param started: which of them start from the start-state table (their radius is then put
             inside the path bounds with the copy's own model).
-        :param errors: the copies' :class:`~rventry_env.envs.uncertainty.FlightState`.
+        :param errors: the copies' :class:`~rventry_env.envs.uncertainty.VehicleErrors`.
         :param scales: every copy's (density, lift, drag) factors, arrays (N,).
         :param target: the copies' target unit vectors in E (3 components, floats or arrays (N,)).
         """
@@ -133,7 +133,7 @@ class Stepper:
 
     def view(self, errors) -> tuple[np.ndarray, np.ndarray, dict]:
         """(observations (N, F) float32, which were clipped (N,), :func:`common.flight_info`'s values)
-        of the current flights, after a restart."""
+        of the current episodes, after a restart."""
         raise NotImplementedError
 
     def advance(self, a: np.ndarray, active: np.ndarray, errors) -> Stepped:
@@ -240,13 +240,13 @@ class ArrayStepper(Stepper):
         """The step of all copies as one :class:`~rventry_env.envs.transition.Transition` of arrays."""
         s = self.setup
         return advance(
-            Flight(self.x, self.forces, self.t, self._steps, self.cost, self.max_load, self.min_q),
+            EpisodeState(self.x, self.forces, self.t, self._steps, self.cost, self.max_load, self.min_q),
             (a[:, 0], a[:, 1]), self.model, self.prop, s.max_episode_steps, self.target, active=active,
         )  # fmt: skip
 
     def advance(self, a, active, errors) -> Stepped:
         tr = self._transition(a, active)
-        self.x, self.forces, self.t, self._steps, self.cost, self.max_load, self.min_q = tr.flight
+        self.x, self.forces, self.t, self._steps, self.cost, self.max_load, self.min_q = tr.episode
         self.c_ae = tr.c_ae
         self._measure(errors, tr.out.elapsed, active)
         obs, obs_clipped = self._observe()
@@ -317,13 +317,13 @@ class FloatStepper(ArrayStepper):
         steps = []
         for i in range(n):
             at = lambda c: float(c[i])  # noqa: E731
-            flight = Flight(tuple(map(at, self.x)), _map_leaves(at, self.forces), at(self.t), int(self._steps[i]),
+            episode = EpisodeState(tuple(map(at, self.x)), _map_leaves(at, self.forces), at(self.t), int(self._steps[i]),
                             at(self.cost), at(self.max_load), at(self.min_q))  # fmt: skip
             if not active[i]:
-                steps.append(_standing(flight))
+                steps.append(_standing(episode))
                 continue
             target = tuple(float(np.broadcast_to(c, (n,))[i]) for c in self.target)
-            steps.append(advance(flight, (float(a[i, 0]), float(a[i, 1])), self.float_models[i], self.float_prop,
+            steps.append(advance(episode, (float(a[i, 0]), float(a[i, 1])), self.float_models[i], self.float_prop,
                                  s.max_episode_steps, target))  # fmt: skip
         if any(t.outcome is not None for t in steps):  # the array path's outcome holds every copy, read where one ended
             blank = _map_leaves(_blank, next(t.outcome for t in steps if t.outcome is not None))
@@ -364,11 +364,11 @@ def _blank(v):
     return "" if isinstance(v, str) else type(v)(0)
 
 
-def _standing(flight: Flight) -> Transition:
+def _standing(episode: EpisodeState) -> Transition:
     """A copy not stepped: as it is, no time, no reward, no ending (what the array path reports)."""
-    zero = 0.0 * flight.t
-    out = StepOutcome(flight.x, flight.forces, zero, IDLE, zero, zero, flight.max_load, flight.min_q, False)
-    return Transition(flight, dcm(*flight.x[1:5]), out, -(zero + zero), False, False, None)
+    zero = 0.0 * episode.t
+    out = StepOutcome(episode.x, episode.forces, zero, IDLE, zero, zero, episode.max_load, episode.min_q, False)
+    return Transition(episode, dcm(*episode.x[1:5]), out, -(zero + zero), False, False, None)
 
 
 __all__ = ["FLOAT_STEP_MAX_COPIES", "ArrayStepper", "FloatStepper", "StepSetup", "Stepped", "Stepper",

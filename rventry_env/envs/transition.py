@@ -7,7 +7,7 @@ least dynamic pressure, pays the reward, decides termination and truncation, and
 an ending evaluates the outcome rule (:mod:`~rventry_env.envs.outcome`) and charges
 its terminal penalty. The NumPy vector environment calls it on arrays
 (:data:`~rventry_env.core.backend.NUMPY`); the JAX environments call the same code
-under ``jax.jit`` (:func:`~rventry_env.core.backend.jax_ns`), where a :class:`Flight`
+under ``jax.jit`` (:func:`~rventry_env.core.backend.jax_ns`), where an :class:`EpisodeState`
 is a pytree.
 """
 
@@ -23,7 +23,7 @@ from rventry_env.physics.entry import EntryForces
 from rventry_env.physics.model import EntryModel
 
 
-class Flight(NamedTuple):
+class EpisodeState(NamedTuple):
     """What an episode carries from step to step (floats, arrays of one shape, or JAX arrays)."""
 
     x: tuple  # the 12 state components, order of docs/conventions.md
@@ -36,7 +36,7 @@ class Flight(NamedTuple):
 
 
 class Transition(NamedTuple):
-    flight: Flight
+    episode: EpisodeState
     c_ae: tuple  # C_AE at the new state
     out: StepOutcome
     reward: Any  # running cost and path penalty, and the terminal penalty where an episode terminated
@@ -45,29 +45,29 @@ class Transition(NamedTuple):
     outcome: Outcome | None  # None where no episode ended (NumPy); zeros there (JAX)
 
 
-def start_flight(x0: tuple, model: EntryModel, prop: Propagator) -> Flight:
-    """The flight at the start of an episode, from its initial state components ``x0``."""
+def start_episode(x0: tuple, model: EntryModel, prop: Propagator) -> EpisodeState:
+    """An episode's state at its start, from its initial state components ``x0``."""
     forces = prop.forces(x0, model)
     zero = 0.0 * x0[0]
-    return Flight(x0, forces, zero, zero, zero, forces.aero_accel / model.planet.g0, forces.dynamic_pressure)
+    return EpisodeState(x0, forces, zero, zero, zero, forces.aero_accel / model.planet.g0, forces.dynamic_pressure)
 
 
-def advance(flight: Flight, actions: tuple, model: EntryModel, prop: Propagator, max_steps: int | None, target_e,
+def advance(episode: EpisodeState, actions: tuple, model: EntryModel, prop: Propagator, max_steps: int | None, target_e,
             active=None) -> Transition:  # fmt: skip
-    """One control step of every flight in ``flight``.
+    """One control step of every episode in ``episode``.
 
     :param actions: the (alpha, sigma) rate fractions, each in [-1, 1] (already clipped).
     :param max_steps: the time limit in control steps (truncation), or None.
-    :param active: arrays: the flights stepped (the others stay as they are and neither
+    :param active: arrays: the episodes stepped (the others stay as they are and neither
         terminate nor truncate); None: all.
     """
     ns, task = prop.ns, prop.task
     p = task.problem
-    out = prop.step(flight.x, flight.forces, actions[0] * p.u_alpha_max, actions[1] * p.u_sigma_max, model, active)
+    out = prop.step(episode.x, episode.forces, actions[0] * p.u_alpha_max, actions[1] * p.u_sigma_max, model, active)
     stepped = 1 if active is None else active
-    new = Flight(
-        out.x, out.forces, flight.t + out.elapsed, flight.steps + stepped, flight.cost + out.cost,
-        ns.fmax(flight.max_load, out.max_load_g), ns.fmin(flight.min_q, out.min_q),
+    new = EpisodeState(
+        out.x, out.forces, episode.t + out.elapsed, episode.steps + stepped, episode.cost + out.cost,
+        ns.fmax(episode.max_load, out.max_load_g), ns.fmin(episode.min_q, out.min_q),
     )  # fmt: skip
     c_ae = dcm(*out.x[1:5])
     terminated = out.status != FLYING
@@ -91,10 +91,10 @@ def advance(flight: Flight, actions: tuple, model: EntryModel, prop: Propagator,
     return Transition(new, c_ae, out, reward, terminated, truncated, outcome)
 
 
-def observe_flight(flight: Flight, c_ae: tuple, model: EntryModel, prop: Propagator, target_e) -> tuple:
-    """The observation features (unclipped) of the flights."""
+def observe_episode(episode: EpisodeState, c_ae: tuple, model: EntryModel, prop: Propagator, target_e) -> tuple:
+    """The observation features (unclipped) of the episodes."""
     planet = model.planet
-    return observe(flight.x, flight.forces, c_ae, flight.t, prop.task, target_e, planet.radius, planet.g0, prop.ns)
+    return observe(episode.x, episode.forces, c_ae, episode.t, prop.task, target_e, planet.radius, planet.g0, prop.ns)
 
 
-__all__ = ["Flight", "Transition", "start_flight", "advance", "observe_flight"]
+__all__ = ["EpisodeState", "Transition", "start_episode", "advance", "observe_episode"]

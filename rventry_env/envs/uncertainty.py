@@ -3,7 +3,7 @@ vehicle's sensors and navigation make of the truth.
 
 Shared by :class:`~rventry_env.envs.rv_entry.RvEntryEnv` (one copy) and
 :class:`~rventry_env.envs.vector.RvEntryVectorEnv` (N copies): both keep one
-:class:`FlightState` of N rows, fill row i from copy i's draws, and build from it the truth
+:class:`VehicleErrors` of N rows, fill row i from copy i's draws, and build from it the truth
 model (per-copy arrays for the batch, row 0 as plain numbers and one profile for the single
 env) and, where the set has sensor or navigation errors, the navigation state and the sensed
 features every observation is made of. The truth state is never changed.
@@ -22,7 +22,7 @@ from rventry_env.physics.model import EntryModel, scaled_model
 from rventry_env.physics.sensors import accelerometer, propagate_navigation_error, white_noise
 from rventry_env.physics.uncertainty import MachVaryingAerodynamics, ProfileAtmosphere, ProfileWind
 from rventry_env.task import SCALAR_FIELDS, Dispersion
-from rventry_env.task.flight import GRID_M, GRID_POINTS, GRID_START_M, GRID_STEP_M
+from rventry_env.task.flight_grade import GRID_M, GRID_POINTS, GRID_START_M, GRID_STEP_M
 
 
 class Sensed(NamedTuple):
@@ -33,8 +33,9 @@ class Sensed(NamedTuple):
     aero_accel: object
 
 
-class FlightState:
-    """The flight-grade draws of N copies, and their sensors' and navigation's running errors."""
+class VehicleErrors:
+    """The flight-grade errors drawn for N vehicles (copies), and their sensors' and navigation's
+    running errors."""
 
     def __init__(self, n: int, model: EntryModel):
         self.n = n
@@ -259,4 +260,4 @@ def _compose(p: tuple, q: tuple) -> tuple:
     )
 
 
-__all__ = ["FlightState", "Sensed", "SensorErrors", "Seen", "sense"]
+__all__ = ["VehicleErrors", "Sensed", "SensorErrors", "Seen", "sense"]

@@ -16,7 +16,7 @@ from rventry_env.envs.render import Track, render_tracks
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.envs.shaping import PotentialShaping
 from rventry_env.envs.steppers import FLOAT_STEP_MAX_COPIES, Stepped, Stepper, StepSetup, numpy_stepper
-from rventry_env.envs.uncertainty import FlightState
+from rventry_env.envs.uncertainty import VehicleErrors
 from rventry_env.task import Dispersion, EntryTask, apply_state_dispersion, draw_dispersion, draw_extras
 from rventry_env.task.starts import StartStates
 from rventry_env.physics.model import EntryModel
@@ -179,7 +179,7 @@ class RvEntryVectorEnv(common.EntryEnvSetup, VectorEnv):
         self._phi = np.zeros(n)  # with shaping: each copy's potential
         self.dispersion_draw = np.zeros((n, 9))
         self._targets = np.tile(self._nominal_target, (n, 1))  # each copy's target, unit vector in E
-        self._errors = FlightState(n, self.model)
+        self._errors = VehicleErrors(n, self.model)
         self._tracks = [Track() for _ in range(min(n, RENDER_COPIES))] if self.render_mode else None
         extras = self._reset_copies(np.arange(n), dispersion)
         obs, clipped, values = self.stepper.view(self._errors)

@@ -90,14 +90,14 @@ def solve_draw(x0: np.ndarray, model, task: EntryTask, settings: OracleSettings)
     from rventry_env.guidance.replanning import _ReferenceGuess
     from rventry_env.reference import load_reference
     from rventry_env.reference.collocation import CompiledProblem, SolverOptions, initial_point, solve_from, transcribe
-    from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
+    from rventry_env.reference.entry_ocp import EntryOcpConfig, entry_ocp
 
     from dataclasses import replace
 
     p = task.problem
     problem = replace(p, q_min=p.q_min * (1 + settings.q_margin), a_max_g=p.a_max_g * (1 - settings.load_margin))
-    config = EntryProblemConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0))
-    cp = CompiledProblem(entry_problem(config))
+    config = EntryOcpConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0))
+    cp = CompiledProblem(entry_ocp(config))
     opts = SolverOptions(graph="sx", nlp_tolerance=settings.nlp_tolerance, max_nlp_iterations=settings.max_iterations)
 
     def solve(mesh, guess):
@@ -157,7 +157,7 @@ def perfect_sensing(dispersion):
     import dataclasses
 
     from rventry_env.task import Dispersion
-    from rventry_env.task.flight import SENSING_FIELDS
+    from rventry_env.task.flight_grade import SENSING_FIELDS
 
     d = Dispersion.parse(dispersion)
     if d.flight is None:

@@ -220,7 +220,7 @@ class FlightEstimatorSettings:
     :param prior_sigma: standard deviation of ln k_D and ln k_L before any measurement.
     :param density_bands: the atmosphere's Gauss-Markov ln-density bands ((top m, rms, correlation
         length m), ...): moving dh in altitude adds 2 rms^2 (1 - exp(-|dh| / L)) to the variance of
-        ln rho (:func:`~rventry_env.task.flight.band_spread` squared), which scales the drag and the
+        ln rho (:func:`~rventry_env.task.flight_grade.band_spread` squared), which scales the drag and the
         lift alike (one increment on both ln k_D and ln k_L).
     :param aero_mach_rms: the aerodynamic database's rms per Legendre coefficient in Mach
         (:func:`~rventry_env.physics.uncertainty.mach_legendre`, over ``aero_mach_range``): moving
@@ -243,7 +243,7 @@ class FlightEstimatorSettings:
 
     def __post_init__(self):
         EstimatorSettings(self.accel_noise, self.drift, self.prior_sigma, self.scale_bounds)  # the shared checks
-        from rventry_env.task.flight import parse_bands
+        from rventry_env.task.flight_grade import parse_bands
 
         for name in ("density_bands", "wind_bands"):
             if getattr(self, name) is not None:
@@ -262,7 +262,7 @@ class FlightEstimatorSettings:
     def flight_grade(cls, **changes) -> "FlightEstimatorSettings":
         """The ``flight`` set's published statistics: its density and wind bands, its wind mean
         (10 m/s rms) and its aerodynamic database's 3 % rms per Legendre coefficient."""
-        from rventry_env.task import FLIGHT_ERRORS as F
+        from rventry_env.task import FLIGHT_GRADE_ERRORS as F
 
         base = dict(density_bands=F.density_bands, aero_mach_rms=max(F.lift_mach, F.drag_mach),
                     wind_sigma=F.wind_mean_mps, wind_bands=F.wind_bands)
@@ -275,10 +275,10 @@ class FlightEstimatorSettings:
 
 def _band_variance(bands, h_from, h_to) -> np.ndarray:
     """Variance a Gauss-Markov process in altitude gains from h_from to h_to
-    (:func:`~rventry_env.task.flight.band_spread` squared; zero without bands)."""
+    (:func:`~rventry_env.task.flight_grade.band_spread` squared; zero without bands)."""
     if bands is None:
         return np.zeros_like(np.asarray(h_to, dtype=float))
-    from rventry_env.task.flight import band_spread
+    from rventry_env.task.flight_grade import band_spread
 
     return band_spread(bands, h_from, h_to) ** 2
 
@@ -374,7 +374,7 @@ class FlightEstimator(_ScaleEstimator):
             dw = _band_variance(s.wind_bands, h0, h)
             cap = s.wind_sigma**2
             if s.wind_bands is not None:
-                from rventry_env.task.flight import band_profile
+                from rventry_env.task.flight_grade import band_profile
 
                 cap = cap + band_profile(s.wind_bands, h)[0] ** 2  # the mean's prior and the band's rms
             for j in (2, 3):

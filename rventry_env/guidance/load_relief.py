@@ -28,7 +28,7 @@ the vehicle drops more than a kilometre a second, and a density perturbation of 
 8 km correlation length moves the ratio by 1.6 % (1 sigma) in that second: on a flight-grade draw
 the predicted load was 11.71 g and the flown one 12.16 g. With the atmosphere's published bands and
 the aerodynamic database's spread in Mach, the limit for each vehicle is lowered by ``sigmas`` of
-the spread between now and one step ahead (:func:`~rventry_env.task.flight.band_spread` and
+the spread between now and one step ahead (:func:`~rventry_env.task.flight_grade.band_spread` and
 :func:`~rventry_env.physics.uncertainty.mach_spread` in quadrature): a chance constraint on the next
 step that costs nothing in a glide, where the altitude barely changes.
 
@@ -118,7 +118,7 @@ class LoadRelief(RateLimiter):
         if sigmas > 0 and density_bands is None and aero_mach_rms is None:
             raise ValueError("load relief sigmas need the uncertainty they count: density_bands and/or aero_mach_rms")
         if density_bands is not None:
-            from rventry_env.task.flight import parse_bands
+            from rventry_env.task.flight_grade import parse_bands
 
             density_bands = parse_bands(density_bands, "load relief density_bands")
         self.sigmas, self.density_bands = float(sigmas), density_bands
@@ -138,7 +138,7 @@ class LoadRelief(RateLimiter):
         spread = np.zeros(len(x))
         if self.sigmas > 0:
             if self.density_bands is not None:
-                from rventry_env.task.flight import band_spread
+                from rventry_env.task.flight_grade import band_spread
 
                 spread = band_spread(self.density_bands, np.asarray(f.altitude), np.asarray(ahead.altitude))
             if self.aero_mach_rms is not None:

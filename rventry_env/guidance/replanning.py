@@ -163,7 +163,7 @@ class ReplanningSettings:
 
     def __post_init__(self):
         if self.density_bands is not None:
-            from rventry_env.task.flight import parse_bands
+            from rventry_env.task.flight_grade import parse_bands
 
             object.__setattr__(self, "density_bands", parse_bands(self.density_bands, "density_bands"))
         check_numbers(self, ("replan_s", "soft_penalty", "nlp_tolerance", "r_weight"), low=0.0, low_open=True)
@@ -201,11 +201,10 @@ class ReplanningSettings:
         and its 3 % rms per Legendre coefficient of C_L and C_D in Mach), each at 1 sigma. Chosen on
         20-30 episodes of the ``flight`` set away from the evaluation's seeds (docs/guidance.md);
         ``changes`` override any field."""
-        from rventry_env.task import FLIGHT_ERRORS
+        from rventry_env.task import FLIGHT_GRADE_ERRORS as F
 
-        base = dict(terminal_alpha=False, load_relief_margin=0.04, q_margin=0.10, density_bands=FLIGHT_ERRORS.density_bands,
-                    density_sigmas=1.0, aero_mach_rms=max(FLIGHT_ERRORS.lift_mach, FLIGHT_ERRORS.drag_mach),
-                    aero_sigmas=1.0)  # fmt: skip
+        base = dict(terminal_alpha=False, load_relief_margin=0.04, q_margin=0.10, density_bands=F.density_bands,
+                    density_sigmas=1.0, aero_mach_rms=max(F.lift_mach, F.drag_mach), aero_sigmas=1.0)  # fmt: skip
         return cls(**(base | changes))
 
     def replan_interval(self, time_to_go: float) -> float:
@@ -281,7 +280,7 @@ class PlanSolver:
 
     def __init__(self, task: EntryTask, model: EntryModel, settings: ReplanningSettings):
         from rventry_env.reference.collocation import CompiledProblem, SolverOptions, transcribe
-        from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
+        from rventry_env.reference.entry_ocp import EntryOcpConfig, entry_ocp
 
         s = self.settings = settings
         p = task.problem
@@ -291,9 +290,9 @@ class PlanSolver:
         if s.vertical_dive_m > 0:  # the plan ends vertical above the target; the law dives from there
             problem = replace(problem, final_altitude=p.final_altitude + s.vertical_dive_m,
                               final_speed=dive_entry_speed(task, model, s.vertical_dive_m))  # fmt: skip
-        config = EntryProblemConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
+        config = EntryOcpConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
                                     soft_path_penalty=s.soft_penalty, aero_scale_parameters=True)  # fmt: skip
-        self.problem = entry_problem(config)
+        self.problem = entry_ocp(config)
         self.compiled = CompiledProblem(self.problem)
         mesh = replanning_mesh(s)
         ipopt = {"mu_init": 1e-4, "warm_start_init_point": "yes",
@@ -330,7 +329,7 @@ class PlanSolver:
         s = self.settings
         if s.density_bands is None:
             return np.zeros_like(altitudes)
-        from rventry_env.task.flight import band_spread
+        from rventry_env.task.flight_grade import band_spread
 
         return band_spread(s.density_bands, altitude_now, altitudes)
 
@@ -369,7 +368,7 @@ class PlanSolver:
         s = self.settings
         if s.drag_rms is None:
             return 0.0, 0.0
-        from rventry_env.task.flight import band_profile
+        from rventry_env.task.flight_grade import band_profile
 
         s_rho = float(band_profile(s.density_bands, np.array([float(x0[IDX.r]) - self.radius]))[0][0])
         s_c = s.drag_rms

@@ -7,11 +7,11 @@
   the q and load-factor bounds: the feedforward the guidance laws track.
 * :mod:`.collocation` - the general LGR collocation solver with hp refinement
   (CasADi + IPOPT, imported only when used).
-* :mod:`.entry_problem`, :mod:`.guess`, :mod:`.pipeline` - Example 2, its
+* :mod:`.entry_ocp`, :mod:`.guess`, :mod:`.pipeline` - Example 2, its
   generated initial guess, and the cold-start solve that regenerates the file.
 * :mod:`.betts_shuttle` - the solver's validation benchmark.
 * :mod:`.spherical_entry` - the same problem in spherical coordinates (the singularity study).
-* :mod:`.replay` - open-loop replay of the reference controls.
+* :mod:`.open_loop` - open-loop replay of the reference controls.
 """
 
 from rventry_env.reference.data_file import (

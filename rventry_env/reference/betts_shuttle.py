@@ -39,7 +39,7 @@ import numpy as np
 
 from rventry_env.core.backend import NUMPY
 from rventry_env.core.integrate import rk4_step
-from rventry_env.reference.collocation.problem import OptimalControlProblem, PathConstraint
+from rventry_env.reference.collocation.ocp import OptimalControlProblem, PathConstraint
 
 FT = 0.3048  # m
 SLUG = 14.593902937206364  # kg (lbf s^2 / ft)

@@ -75,7 +75,7 @@ def _solve(args) -> int:
     from rventry_env.task.problem import EntryProblem
     from rventry_env.reference.collocation.progress import RichMeshTable
     from rventry_env.reference.data_file import DEFAULT_PATH, GUIDANCE_PATH
-    from rventry_env.reference.entry_problem import EntryProblemConfig
+    from rventry_env.reference.entry_ocp import EntryOcpConfig
     from rventry_env.reference.pipeline import ReferenceOptions, save_reference, solve_reference
 
     if args.ship is not None:
@@ -101,7 +101,7 @@ def _solve(args) -> int:
     if args.q_margin or args.load_margin:
         title += f", path margins q +{args.q_margin:.0%} load -{args.load_margin:.0%}"
     progress = None if args.quiet else RichMeshTable(title)
-    rs = solve_reference(EntryProblemConfig(problem=problem, norm_mode=args.norm_mode), opts, progress)
+    rs = solve_reference(EntryOcpConfig(problem=problem, norm_mode=args.norm_mode), opts, progress)
     sol = rs.solution
     print(
         f"J* = {sol.cost:.6f}   tf = {sol.tf:.3f} s   mesh error = {sol.max_error:.2e}   "

@@ -35,7 +35,7 @@ from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.core.integrate import rk4_step
 from rventry_env.physics.entry import entry_forces, entry_rhs
-from rventry_env.reference.entry_problem import DEG, EntryProblemConfig
+from rventry_env.reference.entry_ocp import DEG, EntryOcpConfig
 
 _PARAMS = ("kr", "dive_range", "v_dive")
 
@@ -83,7 +83,7 @@ class GuessFlight:
     score: float
 
 
-def _exp_fit(config: EntryProblemConfig) -> tuple[float, float]:
+def _exp_fit(config: EntryOcpConfig) -> tuple[float, float]:
     """(rho0, H) of an exponential fit of the model atmosphere between 0 and 40 km."""
     atm = config.model.atmosphere
     r0, r1 = float(atm.density(0.0, NUMPY)), float(atm.density(40e3, NUMPY))
@@ -98,7 +98,7 @@ def _directions(x):
     return a1, b1
 
 
-def _law(x, p, state, config: EntryProblemConfig, gains: GuidanceGains, rho_fit):
+def _law(x, p, state, config: EntryOcpConfig, gains: GuidanceGains, rho_fit):
     model = config.model
     re = model.planet.radius
     target = config.target_e()
@@ -143,7 +143,7 @@ def _law(x, p, state, config: EntryProblemConfig, gains: GuidanceGains, rho_fit)
     return np.array([u_a, u_s])
 
 
-def _fly_batch(config: EntryProblemConfig, p: dict, gains: GuidanceGains, dt: float, t_max: float):
+def _fly_batch(config: EntryOcpConfig, p: dict, gains: GuidanceGains, dt: float, t_max: float):
     """Fly every parameter set's vehicle with RK4 steps of ``dt`` from the entry state, lift up,
     until it reaches the final altitude (crossing interpolated within the step), is lost, or ``t_max``.
 
@@ -188,7 +188,7 @@ def _fly_batch(config: EntryProblemConfig, p: dict, gains: GuidanceGains, dt: fl
     return ts, xs, us, t_end, x_end
 
 
-def _scored_flights(config: EntryProblemConfig, p: dict, ts, xs, us, t_end, x_end) -> list[GuessFlight]:
+def _scored_flights(config: EntryOcpConfig, p: dict, ts, xs, us, t_end, x_end) -> list[GuessFlight]:
     """Each vehicle's flight cut at its end, with its miss, final-speed error, flight-path angle and score."""
     n = p["kr"].size
     re = config.model.planet.radius
@@ -215,7 +215,7 @@ def _scored_flights(config: EntryProblemConfig, p: dict, ts, xs, us, t_end, x_en
 
 
 def simulate_batch(
-    config: EntryProblemConfig,
+    config: EntryOcpConfig,
     params: dict,
     gains: GuidanceGains = GuidanceGains(),
     dt: float = 1.0,
@@ -238,7 +238,7 @@ def simulate_batch(
     return _scored_flights(config, p, ts, xs, us, t_end, x_end)
 
 
-def extra_controls(config: EntryProblemConfig, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+def extra_controls(config: EntryOcpConfig, x: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Values of the formulation's extra controls along a simulated flight.
 
     ``projection``: lambda_A = lambda_B = 0 (the simulation keeps the norms);
@@ -254,7 +254,7 @@ def extra_controls(config: EntryProblemConfig, x: np.ndarray, u: np.ndarray) -> 
 
 
 def generate_guess(
-    config: EntryProblemConfig | None = None,
+    config: EntryOcpConfig | None = None,
     grid: dict | None = None,
     gains: GuidanceGains = GuidanceGains(),
     dt: float = 1.0,
@@ -271,7 +271,7 @@ def generate_guess(
     """
     from rventry_env.reference.collocation import SampledGuess
 
-    config = config or EntryProblemConfig()
+    config = config or EntryOcpConfig()
     grid = dict(DEFAULT_GRID if grid is None else grid)
     missing = {"kr", "dive_range", "v_dive"} - set(grid)
     if missing:

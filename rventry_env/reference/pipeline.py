@@ -18,7 +18,7 @@ import numpy as np
 from rventry_env.physics.entry import IDX
 from rventry_env.reference.collocation.mesh import Mesh
 from rventry_env.reference.collocation.progress import Progress, RecordingProgress
-from rventry_env.reference.entry_problem import DEG, EntryProblemConfig, entry_problem, position_direction
+from rventry_env.reference.entry_ocp import DEG, EntryOcpConfig, entry_ocp, position_direction
 
 
 def end_clustered_mesh(
@@ -83,7 +83,7 @@ class ReferenceOptions:
 class ReferenceSolve:
     """A solved reference: the collocation solution plus what was measured about it."""
 
-    config: EntryProblemConfig
+    config: EntryOcpConfig
     solution: object  # CollocationSolution
     records: list
     converged: bool
@@ -98,7 +98,7 @@ def _rss_peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux reports KiB
 
 
-def diagnostics(config: EntryProblemConfig, sol) -> dict:
+def diagnostics(config: EntryOcpConfig, sol) -> dict:
     """Boundary-condition errors, vertical impact, norm drift and path-constraint margins (SI)."""
     from rventry_env.physics.entry import entry_forces
 
@@ -164,7 +164,7 @@ def _solver_settings(options: ReferenceOptions):
 
 
 def solve_reference(
-    config: EntryProblemConfig | None = None,
+    config: EntryOcpConfig | None = None,
     options: ReferenceOptions | None = None,
     progress: Progress | None = None,
 ) -> ReferenceSolve:
@@ -177,7 +177,7 @@ def solve_reference(
     from rventry_env.reference.collocation import CompiledProblem, solve
     from rventry_env.reference.guess import generate_guess
 
-    config = config or EntryProblemConfig()
+    config = config or EntryOcpConfig()
     options = options or ReferenceOptions()
     recorder = RecordingProgress(progress)
     start = time.perf_counter()
@@ -185,13 +185,13 @@ def solve_reference(
     guess, flight = generate_guess(config)
     t_guess = time.perf_counter() - start
     solver_opts, first = _solver_settings(options)
-    cp = CompiledProblem(entry_problem(config))
+    cp = CompiledProblem(entry_ocp(config))
     res = solve(cp, guess, first, solver_opts, recorder)
     stages = ["exact"]
     if not res.solution.success:
         # continuation: a relaxed final flight-path angle first, then the exact condition
         relaxed_config = config.replace(final_gamma_max_deg=options.relaxed_gamma_deg)
-        relaxed = CompiledProblem(entry_problem(relaxed_config))
+        relaxed = CompiledProblem(entry_ocp(relaxed_config))
         res_r = solve(relaxed, guess, first, solver_opts, recorder, label="r")
         stages.append(f"relaxed gamma <= {options.relaxed_gamma_deg:g} deg")
         if res_r.solution.success:

@@ -37,18 +37,18 @@ import numpy as np
 from rventry_env.physics.entry import IDX
 from rventry_env.core.backend import NUMPY, casadi_ns
 from rventry_env.physics.gravity import PointMassGravity
-from rventry_env.reference.collocation.problem import (
+from rventry_env.reference.collocation.ocp import (
     EndpointConstraint,
     OptimalControlProblem,
     PathConstraint,
 )
-from rventry_env.reference.entry_problem import DEG, EntryProblemConfig
+from rventry_env.reference.entry_ocp import DEG, EntryOcpConfig
 
 STATE_NAMES = ("r", "lon", "lat", "v", "gamma", "psi", "alpha", "mu")
 CONTROL_NAMES = ("u_alpha", "u_mu")
 
 
-def _check_model(config: EntryProblemConfig) -> None:
+def _check_model(config: EntryOcpConfig) -> None:
     model = config.model
     if model.wind is not None:
         raise ValueError("the spherical study supports still air only (model.wind must be None)")
@@ -92,7 +92,7 @@ def spherical_rhs(x, u, model, ns=NUMPY):
     )  # fmt: skip
 
 
-def _spherical_boundary(config: EntryProblemConfig, final_gamma_deg: float, relaxed: bool):
+def _spherical_boundary(config: EntryOcpConfig, final_gamma_deg: float, relaxed: bool):
     """The initial and final state bounds of Table tab:Ex2-BCs in spherical coordinates, and the
     final flight-path angle: a final-state bound, or an endpoint inequality when ``relaxed``.
 
@@ -120,7 +120,7 @@ def _spherical_boundary(config: EntryProblemConfig, final_gamma_deg: float, rela
     return init_lo, init_hi, fin_lo, fin_hi, endpoint
 
 
-def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg: float | None = -90.0,
+def spherical_problem(config: EntryOcpConfig | None = None, final_gamma_deg: float | None = -90.0,
                       relaxed: bool = False) -> OptimalControlProblem:  # fmt: skip
     """Example 2 in spherical coordinates.
 
@@ -128,7 +128,7 @@ def spherical_problem(config: EntryProblemConfig | None = None, final_gamma_deg:
     :param final_gamma_deg: the terminal flight-path angle (deg).
     :param relaxed: impose gamma(tf) <= final_gamma_deg (an inequality) instead of equality.
     """
-    config = config or EntryProblemConfig()
+    config = config or EntryOcpConfig()
     _check_model(config)
     if final_gamma_deg is None or not -90.0 <= final_gamma_deg < 0.0:
         raise ValueError(f"final_gamma_deg must lie in [-90, 0), got {final_gamma_deg}")
@@ -212,7 +212,7 @@ __all__ = [
 ]
 
 
-def spherical_guess_from_reference(reference, config: EntryProblemConfig | None = None):
+def spherical_guess_from_reference(reference, config: EntryOcpConfig | None = None):
     """The rv-Euler reference, converted, as a guess for the spherical problem.
 
     Controls: u_alpha as is; u_mu = d(mu)/dt by differentiating the converted bank
@@ -226,7 +226,7 @@ def spherical_guess_from_reference(reference, config: EntryProblemConfig | None 
     return SampledGuess(t, s, np.column_stack([reference.u[:, 0], u_mu]))
 
 
-def solve_spherical(final_gamma_deg: float, guess, config: EntryProblemConfig | None = None, mesh=None,
+def solve_spherical(final_gamma_deg: float, guess, config: EntryOcpConfig | None = None, mesh=None,
                     options=None, progress=None, relaxed: bool = False) -> dict:  # fmt: skip
     """Solve the spherical problem with gamma(tf) = ``final_gamma_deg`` and report what happened.
 
@@ -238,7 +238,7 @@ def solve_spherical(final_gamma_deg: float, guess, config: EntryProblemConfig | 
     from rventry_env.reference.collocation.mesh import Mesh
     from rventry_env.reference.collocation import SolverOptions, solve
 
-    config = config or EntryProblemConfig()
+    config = config or EntryOcpConfig()
     prob = spherical_problem(config, final_gamma_deg, relaxed=relaxed)
     options = options or SolverOptions(max_mesh_iterations=8)
     mesh = mesh or Mesh.uniform(40, 6)

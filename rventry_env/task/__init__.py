@@ -12,7 +12,7 @@ these; the reward an RL agent is paid stays with the environment
 
 from rventry_env.task.definition import TARGETS, EntryTask, Footprint, PrecisionThresholds, SuccessThresholds, footprint_target
 from rventry_env.task.dispersion import (
-    FLIGHT_ERRORS,
+    FLIGHT_GRADE_ERRORS,
     NAMED_SETS,
     SET_CHOICES,
     SCALAR_FIELDS,
@@ -22,7 +22,7 @@ from rventry_env.task.dispersion import (
     draw_dispersion,
     draw_extras,
 )
-from rventry_env.task.flight import FlightErrors
+from rventry_env.task.flight_grade import FlightGradeErrors
 from rventry_env.task.problem import EntryProblem
 
 __all__ = [
@@ -36,8 +36,8 @@ __all__ = [
     "NAMED_SETS",
     "SET_CHOICES",
     "SCALAR_FIELDS",
-    "FLIGHT_ERRORS",
-    "FlightErrors",
+    "FLIGHT_GRADE_ERRORS",
+    "FlightGradeErrors",
     "draw_extras",
     "Dispersion",
     "apply_state_dispersion",

@@ -15,7 +15,7 @@ from rventry_env.physics.entry import IDX
 from rventry_env.core.backend import NUMPY
 from rventry_env.core import euler_parameters as ep
 from rventry_env.core.euler_parameters import dcm_column, rates_from_omega
-from rventry_env.task.flight import FlightErrors
+from rventry_env.task.flight_grade import FlightGradeErrors
 
 # the nine numbers every reset draws, in this order (always nine, whatever the set)
 SCALAR_FIELDS = ("density", "lift", "drag", "altitude_m", "speed_mps", "flight_path_deg", "heading_deg", "alpha_deg",
@@ -35,7 +35,7 @@ class Dispersion:
     d = x N(0, 1) clipped at ``clip_sigmas``.
 
     ``mass`` scales the vehicle's mass by (1 + d) (same shape), and ``flight`` adds the
-    flight-grade errors of :class:`~rventry_env.task.flight.FlightErrors` (density and wind
+    flight-grade errors of :class:`~rventry_env.task.flight_grade.FlightGradeErrors` (density and wind
     profiles, Mach-dependent aerodynamics, accelerometer and navigation errors). Neither
     draws anything when zero, so the standard and wide sets draw exactly what they always did.
     """
@@ -52,7 +52,7 @@ class Dispersion:
     shape: str = "uniform"
     clip_sigmas: float = 3.0
     mass: float = 0.0
-    flight: FlightErrors | None = field(default=None)
+    flight: FlightGradeErrors | None = field(default=None)
 
     @classmethod
     def standard(cls) -> "Dispersion":
@@ -72,7 +72,7 @@ class Dispersion:
         docs/uncertainty.md). Gaussian, clipped at 3 sigma."""
         return cls(
             density=0.0, lift=0.05, drag=0.05, altitude_m=100.0, speed_mps=2.0, flight_path_deg=0.05,
-            heading_deg=0.05, shape="gaussian", mass=0.01, flight=FLIGHT_ERRORS,
+            heading_deg=0.05, shape="gaussian", mass=0.01, flight=FLIGHT_GRADE_ERRORS,
         )  # fmt: skip
 
     @classmethod
@@ -113,7 +113,7 @@ class Dispersion:
                 if k == "shape":
                     values[k] = v
                 elif k == "flight":
-                    values[k] = FlightErrors.parse(v)
+                    values[k] = FlightGradeErrors.parse(v)
                 elif isinstance(v, bool) or not isinstance(v, (int, float)):
                     raise ValueError(f"dispersion {k} must be a number, got {v!r}")
                 else:
@@ -133,8 +133,8 @@ class Dispersion:
         c = self.clip_sigmas
         if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or c <= 0:
             raise ValueError(f"dispersion clip_sigmas must be a positive number, got {c!r}")
-        if self.flight is not None and not isinstance(self.flight, FlightErrors):
-            raise ValueError(f"dispersion flight must be FlightErrors or None, got {self.flight!r}")
+        if self.flight is not None and not isinstance(self.flight, FlightGradeErrors):
+            raise ValueError(f"dispersion flight must be FlightGradeErrors or None, got {self.flight!r}")
         for k in ("density", "lift", "drag", "mass"):
             if self.largest(k) >= 1:
                 raise ValueError(
@@ -186,16 +186,16 @@ def draw_dispersion(rng: np.random.Generator, dispersion: Dispersion) -> np.ndar
 
 def draw_extras(rng: np.random.Generator, dispersion: Dispersion, problem) -> dict | None:
     """What a reset draws after the nine scalars: the mass factor's offset and the flight-grade
-    errors (:func:`~rventry_env.task.flight.draw_flight`); None, drawing nothing, for a set
+    errors (:func:`~rventry_env.task.flight_grade.draw_flight_grade`); None, drawing nothing, for a set
     without them."""
     if not dispersion.has_extras:
         return None
-    from rventry_env.task.flight import draw_flight
+    from rventry_env.task.flight_grade import draw_flight_grade
 
     z = rng.uniform(-1.0, 1.0) if dispersion.shape == "uniform" else float(np.clip(rng.standard_normal(), -dispersion.clip_sigmas, dispersion.clip_sigmas))
     out = {"mass": np.float64(z * dispersion.mass)}
-    flight = dispersion.flight if dispersion.flight is not None else FlightErrors()
-    out.update(draw_flight(rng, flight, problem))
+    flight = dispersion.flight if dispersion.flight is not None else FlightGradeErrors()
+    out.update(draw_flight_grade(rng, flight, problem))
     return out
 
 
@@ -264,7 +264,7 @@ NAMED_SETS = tuple(_MAKERS)
 # what a command's --dispersion accepts: no dispersion, or a named set
 SET_CHOICES = ("none", *NAMED_SETS)
 
-FLIGHT_ERRORS = FlightErrors(
+FLIGHT_GRADE_ERRORS = FlightGradeErrors(
     climatology=True,
     # ln-density Gauss-Markov: (band top m, rms, correlation length m)
     density_bands=((10e3, 0.02, 5e3), (30e3, 0.03, 8e3), (50e3, 0.05, 10e3), (100e3, 0.08, 12e3)),
@@ -280,5 +280,5 @@ FLIGHT_ERRORS = FlightErrors(
     nav_velocity_mps=0.5,
 )
 
-__all__ = ["NAMED_SETS", "SET_CHOICES", "SCALAR_FIELDS", "FLIGHT_ERRORS", "Dispersion", "draw_dispersion", "draw_extras",
-           "apply_state_dispersion", "disperse_state"]  # fmt: skip
+__all__ = ["NAMED_SETS", "SET_CHOICES", "SCALAR_FIELDS", "FLIGHT_GRADE_ERRORS", "Dispersion", "draw_dispersion",
+           "draw_extras", "apply_state_dispersion", "disperse_state"]  # fmt: skip

@@ -26,7 +26,7 @@ seed = 100_000
 dispersion = "standard"
 [final]
 members = 2
-[flight]
+[deploy]
 tracking = [[3.0, 2.0]]
 tracking_descent_mps = 2500.0
 """

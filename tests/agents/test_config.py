@@ -67,6 +67,43 @@ def test_every_shipped_run_folders_records_load_through_their_schemas(run):
         assert StudentRecord.read_json(run / "student.json").hidden == (256, 256)
 
 
+def test_the_deploy_sections_old_name_is_read_from_a_file_with_a_warning_and_from_a_record_without_one(tmp_path):
+    """``[deploy]`` was ``[flight]``: a config file with the old name still loads, as the same config,
+    asking to rename it; a run record with it (the shipped runs' metadata.json) loads quietly; both
+    names at once are refused."""
+    import warnings
+
+    text = (AGENTS / "dagger.toml").read_text()
+    new = load_dagger_config(AGENTS / "dagger.toml")
+    assert "\n[deploy]\n" in text
+    old = tmp_path / "old.toml"
+    old.write_text(text.replace("\n[deploy]\n", "\n[flight]\n"))
+    with pytest.warns(FutureWarning, match=r"old.toml: the section \[flight\] is now called \[deploy\].*rename it"):
+        assert load_dagger_config(old) == new
+    shipped = json.loads((DATA / "dagger" / "metadata.json").read_text())["config"]
+    assert "flight" in shipped and "deploy" not in shipped  # the record of a run from before the name
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cfg = load_dagger_config(shipped, "metadata.json [config]")
+    assert cfg.deploy.tracking == tuple(tuple(pair) for pair in shipped["flight"]["tracking"]) and cfg.deploy.tracking
+    assert "deploy" in cfg.to_dict() and "flight" not in cfg.to_dict()  # written back under the new name
+    both = tmp_path / "both.toml"
+    both.write_text(text + "\n[flight]\ntracking_descent_mps = 2000.0\n")
+    with pytest.raises(ConfigError, match=r"both.toml: \[flight\] is the old name of \[deploy\]; give only \[deploy\]"):
+        load_dagger_config(both)
+
+
+def test_a_dagger_run_from_before_the_deploy_record_ships_its_flight_json_as_deploy_json(tmp_path):
+    from rventry_agents.ship import ship
+
+    run = tmp_path / "run"
+    shutil.copytree(DATA / "dagger", run)
+    (run / "deploy.json").rename(run / "flight.json")  # as an older run wrote it
+    dest = ship(run, tmp_path / "shipped")
+    assert (dest / "deploy.json").read_bytes() == (run / "flight.json").read_bytes()
+    assert not (dest / "flight.json").exists()
+
+
 def _misspelled(key: str) -> str:
     return key[:-1] + ("x" if key[-1] != "x" else "y")
 

@@ -14,7 +14,7 @@ from rventry_agents.dagger import (
     Rounds,
     Selected,
     check_resumable,
-    choose_flight_tracker,
+    choose_deployment,
     distil_selected,
     load_student,
     new_network,
@@ -199,10 +199,10 @@ def test_the_tracker_scan_keeps_the_trained_horizon_unless_a_candidate_beats_it(
     run = _run(tmp_path)
     run.out.mkdir(exist_ok=True)  # prepare_run made it
     rounds = _rounds(run)
-    chosen = choose_flight_tracker(run, rounds.best, None)
-    flight = json.loads((run.out / "flight.json").read_text())
-    assert flight["student"] == 0 and chosen in flight["candidates"]
-    trained, candidate = flight["candidates"]
+    chosen = choose_deployment(run, rounds.best, None)
+    deploy = json.loads((run.out / "deploy.json").read_text())
+    assert deploy["student"] == 0 and chosen in deploy["candidates"]
+    trained, candidate = deploy["candidates"]
     better = (candidate["select_success_rate"], -candidate["select_miss_km_mean"]) > (
         trained["select_success_rate"], -trained["select_miss_km_mean"])
     assert chosen == (candidate if better else trained)
@@ -218,9 +218,9 @@ def test_the_relief_scan_flies_the_chosen_tracker_with_each_margin_and_keeps_the
     assert run.margins == [0.06, 0.02]
     run.out.mkdir(exist_ok=True)  # prepare_run made it
     rounds = _rounds(run)
-    chosen = choose_flight_tracker(run, rounds.best, None)
-    flight = json.loads((run.out / "flight.json").read_text())
-    trackers, relief = flight["candidates"], flight["relief_candidates"]
+    chosen = choose_deployment(run, rounds.best, None)
+    deploy = json.loads((run.out / "deploy.json").read_text())
+    trackers, relief = deploy["candidates"], deploy["relief_candidates"]
     assert [c["load_relief_margin"] for c in trackers] == [0.02, 0.02]  # the trackers fly the trained margin
     best_tracker = max(trackers, key=lambda c: (c["select_success_rate"], -c["select_miss_km_mean"]))
     # the chosen tracker, then each other margin (the trained 0.02 is flown once)
@@ -232,7 +232,7 @@ def test_the_relief_scan_flies_the_chosen_tracker_with_each_margin_and_keeps_the
     assert student.get("trained_load_relief_margin") == (None if chosen["load_relief_margin"] == 0.02 else 0.02)
     assert load_student(run.out).relief.margin == chosen["load_relief_margin"]
     for bad in ("[0.5, 1.0]", "0.04", "[true]"):
-        with pytest.raises(ValueError, match=r"\[flight\] load_relief_margins"):
+        with pytest.raises(ValueError, match=r"\[deploy\] load_relief_margins"):
             _run(tmp_path, SMALL.replace("tracking_descent_mps", f"load_relief_margins = {bad}\ntracking_descent_mps"))
 
 
@@ -258,7 +258,7 @@ def test_a_round_flies_its_own_load_relief_margin_and_a_resume_keeps_it(tmp_path
     rounds.laws = [round_law(run, 0), round_law(run, 2)]
     best, final = refit_ensemble(run, rounds, RunClock(), resume=False)
     assert best.law == (rounds.laws[-1] if best.source == "final" else None)  # None: the synthetic round 0's
-    chosen = choose_flight_tracker(run, Selected("final", best.weights, best.members, best.hidden, rounds.laws[-1]), None)
+    chosen = choose_deployment(run, Selected("final", best.weights, best.members, best.hidden, rounds.laws[-1]), None)
     assert chosen["load_relief_margin"] == 0.05
     for bad in ("1.5", "true", '"4 %"'):
         with pytest.raises(ValueError, match=r"run.toml: \[rounds\]\[2\] load_relief_margin"):
@@ -300,7 +300,7 @@ def test_two_runs_agree_and_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
     for k in w["a"][0]:
         np.testing.assert_array_equal(w["a"][0][k], w["b"][0][k])
         np.testing.assert_array_equal(w["a"][0][k], w["c"][0][k])
-    for name in ("student.json", "flight.json"):
+    for name in ("student.json", "deploy.json"):
         assert len({(p / name).read_text() for p in runs.values()}) == 1
 
 

@@ -213,9 +213,9 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     assert (chosen["selected_round"], chosen["distilled_from"]) == ("distilled", distil["teacher"])
     assert (chosen["members"], chosen["hidden"]) == (1, [8])
     # the selected network's tracker: the trained one (one step here) unless the candidate does better
-    flight = json.loads((out / "flight.json").read_text())
-    assert flight["student"] == chosen["selected_round"]
-    trained, candidate = flight["candidates"]
+    deploy = json.loads((out / "deploy.json").read_text())
+    assert deploy["student"] == chosen["selected_round"]
+    trained, candidate = deploy["candidates"]
     assert (trained["tracking_s"], trained["tracking_descent_mps"]) == (1.0, None) and candidate["tracking_s"] == 3.0
     better = (candidate["select_success_rate"], -candidate["select_miss_km_mean"]) > (
         trained["select_success_rate"], -trained["select_miss_km_mean"])
@@ -228,7 +228,7 @@ def test_a_small_run_writes_a_student_that_evaluate_can_fly(tmp_path):
     assert json.loads((out / "distil.json").read_text()) == distil
     # shipped, the selected student flies the same, with its record
     shipped = ship(out, tmp_path / "shipped")
-    assert sorted(p.name for p in shipped.iterdir()) == ["distil.json", "final.json", "flight.json", "learning_curve.png",
+    assert sorted(p.name for p in shipped.iterdir()) == ["deploy.json", "distil.json", "final.json", "learning_curve.png",
                                                         "metadata.json", "rounds.json", "student.json", "student.pt"]  # fmt: skip
     c = rollout(load_saved(str(shipped)), seeds=[3, 4], dispersion="standard")
     d = rollout(load_saved(str(out)), seeds=[3, 4], dispersion="standard")
@@ -258,10 +258,10 @@ def test_bad_configs_and_paths_are_named(tmp_path):
     with pytest.raises(ValueError, match=r"\[student\] members must be a whole number >= 1"):
         load_config(bad)
     bad.write_text(SMALL.replace("tracking = [[3.0, 2.0]]", "tracking = [[3.0]]"))
-    with pytest.raises(ValueError, match=r"\[flight\] tracking must be a list of \[max_s, min_s\] pairs, got \[\[3.0\]\]"):
+    with pytest.raises(ValueError, match=r"\[deploy\] tracking must be a list of \[max_s, min_s\] pairs, got \[\[3.0\]\]"):
         load_config(bad)
     bad.write_text(SMALL.replace("tracking = [[3.0, 2.0]]", "tracking = [[2.0, 3.0]]"))
-    with pytest.raises(ValueError, match=r"bad.toml: \[flight\] tracking: a horizon needs 0 < min_s <= max_s"):
+    with pytest.raises(ValueError, match=r"bad.toml: \[deploy\] tracking: a horizon needs 0 < min_s <= max_s"):
         load_config(bad)
     bad.write_text(SMALL.replace("tracking = [[3.0, 2.0]]", "tracking = [[0.5, 0.5]]"))
     with pytest.raises(ValueError, match="the horizon must be at least one control step"):

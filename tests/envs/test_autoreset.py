@@ -18,8 +18,8 @@ N, LIMIT, STEPS = 512, 32, 96
 
 def _draws(state):
     """What a start draws, per episode: the 12 state components, the start time and the four scale factors."""
-    x = np.stack([np.asarray(c, float) for c in state.flight.x], axis=1)
-    return np.concatenate([x, np.asarray(state.flight.t, float)[:, None], np.asarray(state.scales, float)], axis=1)
+    x = np.stack([np.asarray(c, float) for c in state.episode.x], axis=1)
+    return np.concatenate([x, np.asarray(state.episode.t, float)[:, None], np.asarray(state.scales, float)], axis=1)
 
 
 def _restarts(env, params, resets: int, seed: int):
@@ -27,8 +27,8 @@ def _restarts(env, params, resets: int, seed: int):
     episodes end one by one (each at its own step count under a time limit of LIMIT)."""
     keys = jax.random.split(jax.random.PRNGKey(seed), N)
     _, states = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
-    flight = states.flight._replace(steps=jnp.asarray(np.arange(N) % LIMIT, states.flight.steps.dtype))
-    states = states._replace(flight=flight)
+    episode = states.episode._replace(steps=jnp.asarray(np.arange(N) % LIMIT, states.episode.steps.dtype))
+    states = states._replace(episode=episode)
     step = jax.jit(lambda k, s: step_batch(env, k, s, jnp.zeros((N, 2)), params, resets))
     got, key = [], jax.random.PRNGKey(seed + 1)
     for _ in range(STEPS):
@@ -72,7 +72,7 @@ def test_the_optimistic_autoreset_steps_as_the_plain_step_does_and_shares_starts
         keys, states, jnp.zeros((64, 2)), params)  # fmt: skip
     assert np.array_equal(reward, reward_plain) and np.array_equal(done, done_plain) and np.all(done)
     assert np.array_equal(info["miss_km"], info_plain["miss_km"])
-    assert np.all(np.asarray(new.flight.steps) == 0) and np.all(np.asarray(new.flight.t) == 0)
+    assert np.all(np.asarray(new.episode.steps) == 0) and np.all(np.asarray(new.episode.t) == 0)
     assert len(np.unique(_draws(new), axis=0)) == 64  # 64 fresh starts for 64 ends
     _, shared, *_ = step_batch(env, keys, states, jnp.zeros((64, 2)), params, resets=16)
     assert len(np.unique(_draws(shared), axis=0)) == 16  # more ends than starts: shared

@@ -290,7 +290,7 @@ def test_checked_functional_params_fly_as_before_and_traced_ones_are_not_checked
     traced = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     for i, (obs, state) in enumerate(checked):
         np.testing.assert_array_equal(obs, traced[0][i])
-        np.testing.assert_array_equal(np.stack(state.flight.x), np.stack(traced[1].flight.x)[:, i])
+        np.testing.assert_array_equal(np.stack(state.episode.x), np.stack(traced[1].episode.x)[:, i])
 
 
 def test_flight_grade_params_and_start_params_are_checked_too():

@@ -235,11 +235,11 @@ def test_functional_env_is_pure_scans_and_flies_every_named_set_from_one_compila
         obs2, _ = reset(keys, params)
         np.testing.assert_array_equal(obs, obs2)  # pure: the same key, the same start
         half = Dispersion.parse(name)
-        h = np.asarray(state.flight.x[0])
+        h = np.asarray(state.episode.x[0])
         assert np.all(np.abs(h - h0) <= half.largest("altitude_m") + 1e-6) and (np.ptp(h) > 0) == (half.altitude_m > 0)
         (st, _), (r, d) = fly(state, params, jax.random.PRNGKey(1))
         assert np.all(np.isfinite(np.asarray(r))) and r.shape == (30, 8)
-        assert np.all(np.asarray(st.flight.steps) == 30)
+        assert np.all(np.asarray(st.episode.steps) == 30)
     assert reset._cache_size() == 1 and fly._cache_size() == 1  # the sets are data: one compilation
 
 
@@ -252,7 +252,7 @@ def test_functional_env_draws_clipped_gaussians_and_the_mass_of_the_peer_sets():
     for name in ("peer", "peer-0.1", "standard"):
         d = Dispersion.parse(name)
         _, st = reset(keys, env.make_params(dispersion=name))
-        dh = np.asarray(st.flight.x[0]) - nominal[0]
+        dh = np.asarray(st.episode.x[0]) - nominal[0]
         mass = np.asarray(st.scales[:, 3]) - 1.0
         for draw, sigma in ((dh, d.altitude_m), (mass, d.mass)):
             if d.shape == "gaussian":  # clipped at 3 sigma: the std of a clipped unit normal is 0.9866
@@ -264,13 +264,13 @@ def test_functional_env_draws_clipped_gaussians_and_the_mass_of_the_peer_sets():
         assert (np.ptp(mass) > 0) == (d.mass > 0)
     # the mass factor is the model's: the drag acceleration of the drawn vehicle is the NumPy one of that mass
     i = int(np.argmax(np.abs(mass)))
-    x = tuple(float(c[i]) for c in st.flight.x)
+    x = tuple(float(c[i]) for c in st.episode.x)
     s = np.asarray(st.scales[i])
     veh = MODEL.vehicle
     m = scaled_model(MODEL.replace(vehicle=type(veh)(mass=veh.mass * s[3], reference_area=veh.reference_area,
                                                      aerodynamics=veh.aerodynamics)), s[0], s[1], s[2])  # fmt: skip
     f_np = entry_forces(tuple(np.array([c]) for c in x), m, NUMPY)
-    assert float(st.flight.forces.drag_accel[i]) == pytest.approx(float(f_np.drag_accel[0]), rel=1e-12)
+    assert float(st.episode.forces.drag_accel[i]) == pytest.approx(float(f_np.drag_accel[0]), rel=1e-12)
 
 
 def test_functional_env_refuses_flight_grade_params_without_their_structure():
@@ -281,22 +281,22 @@ def test_functional_env_refuses_flight_grade_params_without_their_structure():
 @pytest.mark.slow
 def test_functional_flight_grade_env_flies_a_pool_draw_as_the_numpy_truth_model_and_navigation_do():
     """A reset picks one of the pool's NumPy draws; its forces, first step and navigated observation
-    are those of the NumPy FlightState's truth model and sensors for that draw (noise off)."""
+    are those of the NumPy VehicleErrors' truth model and sensors for that draw (noise off)."""
     import dataclasses
 
     from rventry_env.core.euler_parameters import dcm
     from rventry_env.envs.observation import observe
-    from rventry_env.envs.uncertainty import FlightState
-    from rventry_env.task import FLIGHT_ERRORS
+    from rventry_env.envs.uncertainty import VehicleErrors
+    from rventry_env.task import FLIGHT_GRADE_ERRORS
 
     quiet = dataclasses.replace(Dispersion.flight_set(),
-                                flight=dataclasses.replace(FLIGHT_ERRORS, accel_noise_mps2=0.0))  # fmt: skip
+                                flight=dataclasses.replace(FLIGHT_GRADE_ERRORS, accel_noise_mps2=0.0))  # fmt: skip
     env = RvEntryFunctional(dispersion=quiet, dtype="float64", pool_size=4)
     params = env.default_params
     _, st = env.reset(jax.random.PRNGKey(5), params)
     pool = params.pool
     i = int(np.argmin(np.abs(np.asarray(pool.log_factors) - np.asarray(st.errors.row.log_factors)).sum(axis=1)))
-    fs = FlightState(1, MODEL)
+    fs = VehicleErrors(1, MODEL)
     for name, src in (("log_factors", pool.log_factors), ("wind_east", pool.wind_east), ("wind_north", pool.wind_north),
                       ("aero", pool.aero), ("bias", pool.bias), ("scale", pool.scale),
                       ("misalignment", pool.misalignment)):  # fmt: skip
@@ -305,17 +305,17 @@ def test_functional_flight_grade_env_flies_a_pool_draw_as_the_numpy_truth_model_
     fs.mass[0], fs.any_model, fs.any_wind = s[3], True, True
     fs.dr[:, 0], fs.dv[:, 0], fs.senses[0] = np.asarray(pool.dr[i]), np.asarray(pool.dv[i]), True
     model = fs.model(s[0:1], s[1:2], s[2:3])
-    x = tuple(np.array([float(c)]) for c in st.flight.x)
+    x = tuple(np.array([float(c)]) for c in st.episode.x)
     prop = Propagator(EntryTask(), NUMPY)
     f_np = prop.forces(x, model)
     for k in ("density", "dynamic_pressure", "mach", "cl", "cd", "drag_accel", "lift_accel"):
-        assert float(getattr(st.flight.forces, k)) == pytest.approx(float(getattr(f_np, k)[0]), rel=1e-12), k
+        assert float(getattr(st.episode.forces, k)) == pytest.approx(float(getattr(f_np, k)[0]), rel=1e-12), k
     # the first step: the same state as NumPy's step with the same model
     a = np.array([0.3, -0.4])
     obs, st1, _, _, _ = jax.jit(env.step_env)(jax.random.PRNGKey(6), st, jnp.asarray(a), params)
     p = EntryTask().problem
     out = prop.step(x, f_np, np.array([a[0] * p.u_alpha_max]), np.array([a[1] * p.u_sigma_max]), model)
-    np.testing.assert_allclose(np.asarray([float(c) for c in st1.flight.x]), np.concatenate(out.x), rtol=1e-11)
+    np.testing.assert_allclose(np.asarray([float(c) for c in st1.episode.x]), np.concatenate(out.x), rtol=1e-11)
     # what the navigation makes of it: the NumPy sensors' view of the same truth, errors integrated alike
     nav, _, feats, nav_c_ae = fs.sense(out.x, out.forces, dcm(*out.x[1:5]), MODEL.planet.g0, out.elapsed)
     want = observe(tuple(nav[:, j] for j in range(12)), feats, nav_c_ae, out.elapsed, EntryTask(), env.target,
@@ -363,13 +363,13 @@ def test_params_carry_the_model_numbers_and_tables_without_recompiling():
     _, s1, _, _, _ = step(jax.random.PRNGKey(0), s1, a, p1)
     _, s2, _, _, _ = step(jax.random.PRNGKey(0), s2, a, p2)
     assert step._cache_size() == 1
-    assert float(s2.flight.forces.density) == pytest.approx(1.3 * float(s1.flight.forces.density), rel=1e-3)
+    assert float(s2.episode.forces.density) == pytest.approx(1.3 * float(s1.episode.forces.density), rel=1e-3)
     # the NumPy env with the tabulated profile flies the same first step
     venv = gym.make_vec("RvEntry-v0", num_envs=1, vectorization_mode="vector_entry_point",
                         model=EntryModel(atmosphere=thicker))  # fmt: skip
     venv.reset(seed=0)
     venv.step(np.zeros((1, 2)))
-    np.testing.assert_allclose(np.asarray([float(c) for c in s2.flight.x]), venv.unwrapped.state[0], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray([float(c) for c in s2.episode.x]), venv.unwrapped.state[0], rtol=1e-12)
     with pytest.raises(ValueError, match="structure differs"):
         env.make_params(model=EntryModel())
 

@@ -86,16 +86,16 @@ def test_the_functional_env_draws_start_states_by_the_same_rule():
     env = RvEntryFunctional(starts=starts, dispersion="standard", dtype="float64")
     params = env.default_params
     obs, state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(3), 2000), params)
-    t = np.asarray(state.flight.t)
+    t = np.asarray(state.episode.t)
     from_table = t > 0
     assert abs(from_table.mean() - 0.7) < 0.04  # 2000 draws: 4 standard errors is 0.041
     before = load_reference().tf - t[from_table]
     assert before.min() >= 30.0 - 1e-6 and before.max() <= 200.0 + 1e-6
     # spread over the window, not bunched: both halves of the window are drawn
     assert np.mean(before < 115.0) > 0.4 and np.mean(before > 115.0) > 0.4
-    x = np.stack([np.asarray(c) for c in state.flight.x], axis=1)[from_table]
+    x = np.stack([np.asarray(c) for c in state.episode.x], axis=1)[from_table]
     assert np.allclose(np.linalg.norm(x[:, 6:10], axis=1), 1.0, atol=1e-12)
-    q = np.asarray(state.flight.forces.dynamic_pressure)[from_table]
+    q = np.asarray(state.episode.forces.dynamic_pressure)[from_table]
     assert q.min() >= TASK.problem.q_min * (1 + common.START_MARGIN) * (1 - 1e-9)
 
 

@@ -16,19 +16,20 @@ from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.physics import EntryModel, ExponentialAtmosphere
 from rventry_env.physics.sensors import accelerometer, propagate_navigation_error, white_noise
 from rventry_env.physics.uncertainty import MachVaryingAerodynamics, ProfileAtmosphere, uniform_table
-from rventry_env.task import FLIGHT_ERRORS, Dispersion, EntryProblem, FlightErrors, draw_dispersion, draw_extras
-from rventry_env.task.flight import GRID_M, band_profile, gauss_markov, msis_log_density
+from rventry_env.task import (FLIGHT_GRADE_ERRORS, Dispersion, EntryProblem, FlightGradeErrors, draw_dispersion,
+                              draw_extras)
+from rventry_env.task.flight_grade import GRID_M, band_profile, gauss_markov, msis_log_density
 
 TASK_PROBLEM = EntryProblem()
 
 
 # ------------------------------------------------------------------ draw statistics
 def _profiles(field: str, n: int = 600) -> np.ndarray:
-    return np.stack([draw_extras(np.random.default_rng(s), Dispersion(flight=FLIGHT_ERRORS), TASK_PROBLEM)[field]
+    return np.stack([draw_extras(np.random.default_rng(s), Dispersion(flight=FLIGHT_GRADE_ERRORS), TASK_PROBLEM)[field]
                      for s in range(n)])  # fmt: skip
 
 
-@pytest.mark.parametrize("field, bands", [("density_perturbation", FLIGHT_ERRORS.density_bands)])
+@pytest.mark.parametrize("field, bands", [("density_perturbation", FLIGHT_GRADE_ERRORS.density_bands)])
 def test_drawn_profiles_have_the_documented_rms_and_correlation_length(field, bands):
     """Per band: the rms of the drawn ln-density perturbation and its correlation at one grid step
     match the documented (rms, L) within sampling error (600 profiles)."""
@@ -50,11 +51,11 @@ def test_drawn_profiles_have_the_documented_rms_and_correlation_length(field, ba
 def test_wind_profiles_have_the_documented_mean_and_perturbation_rms():
     east = _profiles("wind_east")
     # the constant part is shared by every altitude of a profile: its rms is the profile mean's
-    assert np.std(east.mean(axis=1)) == pytest.approx(FLIGHT_ERRORS.wind_mean_mps, rel=0.15)
+    assert np.std(east.mean(axis=1)) == pytest.approx(FLIGHT_GRADE_ERRORS.wind_mean_mps, rel=0.15)
     dev = east - east.mean(axis=1, keepdims=True)
     top = GRID_M > 50e3
     # the Gauss-Markov part's rms above 50 km (the profile mean takes a little of it)
-    assert np.sqrt(np.mean(dev[:, top] ** 2)) == pytest.approx(FLIGHT_ERRORS.wind_bands[-1][1], rel=0.2)
+    assert np.sqrt(np.mean(dev[:, top] ** 2)) == pytest.approx(FLIGHT_GRADE_ERRORS.wind_bands[-1][1], rel=0.2)
 
 
 def test_the_flight_atmosphere_departs_from_the_mean_without_bias():
@@ -100,7 +101,7 @@ def test_named_sets_round_trip_and_refuse_what_they_cannot_be():
     with pytest.raises(ValueError, match="unknown flight error field"):
         Dispersion.parse({"flight": {"gusts": 1.0}})
     with pytest.raises(ValueError, match="band tops must increase"):
-        FlightErrors(density_bands=((30e3, 0.1, 5e3), (10e3, 0.1, 5e3)))
+        FlightGradeErrors(density_bands=((30e3, 0.1, 5e3), (10e3, 0.1, 5e3)))
 
 
 # ------------------------------------------------------------------ the zero set
@@ -205,7 +206,7 @@ def test_accelerometer_errors_follow_the_documented_formula():
 
 
 def test_a_navigation_position_error_moves_the_observed_altitude_not_the_truth():
-    flight = FlightErrors(nav_position_m=100.0)
+    flight = FlightGradeErrors(nav_position_m=100.0)
     env = RvEntryEnv(dispersion=Dispersion(flight=flight))
     obs, info = env.reset(seed=2)
     truth = RvEntryEnv()

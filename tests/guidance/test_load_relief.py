@@ -148,7 +148,7 @@ def test_the_chance_margin_holds_the_bound_through_denser_air_one_step_down():
 
     from rventry_env.physics.atmosphere import ExponentialAtmosphere
     from rventry_env.physics.uncertainty import ProfileAtmosphere
-    from rventry_env.task import FLIGHT_ERRORS
+    from rventry_env.task import FLIGHT_GRADE_ERRORS
 
     task, nominal = EntryTask(), EntryModel()
     x = _pull_down()
@@ -162,7 +162,7 @@ def test_the_chance_margin_holds_the_bound_through_denser_air_one_step_down():
     sensed = np.stack(f.aero_b, axis=1)
     up = np.tile([1.0, 0.3], (len(x), 1))
     fixed = LoadRelief(nominal, task, margin=0.01)(up, x, sensed)
-    chance = LoadRelief(nominal, task, margin=0.01, sigmas=2.0, density_bands=FLIGHT_ERRORS.density_bands)
+    chance = LoadRelief(nominal, task, margin=0.01, sigmas=2.0, density_bands=FLIGHT_GRADE_ERRORS.density_bands)
     held = chance(up, x, sensed)
     assert np.all(_flown_peak(x, fixed, truth, task)[keep] > 12.0)
     assert np.all(_flown_peak(x, held, truth, task)[keep] <= 12.0)

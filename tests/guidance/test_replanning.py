@@ -321,10 +321,10 @@ def test_density_margins_tighten_each_point_by_the_density_uncertainty_at_its_al
     """With the atmosphere's Gauss-Markov bands known, a collocation point's load and q bounds are
     tightened by k sigma of the density ratio there given the one measured at the current
     altitude: nothing at the current altitude, s sqrt(2 (1 - exp(-dh/L))) away from it."""
-    from rventry_env.task import FLIGHT_ERRORS
-    from rventry_env.task.flight import band_profile
+    from rventry_env.task import FLIGHT_GRADE_ERRORS
+    from rventry_env.task.flight_grade import band_profile
 
-    bands = FLIGHT_ERRORS.density_bands
+    bands = FLIGHT_GRADE_ERRORS.density_bands
     solver = PlanSolver(EntryTask(), EntryModel(), replace(COARSE, density_bands=bands, density_sigmas=2.0))
     plan = solver.nominal_plan(EntryTask())
     x0 = EntryTask().problem.initial_state(EntryModel().planet.radius)
@@ -352,10 +352,10 @@ def test_aero_margins_follow_the_mach_uncertainty_of_the_physics_part():
     L/D is lowered by sqrt(2) of it toward the impact's Mach, the drag scale untouched."""
     from rventry_env.core.backend import NUMPY
     from rventry_env.physics.uncertainty import MachVaryingAerodynamics
-    from rventry_env.task import FLIGHT_ERRORS
+    from rventry_env.task import FLIGHT_GRADE_ERRORS as F
 
     rms = 0.03
-    settings = replace(COARSE, aero_mach_rms=rms, aero_sigmas=2.0, density_bands=FLIGHT_ERRORS.density_bands,
+    settings = replace(COARSE, aero_mach_rms=rms, aero_sigmas=2.0, density_bands=F.density_bands,
                        density_sigmas=1.0)  # fmt: skip
     solver = PlanSolver(EntryTask(), EntryModel(), settings)
     machs = np.array([4.0, 6.0, 12.0, 20.0])
@@ -411,19 +411,19 @@ def test_aero_margin_settings_are_checked(change, match):
 
 def test_the_flight_grade_preset_is_what_mpc_flight_flies():
     from rventry_env.evaluation.agents import load_agent
-    from rventry_env.task import FLIGHT_ERRORS
+    from rventry_env.task import FLIGHT_GRADE_ERRORS as F
 
     s = ReplanningSettings.flight_grade()
     from rventry_env.guidance.estimation import FlightEstimator
 
     assert (s.load_relief_margin, s.q_margin, s.density_sigmas, s.aero_sigmas) == (0.04, 0.10, 1.0, 1.0)
-    assert s.density_bands == FLIGHT_ERRORS.density_bands and s.aero_mach_rms == FLIGHT_ERRORS.lift_mach
+    assert s.density_bands == F.density_bands and s.aero_mach_rms == F.lift_mach
     assert ReplanningSettings.flight_grade(q_margin=0.08).q_margin == 0.08
     law = load_agent("mpc-flight", EntryTask(), settings=replace(s, mesh_intervals=10, replan_s=60.0))
     assert law.settings.aero_mach_rms == 0.03 and law.relief is not None and law.q_floor is None  # no q floor
     # the flight-grade estimator, on the flight set's published statistics, with the wind
-    assert isinstance(law.estimator, FlightEstimator) and law.estimator.settings.wind_sigma == FLIGHT_ERRORS.wind_mean_mps
-    assert law.estimator.settings.density_bands == FLIGHT_ERRORS.density_bands
+    assert isinstance(law.estimator, FlightEstimator) and law.estimator.settings.wind_sigma == F.wind_mean_mps
+    assert law.estimator.settings.density_bands == F.density_bands
 
 
 def test_mpc_peer_is_mpc_flight_sized_by_the_peer_sets_published_statistics():
@@ -432,7 +432,7 @@ def test_mpc_peer_is_mpc_flight_sized_by_the_peer_sets_published_statistics():
     from rventry_env.evaluation.agents import load_agent
     from rventry_env.guidance.estimation import FlightEstimator
     from rventry_env.task import Dispersion
-    from rventry_env.task.flight import band_spread
+    from rventry_env.task.flight_grade import band_spread
 
     d = Dispersion.peer()
     law = load_agent("mpc-peer", EntryTask())
@@ -450,10 +450,10 @@ def test_the_q_bound_carries_the_drag_scale_share_that_is_not_density():
     """With the density's rms at the current altitude and C_D's, the posterior share of ln k_D on C_D
     tightens every q node by exp(share + k spread), on top of nothing else; a high measured drag
     (more likely a high C_D) tightens it, a low one loosens it, and the load rows are untouched."""
-    from rventry_env.task import FLIGHT_ERRORS
-    from rventry_env.task.flight import band_profile
+    from rventry_env.task import FLIGHT_GRADE_ERRORS
+    from rventry_env.task.flight_grade import band_profile
 
-    bands = FLIGHT_ERRORS.density_bands
+    bands = FLIGHT_GRADE_ERRORS.density_bands
     settings = replace(COARSE, density_bands=bands, density_sigmas=0.0, drag_rms=0.05, split_sigmas=1.5)
     solver = PlanSolver(EntryTask(), EntryModel(), settings)
     plan = solver.nominal_plan(EntryTask())

@@ -23,7 +23,7 @@ from rventry_env.physics.sensors import accelerometer
 from rventry_env.physics.uncertainty import ProfileAtmosphere
 from rventry_env.physics.wind import HorizontalWind
 from rventry_env.reference import load_reference
-from rventry_env.task import FLIGHT_ERRORS
+from rventry_env.task import FLIGHT_GRADE_ERRORS
 
 R_E = EntryModel().planet.radius
 
@@ -40,7 +40,7 @@ def _sensed(x, model, rng, errors=True):
     """The flight set's accelerometer (bias, scale, misalignment at their 1-sigma magnitudes, and
     its white noise) on the true aerodynamic force of ``model`` at states ``x``."""
     aero = entry_forces(tuple(x.T), model, NUMPY).aero_b
-    f = FLIGHT_ERRORS
+    f = FLIGHT_GRADE_ERRORS
     if not errors:
         return np.stack(aero, axis=-1)
     sign = np.array([1.0, -1.0, 1.0])
@@ -90,7 +90,7 @@ def test_density_that_varies_with_altitude_is_followed_at_the_apex(track):
     log_f = np.log(1.0 - 0.15 * np.clip((grid - 40e3) / 10e3, 0.0, 1.0))
     truth = replace(EntryModel(), atmosphere=ProfileAtmosphere(ExponentialAtmosphere(), 0.0, 1e3, log_f))
     sensed = _sensed(x, truth, np.random.default_rng(4))
-    settings = FlightEstimatorSettings(density_bands=FLIGHT_ERRORS.density_bands)
+    settings = FlightEstimatorSettings(density_bands=FLIGHT_GRADE_ERRORS.density_bands)
     est = _fly([FlightEstimator(settings=settings), AeroScaleEstimator()], t, x, sensed)
     h = x[:, 0] - R_E
     high = h > 48e3
@@ -135,9 +135,9 @@ def test_settings_and_factory_name_what_is_wrong():
     assert isinstance(make_estimator(EntryModel(), 2, None), AeroScaleEstimator)
     e = make_estimator(EntryModel(), 2, FlightEstimatorSettings.flight_grade())
     assert isinstance(e, FlightEstimator) and e.theta.shape == (2, 4)
-    assert e.settings.wind_sigma == FLIGHT_ERRORS.wind_mean_mps
+    assert e.settings.wind_sigma == FLIGHT_GRADE_ERRORS.wind_mean_mps
     with pytest.raises(ValueError, match="wind_bands need wind_sigma"):
-        FlightEstimatorSettings(wind_bands=FLIGHT_ERRORS.wind_bands)
+        FlightEstimatorSettings(wind_bands=FLIGHT_GRADE_ERRORS.wind_bands)
     with pytest.raises(ValueError, match="wind_sigma must be None"):
         FlightEstimatorSettings(wind_sigma=-1.0)
     with pytest.raises(ValueError, match="accel_noise must be positive"):

@@ -12,7 +12,7 @@ from rventry_env.physics.entry import entry_rhs
 from rventry_env.physics.model import EntryModel
 from rventry_env.reference import load_reference
 from rventry_env.reference.collocation import CompiledProblem
-from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem, position_direction
+from rventry_env.reference.entry_ocp import EntryOcpConfig, entry_ocp, position_direction
 from rventry_env.reference.guess import generate_guess
 from rventry_env.reference.spherical_entry import (
     spherical_from_entry_states,
@@ -35,7 +35,7 @@ def _random_states(n, seed=0):
 
 
 def test_dynamics_are_entry_rhs_plus_radial_norm_rates():
-    cp = CompiledProblem(entry_problem(EntryProblemConfig()))
+    cp = CompiledProblem(entry_ocp(EntryOcpConfig()))
     x = _random_states(20)
     rng = np.random.default_rng(1)
     u = np.column_stack([rng.uniform(-0.1, 0.1, (20, 2)), np.zeros((20, 2))])
@@ -52,8 +52,8 @@ def test_dynamics_are_entry_rhs_plus_radial_norm_rates():
 
 
 def test_paper_mode_replaces_four_rates_with_controls():
-    cfg = EntryProblemConfig(norm_mode="paper")
-    prob = entry_problem(cfg)
+    cfg = EntryOcpConfig(norm_mode="paper")
+    prob = entry_ocp(cfg)
     assert prob.control_names == ("u_alpha", "u_sigma", "u1", "u2", "u3", "u4")
     assert [c.name for c in prob.path_constraints][2:] == ["band_eA2", "band_eA3", "band_eB2", "band_eB3"]
     assert all(c.upper == 1e-6 and c.lower == -1e-6 for c in prob.path_constraints[2:])
@@ -83,7 +83,7 @@ def test_position_direction_is_homogeneous():
 )
 def test_bad_entry_config_is_rejected(kw, match):
     with pytest.raises(ValueError, match=match):
-        EntryProblemConfig(**kw)
+        EntryOcpConfig(**kw)
 
 
 @pytest.mark.parametrize(
@@ -102,7 +102,7 @@ def test_bad_problem_constants_are_rejected(kw, match):
 
 
 def test_generated_guess_reaches_the_ground_near_the_target():
-    guess, flight = generate_guess(EntryProblemConfig())
+    guess, flight = generate_guess(EntryOcpConfig())
     re = MODEL.planet.radius
     assert guess.x[-1, 0] == pytest.approx(re, abs=1.0)
     assert flight.miss_m < 50e3 and flight.gamma_deg < -45.0

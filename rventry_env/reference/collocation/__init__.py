@@ -1,7 +1,7 @@
 """Legendre-Gauss-Radau collocation with hp mesh refinement (IPOPT through CasADi).
 
 * :mod:`.lgr` - points, weights, differentiation and integration matrices;
-* :mod:`.problem` - a general single-phase optimal-control problem;
+* :mod:`.ocp` - a general single-phase optimal-control problem (OCP);
 * :mod:`.compiled` - the problem compiled to CasADi functions once;
 * :mod:`.mesh` - the mesh and the ph raise-degree-or-split rule;
 * :mod:`.guesses` - initial guesses;
@@ -20,7 +20,7 @@ from rventry_env.reference.collocation.error_estimate import estimate_errors
 from rventry_env.reference.collocation.guesses import SampledGuess, TrajectoryLike
 from rventry_env.reference.collocation.hp import CollocationResult, solve
 from rventry_env.reference.collocation.mesh import Mesh, refine_ph
-from rventry_env.reference.collocation.problem import (
+from rventry_env.reference.collocation.ocp import (
     EndpointConstraint,
     Invariant,
     OptimalControlProblem,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rventry_env.reference.collocation.problem import OptimalControlProblem
+from rventry_env.reference.collocation.ocp import OptimalControlProblem
 
 
 class CompiledProblem:

@@ -9,7 +9,7 @@ from rventry_env.reference.collocation.compiled import CompiledProblem
 from rventry_env.reference.collocation.error_estimate import estimate_errors
 from rventry_env.reference.collocation.guesses import TrajectoryLike
 from rventry_env.reference.collocation.mesh import Mesh, refine_ph
-from rventry_env.reference.collocation.problem import OptimalControlProblem
+from rventry_env.reference.collocation.ocp import OptimalControlProblem
 from rventry_env.reference.collocation.progress import MeshIterationRecord, Progress
 from rventry_env.reference.collocation.solution import CollocationSolution
 from rventry_env.reference.collocation.transcription import SolverOptions, solve_on_mesh, transcribe

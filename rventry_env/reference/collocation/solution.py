@@ -10,7 +10,7 @@ import numpy as np
 from rventry_env.reference.collocation.interpolation import PiecewiseLGR
 from rventry_env.reference.collocation.lgr import lagrange_matrix, lgr_points, support_points
 from rventry_env.reference.collocation.mesh import Mesh
-from rventry_env.reference.collocation.problem import OptimalControlProblem
+from rventry_env.reference.collocation.ocp import OptimalControlProblem
 
 
 class _Interp(PiecewiseLGR):

@@ -30,7 +30,7 @@ from rventry_env.reference.collocation.compiled import CompiledProblem
 from rventry_env.reference.collocation.guesses import TrajectoryLike
 from rventry_env.reference.collocation.lgr import differentiation_matrix, lgr_weights
 from rventry_env.reference.collocation.mesh import Mesh
-from rventry_env.reference.collocation.problem import OptimalControlProblem
+from rventry_env.reference.collocation.ocp import OptimalControlProblem
 from rventry_env.reference.collocation.solution import CollocationSolution
 
 

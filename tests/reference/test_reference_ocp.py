@@ -135,10 +135,10 @@ def test_the_entry_problem_carries_the_papers_boundary_conditions_and_bounds():
     """Example 2's Table tab:Ex2-BCs and Eq. Ex2-path, as the transcription receives them: the entry
     state fixed but for alpha and sigma, the impact at the surface at 1219 m/s, vertical, alpha 0,
     and the rate and alpha bounds (an independent statement of the paper's numbers, not the config's)."""
-    from rventry_env.reference.entry_problem import EntryProblemConfig, entry_problem
+    from rventry_env.reference.entry_ocp import EntryOcpConfig, entry_ocp
 
-    config = EntryProblemConfig()
-    p = entry_problem(config)
+    config = EntryOcpConfig()
+    p = entry_ocp(config)
     re = config.model.planet.radius
     half = math.sqrt(2.0) / 2.0
     x0 = [re + 37e3, 0, 0, 0, 1, 7138.0, 0, 0, half, half]

@@ -3,7 +3,7 @@
 The problem is stated with plain Python callables on *components*: each receives
 lists of scalar CasADi ``SX`` expressions (one per state or control) and returns
 expressions, so physics written for :mod:`rventry_env.core.backend` plugs in
-unchanged. Nothing is transcribed here; :mod:`.solver` does that.
+unchanged. Nothing is transcribed here; :mod:`.transcription` does that.
 
 Minimise  mayer(x(t0), x(tf), t0, tf) + integral_{t0}^{tf} lagrange(x, u, t) dt
 subject to::
@@ -22,7 +22,7 @@ constraint take them as a fourth argument: ``dynamics(x, u, t, p)``.
 Invariants are quantities the *exact* dynamics conserve (the unit norm of a set of
 Euler parameters, say). Imposing them next to the discretised dynamics
 over-determines the NLP unless the dynamics get a matching degree of freedom; see
-:mod:`rventry_env.reference.entry_problem` for how the entry problem pairs each
+:mod:`rventry_env.reference.entry_ocp` for how the entry problem pairs each
 with a control. They are not imposed at t0: there the initial bounds must make
 them hold (imposing both would be a redundant, LICQ-violating pair).
 """

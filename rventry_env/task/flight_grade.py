@@ -1,6 +1,6 @@
 """Flight-grade errors: what a flight Monte Carlo draws beyond constant scale factors.
 
-:class:`FlightErrors` describes the magnitudes; :func:`draw_flight` draws one vehicle's
+:class:`FlightGradeErrors` describes the magnitudes; :func:`draw_flight_grade` draws one vehicle's
 errors from its episode generator (``np_random``), always the same count of numbers for one
 description, so the single and the vector environment stay in step draw for draw.
 
@@ -56,13 +56,13 @@ def parse_bands(value, what: str) -> tuple:
     return bands
 
 
-# the fields of FlightErrors that make the vehicle's sensors and navigation err (the rest is the truth's)
+# the fields of FlightGradeErrors that make the vehicle's sensors and navigation err (the rest is the truth's)
 SENSING_FIELDS = ("accel_bias_mps2", "accel_scale", "accel_misalignment_rad", "accel_noise_mps2", "nav_position_m",
                   "nav_velocity_mps")  # fmt: skip
 
 
 @dataclass(frozen=True)
-class FlightErrors:
+class FlightGradeErrors:
     """Magnitudes (1 sigma) of the flight-grade errors; every default is zero (off).
 
     :param climatology: fly an NRLMSIS 2.1 atmosphere drawn per episode instead of the
@@ -110,15 +110,15 @@ class FlightErrors:
                 raise ValueError(f"flight {name} = {getattr(self, name):g} is relative and must stay below 0.25")
 
     @classmethod
-    def parse(cls, value) -> "FlightErrors | None":
-        if value is None or isinstance(value, FlightErrors):
+    def parse(cls, value) -> "FlightGradeErrors | None":
+        if value is None or isinstance(value, FlightGradeErrors):
             return value
         if isinstance(value, dict):
             unknown = set(value) - {f.name for f in fields(cls)}
             if unknown:
                 raise ValueError(f"unknown flight error field(s) {sorted(unknown)}; known: {[f.name for f in fields(cls)]}")
             return cls(**value)
-        raise ValueError(f"flight errors must be a FlightErrors or a dict of its fields, got {value!r}")
+        raise ValueError(f"flight errors must be a FlightGradeErrors or a dict of its fields, got {value!r}")
 
     @property
     def is_zero(self) -> bool:
@@ -259,8 +259,8 @@ def _msis_mean(problem, grid_bytes: bytes) -> np.ndarray:
     return mean
 
 
-# how many standard normals / uniforms one vehicle's flight draw takes (fixed per description)
-def draw_flight(rng: np.random.Generator, flight: FlightErrors, problem) -> dict:
+# how many standard normals / uniforms one vehicle's flight-grade draw takes (fixed per description)
+def draw_flight_grade(rng: np.random.Generator, errors: FlightGradeErrors, problem) -> dict:
     """One vehicle's flight-grade errors, drawn from ``rng`` in a fixed order and count.
 
     Returns a dict of NumPy values: ``climate`` (day of year, local time h, F10.7, F10.7a, Ap)
@@ -272,7 +272,7 @@ def draw_flight(rng: np.random.Generator, flight: FlightErrors, problem) -> dict
     """
     out: dict = {}
     k = GRID_POINTS
-    if flight.climatology:
+    if errors.climatology:
         u = rng.uniform(size=4)
         n_ap, n_f = rng.standard_normal(2)
         doy = 1.0 + 365.0 * u[0]
@@ -282,20 +282,20 @@ def draw_flight(rng: np.random.Generator, flight: FlightErrors, problem) -> dict
         ap = min(AP_MAX, AP_MEDIAN * math.exp(AP_LOG_SIGMA * n_ap))
         out["climate"] = np.array([doy, lt, f107, f107a, ap])
         out["log_density_climate"] = msis_log_density(doy, lt, f107, f107a, ap, problem) - msis_mean_log_density(problem)
-    out["density_perturbation"] = gauss_markov(rng.standard_normal(k), flight.density_bands)
-    mean = rng.standard_normal(2) * flight.wind_mean_mps
-    out["wind_east"] = mean[0] + gauss_markov(rng.standard_normal(k), flight.wind_bands)
-    out["wind_north"] = mean[1] + gauss_markov(rng.standard_normal(k), flight.wind_bands)
+    out["density_perturbation"] = gauss_markov(rng.standard_normal(k), errors.density_bands)
+    mean = rng.standard_normal(2) * errors.wind_mean_mps
+    out["wind_east"] = mean[0] + gauss_markov(rng.standard_normal(k), errors.wind_bands)
+    out["wind_north"] = mean[1] + gauss_markov(rng.standard_normal(k), errors.wind_bands)
     a = rng.standard_normal(4)
-    out["aero"] = np.array([a[0] * flight.lift_mach, a[1] * flight.lift_mach, a[2] * flight.drag_mach, a[3] * flight.drag_mach])
+    out["aero"] = np.array([a[0] * errors.lift_mach, a[1] * errors.lift_mach, a[2] * errors.drag_mach, a[3] * errors.drag_mach])
     s = rng.standard_normal(9)
-    out["accel_bias"] = s[0:3] * flight.accel_bias_mps2
-    out["accel_scale"] = s[3:6] * flight.accel_scale
-    out["accel_misalignment"] = s[6:9] * flight.accel_misalignment_rad
+    out["accel_bias"] = s[0:3] * errors.accel_bias_mps2
+    out["accel_scale"] = s[3:6] * errors.accel_scale
+    out["accel_misalignment"] = s[6:9] * errors.accel_misalignment_rad
     out["noise_key"] = rng.integers(0, 2**63, dtype=np.uint64)
     nav = rng.standard_normal(6)
-    out["nav_position"] = nav[:3] * flight.nav_position_m
-    out["nav_velocity"] = nav[3:] * flight.nav_velocity_mps
+    out["nav_position"] = nav[:3] * errors.nav_position_m
+    out["nav_velocity"] = nav[3:] * errors.nav_velocity_mps
     return out
 
 
@@ -305,12 +305,12 @@ __all__ = [
     "GRID_STEP_M",
     "GRID_POINTS",
     "GRID_M",
-    "FlightErrors",
+    "FlightGradeErrors",
     "parse_bands",
     "band_profile",
     "gauss_markov",
     "ground_track_longitude_deg",
     "msis_log_density",
     "msis_mean_log_density",
-    "draw_flight",
+    "draw_flight_grade",
 ]

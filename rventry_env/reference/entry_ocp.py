@@ -1,4 +1,4 @@
-"""The paper's Example 2 as an optimal-control problem (Section ``sect:Ex2``).
+"""The paper's Example 2 as an optimal-control problem (OCP; Section ``sect:Ex2``).
 
 States: the 12 entry states of docs/conventions.md (``r, eA1..etaA, v, eB1..etaB, alpha,
 sigma``); controls: ``u_alpha, u_sigma`` and, in the default norm-keeping
@@ -58,7 +58,7 @@ from rventry_env.core.backend import casadi_ns
 from rventry_env.physics.entry import ENTRY_STATE_NAMES, IDX, entry_forces, entry_rhs
 from rventry_env.physics.model import EntryModel, with_aero_scales
 from rventry_env.task.problem import EntryProblem
-from rventry_env.reference.collocation.problem import (
+from rventry_env.reference.collocation.ocp import (
     EndpointConstraint,
     Invariant,
     OptimalControlProblem,
@@ -70,7 +70,7 @@ NORM_MODES = ("projection", "paper", "none")
 
 
 @dataclass(frozen=True)
-class EntryProblemConfig:
+class EntryOcpConfig:
     """How the collocation solver poses Example 2: the problem's constants plus solver options.
 
     :param problem: the Example 2 constants (:class:`rventry_env.task.problem.EntryProblem`,
@@ -120,7 +120,7 @@ class EntryProblemConfig:
         if self.final_gamma_max_deg is not None and not -90.0 < self.final_gamma_max_deg <= 90.0:
             raise ValueError(f"final_gamma_max_deg must lie in (-90, 90], got {self.final_gamma_max_deg}")
 
-    def replace(self, **changes) -> "EntryProblemConfig":
+    def replace(self, **changes) -> "EntryOcpConfig":
         return replace(self, **changes)
 
     # the problem's constants, SI
@@ -194,7 +194,7 @@ def _printed_a1_component(i: int):
 SLACK_NAMES = ("load_excess", "q_shortfall")
 
 
-def control_names(config: EntryProblemConfig) -> tuple[str, ...]:
+def control_names(config: EntryOcpConfig) -> tuple[str, ...]:
     if config.norm_mode == "projection":
         names = ("u_alpha", "u_sigma", "lambda_A", "lambda_B")
     elif config.norm_mode == "none":
@@ -207,7 +207,7 @@ def control_names(config: EntryProblemConfig) -> tuple[str, ...]:
 AERO_SCALE_PARAMETERS = ("ln_drag_accel_scale", "ln_lift_to_drag_scale")
 
 
-def model_of(config: EntryProblemConfig, ns, par=()):
+def model_of(config: EntryOcpConfig, ns, par=()):
     """The force model, with the estimated aerodynamic scales when the problem has them as parameters.
 
     :param par: empty, or one list ``[ln k_D, ln k_LD]`` (the logarithms of the drag-acceleration and
@@ -219,7 +219,7 @@ def model_of(config: EntryProblemConfig, ns, par=()):
     return with_aero_scales(config.model, ns.exp(p[0]), ns.exp(p[1]))
 
 
-def entry_dynamics(config: EntryProblemConfig, ns=None):
+def entry_dynamics(config: EntryOcpConfig, ns=None):
     """The dynamics callable ``(x, u, t[, p]) -> dx/dt`` of the chosen formulation."""
     ns = ns or casadi_ns()
 
@@ -248,7 +248,7 @@ def entry_dynamics(config: EntryProblemConfig, ns=None):
     return f_paper
 
 
-def _rate_band(config: EntryProblemConfig, ns, state_index: int, control_index: int) -> PathConstraint:
+def _rate_band(config: EntryOcpConfig, ns, state_index: int, control_index: int) -> PathConstraint:
     def fn(x, u, t, *par):
         return u[control_index] - entry_rhs(x, u[:2], model_of(config, ns, par), ns)[state_index]
 
@@ -256,7 +256,7 @@ def _rate_band(config: EntryProblemConfig, ns, state_index: int, control_index: 
     return PathConstraint(name, fn, lower=-config.delta, upper=config.delta, scale=config.delta)
 
 
-def _entry_lagrange(config: EntryProblemConfig, soft: bool, i_slack: int):
+def _entry_lagrange(config: EntryOcpConfig, soft: bool, i_slack: int):
     """The running cost, Eq. Ex2-Cost, plus the exact (L1) penalty on the slacks when the path is soft."""
 
     def lagrange(x, u, t, *par):
@@ -268,7 +268,7 @@ def _entry_lagrange(config: EntryProblemConfig, soft: bool, i_slack: int):
     return lagrange
 
 
-def _entry_path(config: EntryProblemConfig, ns, soft: bool, i_slack: int) -> tuple[list, list]:
+def _entry_path(config: EntryOcpConfig, ns, soft: bool, i_slack: int) -> tuple[list, list]:
     """The path constraints, Eq. Ex2-path, and the invariants of the normalization mode.
 
     Alpha and the rates are bounds (see `_entry_bounds`); with ``norm_mode == "paper"`` the rate
@@ -304,7 +304,7 @@ def _entry_path(config: EntryProblemConfig, ns, soft: bool, i_slack: int) -> tup
     return path, invariants
 
 
-def _entry_endpoint(config: EntryProblemConfig) -> list:
+def _entry_endpoint(config: EntryOcpConfig) -> list:
     """The endpoint constraints, Eq. Ex2-endpoint: two independent equations plus the sign.
 
     With ``norm_mode == "none"`` the three printed equations on a1 instead; a final
@@ -339,7 +339,7 @@ def _entry_endpoint(config: EntryProblemConfig) -> list:
     return endpoint
 
 
-def _entry_bounds(config: EntryProblemConfig, names, soft: bool) -> dict:
+def _entry_bounds(config: EntryOcpConfig, names, soft: bool) -> dict:
     """The state, boundary and control bounds, Table tab:Ex2-BCs, and the controls' scales.
 
     Returned as the keyword arguments of `OptimalControlProblem` they fill.
@@ -382,9 +382,9 @@ def _entry_bounds(config: EntryProblemConfig, names, soft: bool) -> dict:
     }
 
 
-def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlProblem:
+def entry_ocp(config: EntryOcpConfig | None = None) -> OptimalControlProblem:
     """The Example 2 optimal-control problem (see the module docstring)."""
-    config = config or EntryProblemConfig()
+    config = config or EntryOcpConfig()
     ns = casadi_ns()
     re = config.model.planet.radius
     names = control_names(config)
@@ -418,12 +418,12 @@ def entry_problem(config: EntryProblemConfig | None = None) -> OptimalControlPro
 
 __all__ = [
     "NORM_MODES",
-    "EntryProblemConfig",
+    "EntryOcpConfig",
     "position_direction",
     "sin_flight_path",
     "control_names",
     "entry_dynamics",
     "model_of",
     "AERO_SCALE_PARAMETERS",
-    "entry_problem",
+    "entry_ocp",
 ]
