@@ -56,6 +56,20 @@ def test_sensitivities_are_the_derivative_of_the_numpy_replay(flown, axis):
         assert np.max(np.abs(jac[:, :, i] - fd)) <= 1e-5 * np.max(np.abs(fd)), eng.names[i - 6] if i >= 6 else i
 
 
+@pytest.mark.parametrize("axis", ["altitude", "time"])
+def test_the_prediction_without_sensitivities_is_the_sensitivity_replays_to_the_last_bit(flown, axis):
+    """A fit's rejected trial points are replayed without derivatives: the same numbers, not close ones."""
+    setup, replay = flown
+    eng = _engine(setup, replay, axis, 3)
+    rng = np.random.default_rng(1)
+    for scale in (0.0, 0.01, 0.05):
+        offsets = np.array([30.0, -20.0, 10.0, 0.1, -0.2, 0.05]) * (1 + scale)
+        params = scale * rng.standard_normal(len(eng.names))
+        y, _ = eng.evaluate(offsets, params)
+        assert np.array_equal(eng.predict(offsets, params), y)
+    assert not np.array_equal(eng.predict(offsets, params), eng.predict(offsets, 0.0 * params))
+
+
 def test_a_coarse_trace_jacobian_from_the_finest_is_a_replay_at_the_coarse_knots(flown):
     setup, replay = flown
     offsets = np.zeros(6)

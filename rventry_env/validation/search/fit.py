@@ -146,7 +146,9 @@ class OutputErrorProblem:
     def _evaluate(self, z: np.ndarray):
         """(residual, Jacobian in z, prediction) at ``z``, from one replay with sensitivities (cached)."""
         key = z.tobytes()
-        if key != self._cache_key:
+        if key != self._cache_key or self._cache[1] is None:
+            if key != self._cache_key:
+                self.nfev += 1  # one replay per point, whether or not its Jacobian is asked for
             th = self.theta(z)
             with np.errstate(all="ignore"):
                 pred, jac = self.engine.evaluate(th[: self.n_init], th[self.n_init:])
@@ -157,9 +159,26 @@ class OutputErrorProblem:
             bad = ~np.isfinite(r) | ~np.all(np.isfinite(j), axis=1)
             r = np.where(bad, BAD_RESIDUAL, r)
             j[bad] = 0.0
-            self.nfev += 1
             self._cache_key, self._cache = key, (r, j, pred)
         return self._cache
+
+    def _residual(self, z: np.ndarray) -> np.ndarray:
+        """The residual at ``z`` alone: a replay without sensitivities, unless the point's Jacobian is known.
+
+        A trial point the solver rejects never needs its Jacobian; an accepted one gets it from
+        :meth:`_evaluate` at the same point, whose residual is the same to the last bit (the
+        replay's states are the same operations on the same values).
+        """
+        key = z.tobytes()
+        if key != self._cache_key:
+            th = self.theta(z)
+            with np.errstate(all="ignore"):
+                pred = self.engine.predict(th[: self.n_init], th[self.n_init:])
+                r = ((pred - self.replay.y) / self.sigma[None, :])[self.mask]
+            r = np.where(np.isfinite(r), r, BAD_RESIDUAL)
+            self.nfev += 1
+            self._cache_key, self._cache = key, (r, None, pred)
+        return self._cache[0]
 
     def solve(self, theta0: np.ndarray | None = None, max_nfev: int = 60) -> FitResult:
         """Fit from ``theta0`` (default: the current model, zero initial-state offsets)."""
@@ -170,7 +189,7 @@ class OutputErrorProblem:
         width = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
         z0 = np.clip(self.z(theta0), lo + 1e-7 * width, hi - 1e-7 * width)
         sol = least_squares(
-            lambda z: self._evaluate(z)[0],
+            self._residual,
             z0,
             jac=lambda z: self._evaluate(z)[1],
             bounds=(lo, hi),

@@ -138,6 +138,12 @@ class _Linearized:
         jac = (j / self.sigma[None, :, None])[self.mask]
         return r, jac
 
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        """:meth:`evaluate`'s residual alone (the same to the last bit), from a replay without sensitivities."""
+        with np.errstate(all="ignore"):
+            y = self.engine.predict(theta[: self.n0], theta[self.n0:])
+        return ((y - self.y_obs) / self.sigma[None, :])[self.mask]
+
     def columns(self, channels) -> list[int]:
         """The entry state, the identified effects, and the channels' coefficients."""
         base = list(range(self.n0 + len(self.effect_names)))
@@ -734,19 +740,23 @@ def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray, list]:
     width = upper - lower
     inner = np.where(np.isfinite(width), 1e-9 * width, 0.0)
     stepped = np.clip(stepped, lower + inner, upper - inner)
-    cache = {}
+    cache = {}  # the last point: its residual, and its Jacobian once asked for (a rejected trial never is)
 
-    def evaluate(theta):
+    def evaluate(theta, jacobian=True):
         key = theta.tobytes()
         if key not in cache:
-            r, jac = lin.evaluate(theta)
             ctx.nfev += 1
+        if key not in cache or (jacobian and cache[key][1] is None):
+            if jacobian:
+                r, jac = lin.evaluate(theta)
+            else:
+                r, jac = lin.residual(theta), None
             bad = ~np.isfinite(r)
             cache.clear()
-            cache[key] = (np.where(bad, 1e4, r), np.where(bad[:, None], 0.0, jac))
+            cache[key] = (np.where(bad, 1e4, r), None if jac is None else np.where(bad[:, None], 0.0, jac))
         return cache[key]
 
-    r_step, _ = evaluate(stepped)
+    r_step, _ = evaluate(stepped, jacobian=False)
     x0 = stepped if float(r_step @ r_step) < float(lin.r @ lin.r) else start
     full = x0.copy()
 
@@ -754,12 +764,13 @@ def _refine(ctx, f, final) -> tuple[np.ndarray, np.ndarray, list]:
         full[cols] = x
         return full
 
-    sol = least_squares(lambda x: evaluate(put(x))[0], x0[cols], jac=lambda x: evaluate(put(x))[1][:, cols],
+    sol = least_squares(lambda x: evaluate(put(x), jacobian=False)[0], x0[cols],
+                        jac=lambda x: evaluate(put(x))[1][:, cols],
                         bounds=(lower[cols], upper[cols]), method="trf", x_scale="jac", max_nfev=REFINE_NFEV,
                         ftol=REFINE_FTOL, xtol=1e-10, gtol=1e-10)  # fmt: skip
     f["refine_nfev"] = int(sol.nfev)
     theta = put(sol.x).copy()
-    r, _ = evaluate(theta)
+    r, _ = evaluate(theta, jacobian=False)
     if float(r @ r) > float(lin.r @ lin.r):  # cannot happen with a descent method; never report worse than the start
         theta, r = start, lin.r
     on_bound = []
