@@ -101,7 +101,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                       "or a ppo-scratch run's milestones/window_<W>s folder")
     ship.add_argument("--dest", help="destination (default, by what the run trained: a DAgger student to "
                                      "rventry_agents/data/dagger, PPO fine-tuning to data/ppo_finetune, the PPO "
-                                     "residual to data/ppo, a plain baseline to data/baselines/ALGORITHM, a from-scratch "
+                                     "residual to data/ppo_residual, a plain baseline to data/baselines/ALGORITHM, a from-scratch "
                                      "policy to data/ppo_scratch)")
     ship.set_defaults(func=_ship)
 

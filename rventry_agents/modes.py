@@ -27,7 +27,7 @@ from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 
 DATA = Path(__file__).resolve().parent / "data"
-SHIPPED_PPO = DATA / "ppo"  # the PPO residual on TV-LQR (agent ppo-residual)
+SHIPPED_PPO_RESIDUAL = DATA / "ppo_residual"  # the PPO residual on TV-LQR (agent ppo-residual)
 SHIPPED_PPO_FINETUNE = DATA / "ppo_finetune"  # PPO fine-tuning of the flight-set student (agent ppo)
 SHIPPED_BASELINES = DATA / "baselines"  # the plain baselines, one folder per algorithm
 
@@ -191,7 +191,7 @@ class ResidualMode(PolicyMode):
         return {"mode": self.name, "authority_rad": list(self.authority_rad)}
 
     def destination(self, algorithm: str | None) -> Path:
-        return SHIPPED_PPO
+        return SHIPPED_PPO_RESIDUAL
 
     def law(self, model, normalize, task: EntryTask) -> Law:
         from rventry_agents.residual import ResidualGuidance, ResidualPolicy
@@ -279,5 +279,5 @@ class StudentMode(PolicyMode):
         return replace(self, spec=self.spec.replace(q_floor_margin=margin))
 
 
-__all__ = ["SHIPPED_BASELINES", "SHIPPED_PPO", "SHIPPED_PPO_FINETUNE", "DirectLaw", "DirectMode", "PolicyMode",
+__all__ = ["SHIPPED_BASELINES", "SHIPPED_PPO_RESIDUAL", "SHIPPED_PPO_FINETUNE", "DirectLaw", "DirectMode", "PolicyMode",
            "Predictor", "ResidualMode", "StudentMode"]  # fmt: skip

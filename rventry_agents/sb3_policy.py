@@ -4,7 +4,7 @@ Two loaders are registered with ``rventry evaluate`` through entry points:
 
 * group ``rventry.agents``: ``ppo``, PPO fine-tuning of the flight-set DAgger student
   (``rventry_agents/data/ppo_finetune``); ``ppo-residual``, the PPO residual on TV-LQR
-  (``rventry_agents/data/ppo``); ``ppo-plain``, ``recurrent-ppo-plain`` and ``sac-plain``, the
+  (``rventry_agents/data/ppo_residual``); ``ppo-plain``, ``recurrent-ppo-plain`` and ``sac-plain``, the
   plain-RL baselines (``rventry_agents/data/baselines``);
 * ``sb3`` (group ``rventry.agent_files``): any saved model, given as a path.
 
@@ -26,7 +26,7 @@ import numpy as np
 
 from rventry_agents.modes import (  # noqa: F401  (where the shipped policies live, and the predictor, by their old names)
     SHIPPED_BASELINES,
-    SHIPPED_PPO,
+    SHIPPED_PPO_RESIDUAL,
     SHIPPED_PPO_FINETUNE,
     DirectLaw,
     PolicyMode,
@@ -38,7 +38,7 @@ from rventry_env.task import EntryTask
 
 # agent name -> the shipped PPO-trained policy's directory (``ppo``: PPO fine-tuning of the flight-set
 # DAgger student, ppo_finetune.toml; ``ppo-residual``: the PPO residual on TV-LQR, ppo.toml)
-SHIPPED_PPO_AGENTS = {"ppo": SHIPPED_PPO_FINETUNE, "ppo-residual": SHIPPED_PPO}
+SHIPPED_PPO_AGENTS = {"ppo": SHIPPED_PPO_FINETUNE, "ppo-residual": SHIPPED_PPO_RESIDUAL}
 # agent name -> the shipped plain baseline's directory under SHIPPED_BASELINES
 BASELINE_AGENTS = {"ppo-plain": "ppo", "recurrent-ppo-plain": "recurrent_ppo", "sac-plain": "sac"}
 
@@ -248,7 +248,7 @@ def load_saved(path: str, task: EntryTask | None = None) -> SB3Policy:
 __all__ = [
     "BASELINE_AGENTS",
     "SHIPPED_BASELINES",
-    "SHIPPED_PPO",
+    "SHIPPED_PPO_RESIDUAL",
     "SHIPPED_PPO_AGENTS",
     "SHIPPED_PPO_FINETUNE",
     "Predictor",

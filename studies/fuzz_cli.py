@@ -90,16 +90,16 @@ class Fixtures:
             d = folder / f"{kind}_{name}"
             shutil.copytree(data / kind, d)
             (d / file).write_bytes(content)
-            out.append((str(d / "model.zip") if kind == "ppo" else str(d), needle))
+            out.append((str(d / "model.zip") if kind == "ppo_residual" else str(d), needle))
 
-        if not (data / "ppo").is_dir():  # the learning agents' data are not installed
+        if not (data / "ppo_residual").is_dir():  # the learning agents' data are not installed
             return out
-        spoil("ppo", "empty_pkl", "vecnormalize.pkl", b"", "vecnormalize.pkl")
-        spoil("ppo", "random_pkl", "vecnormalize.pkl", bytes(range(256)), "vecnormalize.pkl")
-        spoil("ppo", "int_pkl", "vecnormalize.pkl", pickle.dumps(3), "vecnormalize.pkl")
-        spoil("ppo", "list_policy", "policy.json", b"[]", "policy.json")
-        spoil("ppo", "bad_policy", "policy.json", b"{", "policy.json")
-        spoil("ppo", "no_dt", "metadata.json", b'{"config": {"env": {"substeps": 1}}}', "metadata.json")
+        spoil("ppo_residual", "empty_pkl", "vecnormalize.pkl", b"", "vecnormalize.pkl")
+        spoil("ppo_residual", "random_pkl", "vecnormalize.pkl", bytes(range(256)), "vecnormalize.pkl")
+        spoil("ppo_residual", "int_pkl", "vecnormalize.pkl", pickle.dumps(3), "vecnormalize.pkl")
+        spoil("ppo_residual", "list_policy", "policy.json", b"[]", "policy.json")
+        spoil("ppo_residual", "bad_policy", "policy.json", b"{", "policy.json")
+        spoil("ppo_residual", "no_dt", "metadata.json", b'{"config": {"env": {"substeps": 1}}}', "metadata.json")
         spoil("dagger", "junk_pt", "student.pt", bytes(range(256)), "student.pt")
         spoil("dagger", "empty_pt", "student.pt", b"", "student.pt")
         spoil("dagger", "list_json", "student.json", b"[]", "student.json")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rventry_env.task import Dispersion, EntryTask
-from rventry_agents.sb3_policy import SHIPPED_BASELINES, SHIPPED_PPO, SB3Policy
+from rventry_agents.sb3_policy import SHIPPED_BASELINES, SHIPPED_PPO_RESIDUAL, SB3Policy
 from rventry_env.evaluation.agents import load_agent as load_policy
 from rventry_env.evaluation.rollout import rollout
 
@@ -242,7 +242,7 @@ def test_shipped_policies_are_present_and_deterministic_for_a_seed():
     assert not np.array_equal(d.cost, a.cost)  # PPO moved the student's network
     assert d.is_success.sum() >= 2
     # the PPO residual on TV-LQR keeps its own name
-    assert (SHIPPED_PPO / "model.zip").exists() and (SHIPPED_PPO / "vecnormalize.pkl").exists()
+    assert (SHIPPED_PPO_RESIDUAL / "model.zip").exists() and (SHIPPED_PPO_RESIDUAL / "vecnormalize.pkl").exists()
     residual = load_policy("ppo-residual")
     assert residual.spec["mode"] == "residual"
     e = rollout(residual, 4, seed=21, dispersion=Dispersion.standard())
@@ -306,10 +306,10 @@ def test_ship_puts_each_kind_of_run_in_its_own_place_by_default(tmp_path):
         return d
 
     shipped = {name: json.loads((folder / "policy.json").read_text()) for name, folder in
-               (("ft", SHIPPED_PPO_FINETUNE), ("res", SHIPPED_PPO))}  # fmt: skip
+               (("ft", SHIPPED_PPO_FINETUNE), ("res", SHIPPED_PPO_RESIDUAL))}  # fmt: skip
     assert shipped["ft"]["mode"] == "student" and shipped["res"]["mode"] == "residual"
     assert default_destination(run("ft", shipped["ft"])) == SHIPPED_PPO_FINETUNE
-    assert default_destination(run("res", shipped["res"])) == SHIPPED_PPO
+    assert default_destination(run("res", shipped["res"])) == SHIPPED_PPO_RESIDUAL
     assert default_destination(run("sac", {"algorithm": "sac", "mode": "direct"})) == SHIPPED_BASELINES / "sac"
     assert default_destination(run("dagger", student=True)) == SHIPPED_DAGGER
     with pytest.raises(ValueError, match=r"no shipped place for mode 'direct', algorithm 'a2c'; give --dest"):

@@ -274,7 +274,7 @@ def test_a_toml_file_that_is_not_toml_is_refused_naming_it(tmp_path):
 
 
 def test_each_mode_round_trips_through_its_record_and_knows_where_it_ships():
-    from rventry_agents.modes import SHIPPED_BASELINES, SHIPPED_PPO, DirectMode, PolicyMode, ResidualMode
+    from rventry_agents.modes import SHIPPED_BASELINES, SHIPPED_PPO_RESIDUAL, DirectMode, PolicyMode, ResidualMode
     from rventry_agents.records import PolicyRecord
     from rventry_env.task import EntryTask
 
@@ -282,7 +282,7 @@ def test_each_mode_round_trips_through_its_record_and_knows_where_it_ships():
     assert isinstance(residual, ResidualMode) and residual.zero_init
     assert residual.authority_rad == (math.radians(1.0), math.radians(5.0))
     again = PolicyMode.of_record(PolicyRecord.from_dict(json.loads(json.dumps({"algorithm": "ppo", **residual.record()}))))
-    assert again.authority_rad == residual.authority_rad and again.destination("ppo") == SHIPPED_PPO
+    assert again.authority_rad == residual.authority_rad and again.destination("ppo") == SHIPPED_PPO_RESIDUAL
     direct = PolicyMode.of_record(PolicyRecord.from_dict({"algorithm": "sac", "mode": "direct"}))
     assert isinstance(direct, DirectMode) and direct.destination("sac") == SHIPPED_BASELINES / "sac"
     with pytest.raises(ValueError, match="no shipped place for mode 'direct', algorithm 'a2c'"):

@@ -28,7 +28,8 @@ def _tree(tmp_path, *policies):
 
 def test_every_shipped_policy_has_a_manifest_naming_its_config_task_and_code_and_none_is_stale():
     policies = shipped_policies(ROOT)
-    assert {p.name for p in policies} >= {"dagger", "dagger_flight", "ppo", "ppo_finetune", "ppo_scratch", "sac"}
+    assert {p.name for p in policies} >= {"dagger", "dagger_flight", "ppo", "ppo_finetune", "ppo_residual", "ppo_scratch",
+                                          "sac"}  # fmt: skip
     for folder in policies:
         m = json.loads((folder / MANIFEST).read_text())
         assert m["config"]["source"] == "metadata.json:config" and len(m["config"]["sha256"]) == 64, folder
@@ -55,10 +56,10 @@ def test_the_check_flags_a_policy_whose_task_record_changed(tmp_path):
 
 
 def test_the_stale_command_lists_the_stale_and_exits_1(tmp_path, capsys):
-    root = _tree(tmp_path, "ppo")
+    root = _tree(tmp_path, "ppo_residual")
     assert main(["stale", "--root", str(root)]) == 1
     out = capsys.readouterr().out
-    assert "rventry_agents/data/ppo: no manifest" in out and "2 of 2 shipped policies and results records" in out
+    assert "rventry_agents/data/ppo_residual: no manifest" in out and "2 of 2 shipped policies and results records" in out
     assert main(["stale", "--root", str(root), "--write"]) == 0
     assert main(["stale", "--root", str(root)]) == 0
     assert "0 of 2" in capsys.readouterr().out

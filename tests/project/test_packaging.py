@@ -93,7 +93,7 @@ def test_the_wheel_holds_every_shipped_data_file(wheel):
     assert data, "no data files found"
     missing = [f for f in data if f not in names]
     assert missing == []
-    for needed in ("rventry_agents/data/ppo/vecnormalize.pkl", "rventry_agents/data/ppo/learning_curve.png",
+    for needed in ("rventry_agents/data/ppo_residual/vecnormalize.pkl", "rventry_agents/data/ppo_residual/learning_curve.png",
                    "rventry_env/reference/data/entry_reference_v1.npz"):  # fmt: skip
         assert needed in names
 
