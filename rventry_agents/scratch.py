@@ -258,14 +258,16 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     from rventry_agents.scratch_state import Checkpoint, plot_learning_curve, record_chunk
 
     trainer = Trainer(cfg, out, cfg.train.seed)
-    point = Checkpoint.read(out) if resume else None if source is None else Checkpoint.read(source)
+    start = out if resume else source  # the checkpoint this run goes on from, if any
+    point = None if start is None else Checkpoint.read(start)
     if point is None:
         ts = _initial_state(trainer.algo, cfg, cfg.train.seed)
         history, wall_before, steps = [], 0.0, 0
     else:
         ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, cfg, cfg.train.seed))
         trainer.curriculum.window = point.window
-    trainer.init_from = point.init_from if resume else None if source is None else point.origin()
+    # a resumed run keeps its own start; a run from another's checkpoint starts there
+    trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
         write_json(out / "config.json", cfg.to_dict())
     if source is not None:

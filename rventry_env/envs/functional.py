@@ -307,7 +307,8 @@ class RvEntryFunctional(environment.Environment):
             k = np.shape(params.starts.times)[:1]
             f = self.ns.float_dtype
             s = jax.ShapeDtypeStruct
-            ref = ref._replace(starts=StartParams(s(k, f), s(k + (12,), f), s((2,), f), s((), f), s((6,), f), s((), f), s((), f)))
+            ref = ref._replace(starts=StartParams(s(k, f), s(k + (12,), f), s((2,), f), s((), f), s((6,), f), s((), f),
+                                                  s((), f)))  # fmt: skip
         return ref
 
     def start_params(self, starts, model: EntryModel | None = None) -> StartParams | None:
