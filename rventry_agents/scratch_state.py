@@ -121,7 +121,7 @@ class Checkpoint:
 
         path = self.out / CHECKPOINT / "train_state.msgpack"
         try:
-            ts = serialization.from_bytes(template, path.read_bytes())
+            ts = serialization.from_state_dict(template, _renamed(serialization.msgpack_restore(path.read_bytes())))
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ConfigError(f"cannot start from {self.out}: {path} does not hold this config's training state "
                               f"({type(exc).__name__}: {exc})") from None  # fmt: skip
@@ -133,6 +133,18 @@ class Checkpoint:
                                   f"{np.shape(want)} here (the network, num_envs and the algorithm's sizes must "
                                   "match)")  # fmt: skip
         return ts, self.history, self.wall_s, self.steps
+
+
+def _renamed(tree):
+    """A saved training state with the environment state's field ``flight`` (its name in
+    checkpoints written before it became ``episode``, :class:`~rventry_env.envs.functional.EnvState`)
+    under its current name."""
+    if not isinstance(tree, dict):
+        return tree
+    out = {k: _renamed(v) for k, v in tree.items()}
+    if "flight" in out and "episode" not in out and "scales" in out:
+        out["episode"] = out.pop("flight")
+    return out
 
 
 def plot_learning_curve(history: list[dict], path: Path, title: str) -> Path | None:

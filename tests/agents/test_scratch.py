@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -139,6 +140,12 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     start = {"run": str(out), "timesteps": 2048, "window_s": window}
     assert meta["provenance"]["init_from"] == start and meta["config"]["curriculum"]["step_weighted"]
     assert json.loads((other / "checkpoint" / "state.json").read_text())["init_from"] == start  # kept on resume
+    # a checkpoint written while the environment state's field was named ``flight`` still starts a run
+    old = tmp_path / "old"
+    shutil.copytree(out, old)
+    _as_before_the_rename(old / "checkpoint" / "train_state.msgpack")
+    meta = train_scratch(SMALL, out=tmp_path / "from_old", timesteps=3072, init_from=old, progress=lambda s: None)
+    assert meta["timesteps"] == 3072
     wider = json.loads(json.dumps(SMALL))
     wider["ppo"]["hidden_layer_sizes"] = [24, 16]
     with pytest.raises(ConfigError, match=r"cannot start from .*run: .*training state"):
@@ -182,6 +189,25 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     a = rollout(agent, 4, seed=0, starts=rung_starts("late"))
     b = rollout(agent, 4, seed=0, starts=rung_starts("late"))
     assert np.array_equal(a.miss_km, b.miss_km) and np.array_equal(a.cost, b.cost)
+
+
+def _as_before_the_rename(path):
+    """Rewrite a saved training state with the environment state's field under its old name, ``flight``."""
+    from flax import serialization
+
+    renamed = []
+
+    def back(tree):
+        if not isinstance(tree, dict):
+            return tree
+        out = {k: back(v) for k, v in tree.items()}
+        if "episode" in out and "scales" in out:
+            out["flight"] = out.pop("episode")
+            renamed.append(1)
+        return out
+
+    path.write_bytes(serialization.msgpack_serialize(back(serialization.msgpack_restore(path.read_bytes()))))
+    assert renamed  # the state held the field
 
 
 def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
