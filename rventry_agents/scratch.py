@@ -31,6 +31,7 @@ wall time, env-steps/s, the device, the curriculum's history).
 
 from __future__ import annotations
 
+import json
 import math
 import shlex
 import sys
@@ -156,10 +157,35 @@ def _initial_state(algo, cfg: ScratchConfig, seed: int):
 
     from rventry_agents.jax_ppo import settled_state
 
-    ts = algo.init_state(jax.random.PRNGKey(seed))
+    return settled_state(with_log_std(algo.init_state(jax.random.PRNGKey(seed)), cfg.ppo.log_std_init))
+
+
+def _seed_of(run: Path) -> int | None:
+    """The ``[train] seed`` of the run in ``run`` (None where its config is not there)."""
+    try:
+        return int(json.loads((run / "config.json").read_text())["train"]["seed"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _reseeded(ts, seed: int):
+    """The training state with ``seed`` folded into its random key: a run started from another's
+    checkpoint under another seed draws its own rollouts and minibatches from there (the key is
+    in the checkpoint, so without this the seed would change nothing)."""
+    import jax
+
+    return ts.replace(rng=jax.random.fold_in(ts.rng, seed))
+
+
+def with_log_std(ts, log_std: float):
+    """The training state with the exploration noise's log standard deviation set to ``log_std``
+    in every action dimension (the rest of the state, the optimizer's included, as it was)."""
+    import jax
+    import jax.numpy as jnp
+
     params = jax.tree_util.tree_map(lambda v: v, ts.actor_ts.params)
-    params["params"]["action_log_std"] = jnp.full_like(params["params"]["action_log_std"], cfg.ppo.log_std_init)
-    return settled_state(ts.replace(actor_ts=ts.actor_ts.replace(params=params)))
+    params["params"]["action_log_std"] = jnp.full_like(params["params"]["action_log_std"], log_std)
+    return ts.replace(actor_ts=ts.actor_ts.replace(params=params))
 
 
 class Trainer:
@@ -266,12 +292,19 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     else:
         ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, cfg, cfg.train.seed))
         trainer.curriculum.window = point.window
+        if source is not None and cfg.ppo.restart_exploration:
+            ts = with_log_std(ts, cfg.ppo.log_std_init)
+        if source is not None and cfg.train.seed != _seed_of(source):
+            ts = _reseeded(ts, cfg.train.seed)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
         write_json(out / "config.json", cfg.to_dict())
     if source is not None:
-        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config")
+        again = f", exploration std set back to {math.exp(cfg.ppo.log_std_init):.3g}" if cfg.ppo.restart_exploration else ""
+        if cfg.train.seed != _seed_of(source):
+            again += f", seed {cfg.train.seed} folded into its random key"
+        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config{again}")
     trainer.with_window()
     t0, rates = time.perf_counter(), []
     best = max(history, key=_rank) if history else None

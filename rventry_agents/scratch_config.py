@@ -124,12 +124,16 @@ class ShapingSection(Section):
 class PPOSection(RejaxPPOSection):
     """``[ppo]``: rejax PPO's settings and the networks (actor and critic alike), with this learner's
     defaults, and the exploration noise's starting log standard deviation; the rewards are always
-    normalized."""
+    normalized. ``restart_exploration``: a run started from another run's checkpoint
+    (``init_from``) sets the noise's log standard deviation back to ``log_std_init`` (the learned
+    one has often shrunk by then to where the policy barely explores the curriculum's new starts);
+    a fresh run starts there anyway, and a resumed run goes on with its own."""
 
     num_minibatches: int = setting(8, ge=1)
     num_epochs: int = setting(4, ge=1)
     hidden_layer_sizes: tuple[int, ...] = widths((64, 64))
     log_std_init: float = setting(-1.0, lt=2)
+    restart_exploration: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -137,7 +141,9 @@ class TrainSection(Section):
     """``[train]``: the budget, its chunks (one compiled program, called again), the seed and the
     selection set: after each chunk the deterministic policy flies ``select_episodes`` of the rung's
     own episodes (keys from ``select_seed``, never the evaluation's seeds) and the best by the task
-    metric (success rate, then median miss) is kept."""
+    metric (success rate, then median miss) is kept. A run started from another run's checkpoint
+    (``init_from``) under another ``seed`` folds it into the checkpoint's random key; under the
+    same seed it draws what the other run would have drawn next."""
 
     total_timesteps: int = setting(200_000_000, ge=1)
     chunk_timesteps: int = setting(4_194_304, ge=1)

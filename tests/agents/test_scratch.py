@@ -134,18 +134,29 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     window = json.loads((out / "checkpoint" / "state.json").read_text())["window_s"]
     stepped = json.loads(json.dumps(SMALL))
     stepped["curriculum"]["step_weighted"] = True
+    stepped["ppo"].update(log_std_init=-2.5, restart_exploration=True)
     other = tmp_path / "other"
     meta = train_scratch(stepped, out=other, timesteps=3072, init_from=out, progress=lambda s: None)
     assert [h["timesteps"] for h in json.loads((other / "evaluations.json").read_text())] == [1024, 2048, 3072]
     start = {"run": str(out), "timesteps": 2048, "window_s": window}
     assert meta["provenance"]["init_from"] == start and meta["config"]["curriculum"]["step_weighted"]
     assert json.loads((other / "checkpoint" / "state.json").read_text())["init_from"] == start  # kept on resume
+    # its exploration noise started again where its config says (the source's was e^-1), and trained a chunk from there
+    before, after = (h["exploration_std"] for h in json.loads((other / "evaluations.json").read_text())[1:])
+    assert np.allclose(before, math.exp(-1.0), rtol=0.05) and np.allclose(after, math.exp(-2.5), rtol=0.05)
     # a checkpoint written while the environment state's field was named ``flight`` still starts a run
     old = tmp_path / "old"
     shutil.copytree(out, old)
     _as_before_the_rename(old / "checkpoint" / "train_state.msgpack")
     meta = train_scratch(SMALL, out=tmp_path / "from_old", timesteps=3072, init_from=old, progress=lambda s: None)
     assert meta["timesteps"] == 3072
+    # from the same checkpoint under the same seed, the same chunk; under another seed, another
+    train_scratch(SMALL, out=tmp_path / "again", timesteps=3072, init_from=old, progress=lambda s: None)
+    reseeded = json.loads(json.dumps(SMALL))
+    reseeded["train"]["seed"] = 1
+    train_scratch(reseeded, out=tmp_path / "seed1", timesteps=3072, init_from=old, progress=lambda s: None)
+    state = [(tmp_path / r / "checkpoint" / "train_state.msgpack").read_bytes() for r in ("from_old", "again", "seed1")]
+    assert state[0] == state[1] and state[0] != state[2]
     wider = json.loads(json.dumps(SMALL))
     wider["ppo"]["hidden_layer_sizes"] = [24, 16]
     with pytest.raises(ConfigError, match=r"cannot start from .*run: .*training state"):
