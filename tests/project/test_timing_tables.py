@@ -176,6 +176,11 @@ def test_the_cost_per_decision_shows_every_law_one_vehicle_and_batched():
     dear = copy.deepcopy(DECISION_COST)
     dear["laws"]["learned"]["batched"]["per_decision_mean_s"] = 12e-6  # over a PPO-trained policy's 10 us
     assert lines(tables().decision_cost_table(dear))[2].endswith("| 733x | <= 10 us, >= 1,000x: **not met** |")
+    small = copy.deepcopy(DECISION_COST)  # a smoke run: the targets are set for a batch of 1024
+    small["batch"], small["laws"]["mpc"]["single"]["per_decision_mean_s"] = 16, 2.5
+    out = lines(tables().decision_cost_table(small))
+    assert out[2].endswith("| 300,120x | <= 10 us, >= 1,000x: set for a batch of 1024 |")
+    assert out[5] == "| `mpc` | 2.5 s (430 us / 308 ms) | one NLP per vehicle: the same per vehicle | 1x |  |"
 
 
 def test_each_timing_table_reads_its_record_and_renders_it():
