@@ -36,6 +36,15 @@ from rventry_env.util.provenance import start_run, write_record
 LAWS = ("learned", "dagger-flight", "dagger", "ppo-residual", "lqr", "lqr-est", "mpc")  # `learned`: today `ppo`
 
 
+def learned_name() -> str | None:
+    """The shipped policy ``learned`` names today (None where the agents package is not installed)."""
+    try:
+        from rventry_agents.learned import LEARNED
+    except ImportError:
+        return None
+    return LEARNED
+
+
 class TimedLaw:
     """A guidance law whose every call is timed; everything else is the law's own."""
 
@@ -88,7 +97,7 @@ def main(argv=None) -> int:
     ap.add_argument("--laws", nargs="+", choices=LAWS, default=list(LAWS), help="laws to time (all)")
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args(argv)
-    start_run()
+    run = start_run(None if argv is None else ["python", __file__, *argv])
     if args.json:
         check_writable(args.json)
     task = EntryTask()
@@ -118,9 +127,11 @@ def main(argv=None) -> int:
         if mpc and batched:
             r["mpc_over_batched"] = mpc / batched["per_decision_mean_s"]
     if args.json:
+        omp = os.environ.get("OMP_NUM_THREADS")
         write_record(args.json, {"laws": rows, "batch": args.batch, "seed": args.seed, "dispersion": "standard",
-                               "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
-                               "command": "OMP_NUM_THREADS=1 python benchmarks/decision_cost.py --json " + args.json})  # fmt: skip
+                               "omp_num_threads": omp, "single_episodes": args.single_episodes,
+                               "mpc_episodes": args.mpc_episodes, "learned": learned_name(),
+                               "command": (f"OMP_NUM_THREADS={omp} " if omp else "") + run.command})  # fmt: skip
         print(f"wrote {args.json}")
     return 0
 

@@ -19,7 +19,7 @@ Dispersion sets (``--sets``)
     (profiles, winds, sensors and navigation), measured alternately in one run, best of three
     each; the benchmark's target: ``flight`` >= 50 % of ``standard``.
 
-Run: ``python benchmarks/env_speed.py [--json PATH] [--quick] [--sets] [--accuracy]`` (``--accuracy``: that part
+Run: ``python benchmarks/env_speed.py [--json PATH] [--quick | --scale F] [--sets] [--accuracy]`` (``--accuracy``: that part
 alone, which times nothing and may run on a shared machine)
 """
 
@@ -32,6 +32,7 @@ import numpy as np
 
 from rventry_env.envs.allocator import keep_freed_memory
 from rventry_env.evaluation.accuracy import step_accuracy
+from rventry_env.util.args import positive_float
 from rventry_env.util.provenance import start_run, write_record
 
 
@@ -90,14 +91,18 @@ def time_sets(n: int, min_vehicle_steps: int, sets=("standard", "flight")) -> di
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", help="write the figures here")
-    ap.add_argument("--quick", action="store_true", help="fewer steps (noisier figures)")
+    ap.add_argument("--quick", action="store_true", help="a fifth of the steps (noisier figures): --scale 0.2")
+    ap.add_argument("--scale", type=positive_float, default=None,
+                    help="the steps timed, as a fraction of the default's (1; a smoke run: 0.01)")
     ap.add_argument("--sets", action="store_true", help="only the dispersion sets' speed at N = 8192")
     ap.add_argument("--accuracy", action="store_true", help="only the default step's accuracy (no timing)")
     args = ap.parse_args()
     start_run()
     keep_freed_memory()  # what the rventry command sets: large batches keep their freed heap (envs/allocator.py)
-    scale = 0.2 if args.quick else 1.0
-    res: dict = {}
+    if args.quick and args.scale is not None:
+        ap.error("--quick is --scale 0.2: give one of them")
+    scale = args.scale if args.scale is not None else 0.2 if args.quick else 1.0
+    res: dict = {"scale": scale}
     if args.sets or args.accuracy:
         if args.sets:
             res["sets"] = time_sets(8192, int(2e5 * scale))

@@ -24,6 +24,7 @@ import argparse
 import json
 import math
 import re
+import statistics
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -1121,6 +1122,197 @@ def baselines_table(doc: dict, jax_cpu: list, jax_gpu: list) -> str:
             f"{doc['seed']}, flown by each run's selected model.")
     return "\n".join([md(header, rows), "", text, "", source(BASELINES, *JAX_BASELINES,
                       command=(doc.get("provenance") or {}).get("command"))])  # fmt: skip
+
+# ------------------------------------------------------------------ timings
+# A timing belongs to its machine: each table below says which one ran it, from the record's provenance.
+ENV_SPEED = "docs/results/env_speed.json"
+REFERENCE_SOLVE = "docs/results/reference_solve.json"
+DECISION_COST = "docs/results/decision_cost.json"
+
+
+def _omp(doc: dict) -> str | None:
+    """OMP_NUM_THREADS as the run had it (the provenance's; a record before it held it: the record's own)."""
+    machine = (doc.get("provenance") or {}).get("machine") or {}
+    return machine["omp_num_threads"] if "omp_num_threads" in machine else doc.get("omp_num_threads")
+
+
+def _timed_command(doc: dict) -> str | None:
+    """The command that wrote a timing record, with OMP_NUM_THREADS in front where the run had it set."""
+    command = doc.get("command") or (doc.get("provenance") or {}).get("command")
+    omp = _omp(doc)
+    if command and omp is not None and "OMP_NUM_THREADS=" not in command:
+        command = f"OMP_NUM_THREADS={omp} {command}"
+    return command
+
+
+def machine_note(doc: dict, packages: tuple[str, ...]) -> str:
+    """Where and when a timing was measured: the CPU, the cores, the threads, the load, the versions."""
+    p = doc.get("provenance") or {}
+    if not p:
+        return f"The record names no machine (OMP_NUM_THREADS={_omp(doc) or 'unset'})."
+    m, v = p.get("machine") or {}, p.get("versions") or {}
+    cores = m.get("cores")
+    if m.get("cores_usable") not in (None, cores):
+        cores = f"{m['cores_usable']} of {cores}"
+    s, e = m.get("load_average_start"), m.get("load_average_end")
+    load = f"load average {s[0]:.2f} at the start and {e[0]:.2f} at the end" if s and e else "load average not recorded"
+    omp = _omp(doc)
+    when = (p.get("started_utc") or "")[:10] or "date not recorded"
+    wall = f", {p['wall_time_s']:,.0f} s in all" if p.get("wall_time_s") is not None else ""
+    versions = ", ".join(f"{name} {v[name]}" for name in ("python", *packages) if v.get(name))
+    c = p.get("commit") or {}
+    at = f" at commit {c['sha'][:7]}" + (" with uncommitted changes" if c.get("dirty") else "") if c.get("sha") else ""
+    return (f"Measured {when}{at} on {m.get('cpu', 'an unrecorded CPU')}, {cores} cores, "
+            f"OMP_NUM_THREADS={'unset' if omp is None else omp}, {load}{wall}; {versions}.")  # fmt: skip
+
+
+def env_speed_table(doc: dict) -> str:
+    """``benchmarks/env_speed.py``: the single env's steps/s and the vector env's against a ``SyncVectorEnv``."""
+    single = doc["single_env_steps_per_s"]
+    rows = [["single env through `gym.make` (with Gymnasium's wrappers)", f"{single:,.0f} steps", "", "",
+             f">= 1e4: {_met(single >= 1e4)}"]]
+    for r in doc["vector"]:
+        n, vec = r["num_envs"], r["vector_vehicle_steps_per_s"]
+        rows.append([f"vector env, N = {n}", f"{vec:,.0f} vehicle-steps", f"{r['sync_vehicle_steps_per_s']:,.0f}",
+                     f"{sig(r['speedup'], 2)}x", f">= 1e6: {_met(vec >= 1e6)}" if n == 8192 else ""])  # fmt: skip
+    header = ["", "per second", f"a `SyncVectorEnv` of N single envs", "vector / sync", "target"]
+    scale = doc.get("scale", 1.0)
+    steps = "" if scale == 1 else f" Steps timed: {scale * 100:g} % of the default's (noisier figures)."
+    return "\n".join([md(header, rows), "", machine_note(doc, ("numpy", "gymnasium")) + steps, "",
+                      source(ENV_SPEED, command=_timed_command(doc))])
+
+
+def _passes(r: dict) -> str:
+    return ", ".join(f"{it} ({n})" for it, n in zip(r["iterations_per_pass"], r["nodes_per_pass"]))
+
+
+def reference_solve_table(doc: dict) -> str:
+    """``benchmarks/reference_solve.py``: each cold-start solve of the entry problem, in a fresh process."""
+    runs = doc["entry"]
+    wall = statistics.median(r["wall_s"] for r in runs)
+    first = _passes(runs[0])
+    rows = [["wall time (guess + all mesh passes)", *(f"{r['wall_s']:.1f} s" for r in runs),
+             f"median {wall:.1f} s < 30 s: {_met(wall < 30)}"],
+            ["CPU time of the process", *(f"{r['cpu_s']:.1f} s" for r in runs), ""],
+            ["of which the guess", *(f"{r['guess_s']:.1f} s" for r in runs), ""],
+            ["module imports (not included above)", *(f"{r['import_s']:.1f} s" for r in runs), ""],
+            ["IPOPT iterations per pass (nodes)", *(_passes(r) if i == 0 or _passes(r) != first else "same"
+                                                    for i, r in enumerate(runs)), ""],
+            ["peak resident memory (whole process)", *(f"{r['rss_peak_mb']:.0f} MB" for r in runs), ""],
+            ["J*, t_f, final mesh error", *(f"{r['cost']:.6f}, {r['tf_s']:.3f} s, {sci(r['mesh_error'], 2)}" for r in runs),
+             ""]]  # fmt: skip
+    header = ["", *(f"run {i}" for i in range(len(runs))), "target"]
+    return "\n".join([md(header, rows), "", machine_note(doc, ("casadi", "numpy", "scipy")), "",
+                      source(REFERENCE_SOLVE, command=_timed_command(doc))])
+
+
+def reference_solve_summary(doc: dict) -> str:
+    """The benchmark page's lines of ``benchmarks/reference_solve.py``: the cold-start solve's wall time and memory."""
+    runs = doc["entry"]
+    wall = statistics.median(r["wall_s"] for r in runs)
+    rows = [["cold-start solve, wall (each run in a fresh process)", ", ".join(f"{r['wall_s']:.1f} s" for r in runs),
+             f"median < 30 s: {_met(wall < 30)}"],
+            ["CPU time of the process", ", ".join(f"{r['cpu_s']:.1f} s" for r in runs), ""],
+            ["peak memory (whole process)", ", ".join(f"{r['rss_peak_mb']:.0f} MB" for r in runs), ""]]  # fmt: skip
+    return "\n".join([md(["quantity", "measured", "target"], rows), "", machine_note(doc, ("casadi",)), "",
+                      source(REFERENCE_SOLVE, command=_timed_command(doc))])
+
+
+def _betts_case(case: str) -> str:
+    """``no_heating_limit`` -> "no heating limit"; ``heating_limit_70`` -> "q <= 70 BTU/ft^2/s"."""
+    if case.startswith("heating_limit_"):
+        return f"q <= {case.removeprefix('heating_limit_')} BTU/ft^2/s"
+    return case.replace("_", " ")
+
+
+def betts_table(doc: dict) -> str:
+    """``benchmarks/reference_solve.py``: Betts' Space Shuttle maximum crossrange against the published optimum."""
+    rows = []
+    for b in doc["betts"]:
+        p = b["published"]
+        rows.append([_betts_case(b["case"]), f"{b['tf_s']:.3f} s ({p['tf_s']:g})", sci(b["tf_rel_error"], 0),
+                     f"{b['latitude_deg']:.5f} deg ({p['latitude_deg']:g})", sci(b["latitude_rel_error"], 0),
+                     sci(b["mesh_error"], 1), str(b["n_nodes"]), f"{b['wall_s']:.1f} s"])  # fmt: skip
+    header = ["case", "tf (published)", "rel. error", "final latitude (published)", "rel. error", "mesh error", "nodes",
+              "wall"]  # fmt: skip
+    worst = max(max(b["tf_rel_error"], b["latitude_rel_error"]) for b in doc["betts"])
+    verdict = f"Largest relative error {sci(worst, 0)} against the target's 1e-3: {_met(worst <= 1e-3)}."
+    return "\n".join([md(header, rows), "", verdict, "", source(REFERENCE_SOLVE, command=_timed_command(doc))])
+
+
+# the laws of benchmarks/decision_cost.py: what each is, and the targets of a learned policy per vehicle in a
+# batch of TARGET_BATCH (at most 1 ms and at least 1000x cheaper than mpc; one trained by PPO: at most 10 us)
+TARGET_BATCH = 1024
+DECISION_LAWS = {
+    "ppo": ("PPO's weights on `dagger-flight`'s network, estimator and relief, with its q floor; in torch", "10 us", 10e-6),
+    "dagger-flight": ("the flight-set student: one network, its estimator and its load relief", "1 ms", 1e-3),
+    "dagger": ("one network, its estimator and its load relief", "1 ms", 1e-3),
+    "ppo-residual": ("the PPO residual with its TV-LQR", "10 us", 10e-6),
+}  # fmt: skip
+
+
+def _decision_law(name: str, doc: dict) -> tuple[str, str | None, float | None]:
+    """A law's label, and its target per vehicle in a batch (text and seconds; None: no target)."""
+    shown = doc.get("learned") if name == "learned" else None  # `learned` names a shipped policy: the record says which
+    what, target, limit = DECISION_LAWS.get(shown or name, (None, None, None))
+    label = f"`{name}`" + (f" (`{shown}`" + (f": {what})" if what else ")") if shown else f" ({what})" if what else "")
+    return label, target, limit
+
+
+def _duration(s: float) -> str:
+    """A time per decision: us below 1 ms, ms from 1 ms, s from 1 s (3 significant figures, at most one decimal)."""
+    if s >= 1:
+        return f"{s:.1f} s"
+    if s >= 1e-3:
+        return f"{s * 1e3:.1f} ms" if s < 0.1 else f"{s * 1e3:.0f} ms"
+    return f"{s * 1e6:.1f} us" if s < 1e-4 else f"{s * 1e6:.0f} us"
+
+
+def _per_decision(r: dict) -> str:
+    return (f"{_duration(r['per_decision_mean_s'])} ({_duration(r['per_decision_p50_s'])} / "
+            f"{_duration(r['per_decision_p99_s'])})")
+
+
+def decision_cost_table(doc: dict) -> str:
+    """``benchmarks/decision_cost.py``: the time per decision of each law, one vehicle and batched, against ``mpc``."""
+    laws, batch = doc["laws"], doc["batch"]
+    mpc = laws.get("mpc", {}).get("single", {}).get("per_decision_mean_s")
+    rows = []
+    for name, r in laws.items():
+        label, target_text, limit = _decision_law(name, doc)
+        batched = r.get("batched")
+        if batched:
+            cost = batched["per_decision_mean_s"]
+            ratio = f"{mpc / cost:,.0f}x" if mpc else "-"
+            cells = [_per_decision(batched), ratio]
+        else:  # mpc: one NLP per vehicle, so a batch costs B times one vehicle
+            cells = ["one NLP per vehicle: the same per vehicle", "1x" if name == "mpc" else "-"]
+        target = ""
+        if limit is not None and batched:
+            ok = cost <= limit and mpc is not None and mpc / cost >= 1000
+            target = f"<= {target_text}, >= 1,000x: " + (
+                f"set for a batch of {TARGET_BATCH}" if batch != TARGET_BATCH else _met(ok) if mpc else "no `mpc` in the run")
+        rows.append([label, _per_decision(r["single"]), *cells, target])
+    header = ["law", "one vehicle: mean (median / p99 call)", f"batch of {batch}: mean per vehicle (median / p99 call)",
+              "`mpc` / this, batched", "target"]  # fmt: skip
+    n = {name: r["single"]["episodes"] for name, r in laws.items()}
+    each = max(v for k, v in n.items() if k != "mpc") if set(n) - {"mpc"} else n["mpc"]
+    flown = (f"Standard set from seed {doc['seed']}: one vehicle at a time {each} episode{'s' if each > 1 else ''} per "
+             "law" + (f" ({n['mpc']} of `mpc`)" if "mpc" in n else "") +
+             f", and {batch} in one batch; re-solves included in the mean.")  # fmt: skip
+    return "\n".join([md(header, rows), "", flown + " " + machine_note(doc, ("numpy", "torch", "casadi")), "",
+                      source(DECISION_COST, command=_timed_command(doc))])
+
+
+# tables of timings: measured on a quiet machine, each by one command (docs/results/README.md)
+TIMINGS: tuple[Table, ...] = (
+    Table("env-speed", (ENV_SPEED,), env_speed_table, ("docs/benchmarks/environment.md",)),
+    Table("reference-solve", (REFERENCE_SOLVE,), reference_solve_table, ("docs/reference.md",)),
+    Table("reference-solve-summary", (REFERENCE_SOLVE,), reference_solve_summary, ("docs/benchmarks/collocation.md",)),
+    Table("reference-betts", (REFERENCE_SOLVE,), betts_table, ("docs/reference.md",)),
+    Table("decision-cost", (DECISION_COST,), decision_cost_table, ("docs/benchmarks/learned_policies.md",)),
+)  # fmt: skip
+
 
 # ------------------------------------------------------------------ the registry
 EXPLAINED_SCANS = ("aero", "final", "estimator", "split", "dive")  # also shown where the design page explains them

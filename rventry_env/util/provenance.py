@@ -7,8 +7,9 @@ JSON through :meth:`RunRecord.write`, which adds a ``"provenance"`` entry:
 
 * ``commit``: the source tree's ``git`` commit and whether it had uncommitted changes (None
   outside a checkout);
-* ``machine``: the CPU model, the cores the process may use and those the machine has, and the
-  load average at the start and at the end (a shared machine's timings are read against it);
+* ``machine``: the CPU model, the cores the process may use and those the machine has, the
+  load average at the start and at the end (a shared machine's timings are read against it), and
+  ``OMP_NUM_THREADS`` as the run had it (None: unset);
 * ``versions``: Python and the packages the figures depend on (None where one is not installed);
 * ``command``: the command line, and the start and end times (UTC).
 
@@ -96,7 +97,8 @@ class RunRecord:
         return {
             "commit": self.commit,
             "machine": {"cpu": cpu_model(), "cores_usable": usable, "cores": os.cpu_count(), "system": platform.system(),
-                        "load_average_start": self.load_start, "load_average_end": load_average()},
+                        "load_average_start": self.load_start, "load_average_end": load_average(),
+                        "omp_num_threads": os.environ.get("OMP_NUM_THREADS")},
             "versions": package_versions(),
             "command": self.command,
             "started_utc": self.started.isoformat(timespec="seconds"),

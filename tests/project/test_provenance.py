@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -26,6 +27,7 @@ def test_a_record_names_its_commit_machine_versions_and_command(tmp_path):
     m = p["machine"]
     assert m["cpu"] and m["cores"] >= 1 and 1 <= m["cores_usable"] <= m["cores"]
     assert len(m["load_average_start"]) == 3 and len(m["load_average_end"]) == 3
+    assert m["omp_num_threads"] == os.environ.get("OMP_NUM_THREADS")
     assert p["versions"]["numpy"] and p["versions"]["python"] and "jax" in p["versions"]
     assert p["wall_time_s"] >= 0
     with pytest.raises(TypeError, match="a record is a JSON object"):
