@@ -153,7 +153,6 @@ def _agent(cfg: ScratchConfig, env, params, chunk: int):
 
 def _initial_state(algo, cfg: ScratchConfig, seed: int):
     import jax
-    import jax.numpy as jnp
 
     from rventry_agents.jax_ppo import settled_state
 
