@@ -291,19 +291,19 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     else:
         ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, cfg, cfg.train.seed))
         trainer.curriculum.window = point.window
-        if source is not None and cfg.ppo.restart_exploration:
-            ts = with_log_std(ts, cfg.ppo.log_std_init)
-        if source is not None and cfg.train.seed != _seed_of(source):
-            ts = _reseeded(ts, cfg.train.seed)
+    changes = ""  # what this run changed in another run's state it starts from
+    if source is not None and cfg.ppo.restart_exploration:
+        ts = with_log_std(ts, cfg.ppo.log_std_init)
+        changes += f", exploration std set back to {math.exp(cfg.ppo.log_std_init):.3g}"
+    if source is not None and cfg.train.seed != _seed_of(source):
+        ts = _reseeded(ts, cfg.train.seed)
+        changes += f", seed {cfg.train.seed} folded into its random key"
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
         write_json(out / "config.json", cfg.to_dict())
     if source is not None:
-        again = f", exploration std set back to {math.exp(cfg.ppo.log_std_init):.3g}" if cfg.ppo.restart_exploration else ""
-        if cfg.train.seed != _seed_of(source):
-            again += f", seed {cfg.train.seed} folded into its random key"
-        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config{again}")
+        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config{changes}")
     trainer.with_window()
     t0, rates = time.perf_counter(), []
     best = max(history, key=_rank) if history else None
