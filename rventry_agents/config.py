@@ -380,10 +380,11 @@ def _encode(value):
     return value
 
 
-def _merge(base: dict, changes: dict) -> dict:
+def merge_tables(base: dict, changes: dict) -> dict:
+    """``base`` with ``changes`` merged in, table by table (a nested dict, as TOML gives it)."""
     out = dict(base)
     for key, value in changes.items():
-        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+        out[key] = merge_tables(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
     return out
 
 
@@ -434,7 +435,7 @@ class Section:
 
     def merged(self, changes: dict):
         """A checked copy with ``changes`` (a nested dict, as in the TOML file) merged in."""
-        return type(self).from_dict(_merge(self.to_dict(), changes), "the changed config")
+        return type(self).from_dict(merge_tables(self.to_dict(), changes), "the changed config")
 
     # -- hooks for sections with variants or a TOML form of their own
     @classmethod
@@ -511,4 +512,4 @@ def algorithm_class(algorithm: str):
 
 
 __all__ = ["ALGORITHMS", "ConfigError", "Section", "algorithm_class", "check_algorithm", "check_field",
-           "describe", "dispersion", "read_json", "read_toml", "setting", "widths"]  # fmt: skip
+           "describe", "dispersion", "merge_tables", "read_json", "read_toml", "setting", "widths"]  # fmt: skip

@@ -176,6 +176,31 @@ def _reseeded(ts, seed: int):
     return ts.replace(rng=jax.random.fold_in(ts.rng, seed))
 
 
+def _entered(ts, cfg: ScratchConfig, seed_before: int | None):
+    """The training state as a run under ``cfg`` starts from another's (or a stage from the stage
+    before it), and what that changed, for the progress line: the exploration noise set back to
+    ``log_std_init`` where ``restart_exploration``, and another seed than ``seed_before`` folded into
+    the random key."""
+    changes = ""
+    if cfg.ppo.restart_exploration:
+        ts = with_log_std(ts, cfg.ppo.log_std_init)
+        changes += f", exploration std set back to {math.exp(cfg.ppo.log_std_init):.3g}"
+    if cfg.train.seed != seed_before:
+        ts = _reseeded(ts, cfg.train.seed)
+        changes += f", seed {cfg.train.seed} folded into its random key"
+    return ts, changes
+
+
+def _next_stage(trainer: Trainer, cfg: ScratchConfig) -> Trainer:
+    """A trainer for the next stage's ``cfg``, where ``trainer`` stood: its curriculum's window, its
+    start, the count of compilations."""
+    nxt = Trainer(cfg, trainer.out, cfg.train.seed)
+    nxt.curriculum.window = trainer.curriculum.window
+    nxt.init_from, nxt.traces = trainer.init_from, trainer.traces
+    nxt.with_window()
+    return nxt
+
+
 def with_log_std(ts, log_std: float):
     """The training state with the exploration noise's log standard deviation set to ``log_std``
     in every action dimension (the rest of the state, the optimizer's included, as it was)."""
@@ -282,40 +307,53 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
 def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path | None = None) -> dict:
     from rventry_agents.scratch_state import Checkpoint, plot_learning_curve, record_chunk
 
-    trainer = Trainer(cfg, out, cfg.train.seed)
     start = out if resume else source  # the checkpoint this run goes on from, if any
     point = None if start is None else Checkpoint.read(start)
+    steps = 0 if point is None else point.steps
+    stages = cfg.stage_configs()
+    stage = cfg.stage_at(steps)
+    trainer = Trainer(stages[stage][1], out, stages[stage][1].train.seed)
     if point is None:
-        ts = _initial_state(trainer.algo, cfg, cfg.train.seed)
-        history, wall_before, steps = [], 0.0, 0
+        ts = _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed)
+        history, wall_before = [], 0.0
     else:
-        ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, cfg, cfg.train.seed))
+        ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
         trainer.curriculum.window = point.window
-    changes = ""  # what this run changed in another run's state it starts from
-    if source is not None and cfg.ppo.restart_exploration:
-        ts = with_log_std(ts, cfg.ppo.log_std_init)
-        changes += f", exploration std set back to {math.exp(cfg.ppo.log_std_init):.3g}"
-    if source is not None and cfg.train.seed != _seed_of(source):
-        ts = _reseeded(ts, cfg.train.seed)
-        changes += f", seed {cfg.train.seed} folded into its random key"
+    changes = ""  # what this run changed in the state it starts from
+    if source is not None:  # another run's checkpoint, as if this run's stage were entered from it
+        ts, changes = _entered(ts, trainer.cfg, _seed_of(source))
+    elif resume and history and history[-1].get("stage", 0) < stage:  # stopped on a stage's first step
+        ts, changes = _entered(ts, trainer.cfg, stages[history[-1].get("stage", 0)][1].train.seed)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
         write_json(out / "config.json", cfg.to_dict())
     if source is not None:
         progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config{changes}")
+    elif changes:
+        progress(f"stage {stage} from {steps:,d} steps{changes}")
     trainer.with_window()
     t0, rates = time.perf_counter(), []
     best = max(history, key=_rank) if history else None
+    compiles = True  # the next chunk includes the compilation of its program
     while steps < cfg.train.total_timesteps:
+        if stage + 1 < len(stages) and steps >= stages[stage + 1][0]:  # the next stage starts here
+            stage += 1
+            trainer = _next_stage(trainer, stages[stage][1])
+            ts, changes = _entered(ts, trainer.cfg, stages[stage - 1][1].train.seed)
+            progress(f"stage {stage} from {steps:,d} steps{changes}")
+            compiles = True
         c0 = time.perf_counter()
         ts = trainer.chunk(ts)
         dt = time.perf_counter() - c0
         done = int(ts.global_step)
-        if history or point is not None:  # the first chunk of a segment includes the compilation
+        if not compiles:
             rates.append((done - steps) / dt)
+        compiles = False
         steps = done
         rec = record_chunk(trainer, ts, steps, wall_before + time.perf_counter() - t0, dt)
+        if cfg.stages:
+            rec["stage"] = stage
         history.append(rec)
         if best is None or _rank(rec) > _rank(best):
             best = rec

@@ -4,17 +4,20 @@ A config file has the sections ``[env]`` (the rung trained on and how the policy
 ``[reward]`` (optional overrides of :class:`~rventry_env.envs.reward.RewardWeights`),
 ``[curriculum]`` (start states along the shipped reference), ``[shaping]`` (a potential-based
 shaping of the reward), ``[ppo]`` (rejax PPO's settings and the network) and ``[train]`` (budget,
-chunks, seed, selection). :meth:`ScratchConfig.load` reads one and checks every key before
-anything runs; ``rventry_agents/ppo_scratch.toml`` is the shipped policy's.
+chunks, seed, selection), and optionally ``[[stages]]``: from a given step on, the run goes on
+with some of those settings changed (:class:`StageSection`), so that a recipe that changes its
+learning rate or its curriculum as it trains is one file. :meth:`ScratchConfig.load` reads one
+and checks every key, every stage's included, before anything runs;
+``rventry_agents/ppo_scratch.toml`` is the shipped policy's.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from rventry_agents.config import ConfigError, Section, setting, widths
+from rventry_agents.config import ConfigError, Section, merge_tables, setting, widths
 from rventry_agents.jax_ppo_config import RejaxPPOSection
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.reference.starts import STEP_S
@@ -153,6 +156,46 @@ class TrainSection(Section):
     max_wall_s: float | None = setting(None, gt=0)
 
 
+# what a stage may not change: what sizes the training state (the network, the environments, the
+# actions), the compiled chunk, the budget and the selection set every chunk is ranked on
+STAGE_FIXED = {"env": ("actions", "num_envs", "dtype", "resets"),
+               "ppo": ("hidden_layer_sizes", "activation", "normalize_observations", "num_steps", "num_minibatches"),
+               "train": ("total_timesteps", "chunk_timesteps", "max_wall_s", "select_episodes", "select_seed")}  # fmt: skip
+
+
+@dataclass(frozen=True, kw_only=True)
+class StageSection(Section):
+    """``[[stages]]``: from ``from_timesteps`` on (a whole number of chunks), the run goes on with
+    the stage's keys changed, on top of the stages before it. The keys are tables of the sections
+    above (``ppo = {learning_rate = 1e-4}``, ``curriculum = {growth = 1.06}``), checked as the
+    sections check them; what sizes the training state, the chunk, the budget and the selection
+    stay (:data:`STAGE_FIXED`). Entering a stage is what starting a new run from the checkpoint at
+    that step with ``init_from`` does: ``[ppo] restart_exploration`` sets the exploration noise
+    back to ``log_std_init``, and another ``[train] seed`` is folded into the random key; the
+    curriculum's window, the history and the selected policy go on."""
+
+    from_timesteps: int = setting(ge=1)
+    changes: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        super().__post_init__()
+        for name, table in self.changes.items():
+            if name == "stages" or not isinstance(table, dict):
+                raise ConfigError(f"{name!r}: a stage changes keys of the sections (env, reward, curriculum, shaping, "
+                                  "ppo, train), each given as a table")  # fmt: skip
+            for key in STAGE_FIXED.get(name, ()):
+                if key in table:
+                    raise ConfigError(f"{name}.{key} cannot change in a stage: the run's training state, chunk, "
+                                      "budget and selection stay as the config's first sections set them")  # fmt: skip
+
+    @classmethod
+    def _pack(cls, data: dict) -> dict:
+        return {**({"from_timesteps": data.pop("from_timesteps")} if "from_timesteps" in data else {}), "changes": data}
+
+    def _unpack(self, data: dict) -> dict:
+        return {"from_timesteps": data["from_timesteps"], **data.get("changes", {})}
+
+
 @dataclass(frozen=True, kw_only=True)
 class ScratchConfig(Section):
     """A whole ``ppo-scratch`` config (see the module docstring)."""
@@ -163,15 +206,41 @@ class ScratchConfig(Section):
     shaping: ShapingSection = ShapingSection()
     ppo: PPOSection = PPOSection()
     train: TrainSection = TrainSection()
+    stages: tuple[StageSection, ...] = setting((), what="a list of [[stages]] tables")
 
     def __post_init__(self):
         super().__post_init__()
+        starts = [s.from_timesteps for s in self.stages]
+        if starts != sorted(set(starts)):
+            raise ConfigError(f"[[stages]] from_timesteps must increase from one stage to the next, got {starts}")
+        for i, s in enumerate(self.stages):
+            if s.from_timesteps % self.train.chunk_timesteps:
+                raise ConfigError(f"[stages][{i}] from_timesteps ({s.from_timesteps:,}) must be a whole number of "
+                                  f"chunks ([train] chunk_timesteps = {self.train.chunk_timesteps:,})")  # fmt: skip
+        self.stage_configs()  # each stage's config is checked here, before anything runs
         if self.train.chunk_timesteps < self.env.num_envs * self.ppo.num_steps:
             raise ConfigError(f"[train] chunk_timesteps ({self.train.chunk_timesteps:,}) is shorter than one rollout "
                               f"(num_envs x num_steps = {self.env.num_envs * self.ppo.num_steps:,})")  # fmt: skip
         if (self.env.num_envs * self.ppo.num_steps) % self.ppo.num_minibatches:
             raise ConfigError(f"[ppo] num_minibatches ({self.ppo.num_minibatches}) must divide a rollout's "
                               f"{self.env.num_envs * self.ppo.num_steps:,} steps")  # fmt: skip
+
+    def stage_configs(self) -> tuple[tuple[int, ScratchConfig], ...]:
+        """(first step, config) of each stage, the config's own first sections from step 0; each
+        config without stages of its own."""
+        plain = {k: v for k, v in self.to_dict().items() if k != "stages"}
+        out = [(0, self if not self.stages else ScratchConfig.from_dict(plain))]
+        for i, stage in enumerate(self.stages):
+            plain = merge_tables(plain, stage.changes)
+            try:
+                out.append((stage.from_timesteps, ScratchConfig.from_dict(plain, f"[stages][{i}]")))
+            except ConfigError as exc:
+                raise ConfigError(str(exc).replace(f"[stages][{i}]: [", f"[stages][{i}] [")) from None
+        return tuple(out)
+
+    def stage_at(self, timesteps: int) -> int:
+        """The stage the run is in at ``timesteps`` (0: the config's first sections)."""
+        return sum(s.from_timesteps <= timesteps for s in self.stages)
 
 
 def load_config(path: str | Path | dict | None = None) -> ScratchConfig:
@@ -188,6 +257,7 @@ __all__ = [
     "PPOSection",
     "ScratchConfig",
     "ShapingSection",
+    "StageSection",
     "TrainSection",
     "load_config",
 ]  # fmt: skip

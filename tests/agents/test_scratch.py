@@ -43,6 +43,35 @@ def test_the_shipped_config_loads_and_a_misspelled_key_is_refused_by_name(tmp_pa
     assert starts.step_weighted and starts.before_end_s == (19.0, 599.0)
 
 
+CHUNK = 4_194_304
+
+
+def test_stages_change_the_config_from_their_step_on_each_on_top_of_the_last_and_are_checked_first(tmp_path):
+    recipe = tmp_path / "recipe.toml"
+    recipe.write_text("[ppo]\nlearning_rate = 3e-4\n\n[[stages]]\nfrom_timesteps = 8_388_608\nppo = {learning_rate = 1e-4}\n\n"
+                      "[[stages]]\nfrom_timesteps = 16_777_216\ncurriculum = {growth = 1.06}\ntrain = {seed = 3}\n")
+    cfg = load_config(recipe)
+    assert [(start, c.ppo.learning_rate, c.curriculum.growth, c.train.seed, c.stages) for start, c in cfg.stage_configs()] == [
+        (0, 3e-4, 1.25, 0, ()), (2 * CHUNK, 1e-4, 1.25, 0, ()), (4 * CHUNK, 1e-4, 1.06, 3, ())]
+    assert [cfg.stage_at(n) for n in (0, 2 * CHUNK - 1, 2 * CHUNK, 10 * CHUNK)] == [0, 0, 1, 2]
+    assert load_config(cfg.to_dict()) == cfg and load_config({}).stage_configs() == ((0, load_config({})),)
+    bad = {r"\[stages\]\[0\] from_timesteps \(100\) must be a whole number of chunks": [{"from_timesteps": 100}],
+           r"from_timesteps must increase": [{"from_timesteps": 2 * CHUNK}, {"from_timesteps": CHUNK}],
+           r"\[stages\]\[0\] \[ppo\] learning_rate must be a finite number > 0": [
+               {"from_timesteps": CHUNK, "ppo": {"learning_rate": -1.0}}],
+           r"\[stages\]\[0\] \[ppo\] unknown key 'learnin_rate'; did you mean 'learning_rate'": [
+               {"from_timesteps": CHUNK, "ppo": {"learnin_rate": 1e-4}}],
+           r"env.num_envs cannot change in a stage": [{"from_timesteps": CHUNK, "env": {"num_envs": 64}}],
+           r"'lr': a stage changes keys of the sections": [{"from_timesteps": CHUNK, "lr": 1e-4}],
+           r"\[stages\]\[0\] missing key 'from_timesteps'": [{"ppo": {"learning_rate": 1e-4}}]}  # fmt: skip
+    for message, stages in bad.items():
+        with pytest.raises(ConfigError, match=message):
+            load_config({"stages": stages})
+    recipe.write_text("[[stages]]\nfrom_timesteps = 4_194_304\nppo = {clip_eps = 0}\n")
+    with pytest.raises(ConfigError, match=r"recipe.toml: \[stages\]\[0\] \[ppo\] clip_eps"):
+        load_config(recipe)
+
+
 def _obs(alpha_deg, mu_deg, gamma_deg=0.0):
     obs = np.zeros((np.size(alpha_deg), 26))
     obs[:, feature_index("alpha")] = 2.0 * np.radians(alpha_deg) / TASK.problem.alpha_max - 1.0
@@ -144,6 +173,21 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     # its exploration noise started again where its config says (the source's was e^-1), and trained a chunk from there
     before, after = (h["exploration_std"] for h in json.loads((other / "evaluations.json").read_text())[1:])
     assert np.allclose(before, math.exp(-1.0), rtol=0.05) and np.allclose(after, math.exp(-2.5), rtol=0.05)
+    # the same change as a stage of one config: entered at 2048 steps as `other` started from `out`,
+    # straight through or on resuming a run stopped there, it trains the same state to the byte
+    staged = json.loads(json.dumps(SMALL))
+    staged["stages"] = [{"from_timesteps": 2048, "curriculum": {"step_weighted": True},
+                         "ppo": {"log_std_init": -2.5, "restart_exploration": True}}]  # fmt: skip
+    meta = train_scratch(staged, out=tmp_path / "staged", timesteps=3072, progress=lambda s: None)
+    assert meta["train_compilations"] == 2 and meta["config"]["stages"] == staged["stages"]
+    train_scratch(staged, out=tmp_path / "stopped", timesteps=2048, progress=lambda s: None)
+    lines = []
+    train_scratch(staged, out=tmp_path / "stopped", timesteps=3072, resume=True, progress=lines.append)
+    assert "stage 1 from 2,048 steps, exploration std set back to 0.0821" in lines
+    for run in ("staged", "stopped"):
+        assert [h["stage"] for h in json.loads((tmp_path / run / "evaluations.json").read_text())] == [0, 0, 1]
+        assert (tmp_path / run / "checkpoint" / "train_state.msgpack").read_bytes() == (
+            other / "checkpoint" / "train_state.msgpack").read_bytes(), run
     # a checkpoint written while the environment state's field was named ``flight`` still starts a run
     old = tmp_path / "old"
     shutil.copytree(out, old)
