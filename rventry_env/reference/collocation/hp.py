@@ -79,7 +79,7 @@ def solve(
 
     for it in range(first_iteration, first_iteration + opts.max_mesh_iterations):
         sol = one_pass(it, warm)
-        if warm and not sol.success:
+        if warm and opts.warm_ipopt and not sol.success:
             # the warm-start options trust the previous point; when IPOPT fails from it (an
             # "infeasible" verdict deep in a small barrier, say) the pass is solved again cold
             sol = one_pass(it, False, tag="c")
