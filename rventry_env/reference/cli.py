@@ -39,8 +39,6 @@ def register(subparsers) -> None:
     p.add_argument("--end-fraction", type=interval(0.0, 1.0, high_open=True), default=0.025,
                    help="last fraction of the time meshed finer in the first mesh (0.025; 0 for none)")
     p.add_argument("--max-mesh-iterations", type=positive_int, default=15, help="mesh passes per stage (15)")
-    p.add_argument("--starts", type=positive_int, default=3,
-                   help="simulated flights the first mesh is solved from; the lowest cost is refined (3)")
     p.add_argument("--norm-mode", choices=("projection", "paper", "none"), default="projection",
                    help="how the quaternion norms are kept (see docs/reference.md)")  # fmt: skip
     p.add_argument("--q-margin", type=interval(0.0, 0.5, high_open=True), default=0.0, metavar="FRACTION",
@@ -95,7 +93,7 @@ def _solve(args) -> int:
     check_writable(out, out.with_suffix(".json"))
     opts = ReferenceOptions(
         first_mesh=tuple(args.first_mesh), end_fraction=args.end_fraction, mesh_tolerance=args.mesh_tolerance,
-        max_mesh_iterations=args.max_mesh_iterations, starts=args.starts,
+        max_mesh_iterations=args.max_mesh_iterations,
     )  # fmt: skip
     base = EntryProblem()
     problem = EntryProblem(q_min=base.q_min * (1 + args.q_margin), a_max_g=base.a_max_g * (1 - args.load_margin))

@@ -253,45 +253,6 @@ def extra_controls(config: EntryOcpConfig, x: np.ndarray, u: np.ndarray) -> np.n
     return d[[2, 3, 7, 8]].T
 
 
-def generate_guesses(
-    config: EntryOcpConfig | None = None,
-    count: int = 1,
-    grid: dict | None = None,
-    gains: GuidanceGains = GuidanceGains(),
-    dt: float = 1.0,
-) -> list:
-    """The ``count`` best simulated flights of the grid, best first, as collocation guesses.
-
-    :param config: the entry problem.
-    :param count: how many flights (at most those of the grid that reach the ground).
-    :param grid: parameter values per name (default :data:`DEFAULT_GRID`); the
-        full tensor grid is flown in one batch.
-    :param gains: the fixed gains.
-    :param dt: RK4 step (s).
-    :return: ``[(guess, flight), ...]``: a :class:`~.collocation.SampledGuess` with the
-        formulation's controls and its :class:`GuessFlight`, in order of score.
-    """
-    from rventry_env.reference.collocation import SampledGuess
-
-    if int(count) != count or count < 1:
-        raise ValueError(f"count must be a positive integer, got {count}")
-    config = config or EntryOcpConfig()
-    grid = dict(DEFAULT_GRID if grid is None else grid)
-    missing = {"kr", "dive_range", "v_dive"} - set(grid)
-    if missing:
-        raise ValueError(f"the guess grid lacks {sorted(missing)}")
-    axes = np.meshgrid(*[np.asarray(grid[k], dtype=float) for k in _PARAMS], indexing="ij")
-    flights = simulate_batch(config, dict(zip(("kr", "dive_range", "v_dive"), axes)), gains, dt)
-    ranked = [f for f in sorted(flights, key=lambda f: f.score) if math.isfinite(f.score)]
-    if not ranked:
-        raise RuntimeError("no simulated flight of the guess grid reached the ground")
-    out = []
-    for f in ranked[: int(count)]:
-        u = np.hstack([f.u, extra_controls(config, f.x, f.u)])
-        out.append((SampledGuess(f.t, f.x, u), f))
-    return out
-
-
 def generate_guess(
     config: EntryOcpConfig | None = None,
     grid: dict | None = None,
@@ -308,7 +269,20 @@ def generate_guess(
     :return: ``(guess, flight)``: a :class:`~.collocation.SampledGuess`
         with the formulation's controls and the chosen :class:`GuessFlight`.
     """
-    return generate_guesses(config, 1, grid, gains, dt)[0]
+    from rventry_env.reference.collocation import SampledGuess
+
+    config = config or EntryOcpConfig()
+    grid = dict(DEFAULT_GRID if grid is None else grid)
+    missing = {"kr", "dive_range", "v_dive"} - set(grid)
+    if missing:
+        raise ValueError(f"the guess grid lacks {sorted(missing)}")
+    axes = np.meshgrid(*[np.asarray(grid[k], dtype=float) for k in _PARAMS], indexing="ij")
+    flights = simulate_batch(config, dict(zip(("kr", "dive_range", "v_dive"), axes)), gains, dt)
+    best = min(flights, key=lambda f: f.score)
+    if not math.isfinite(best.score):
+        raise RuntimeError("no simulated flight of the guess grid reached the ground")
+    u = np.hstack([best.u, extra_controls(config, best.x, best.u)])
+    return SampledGuess(best.t, best.x, u), best
 
 
 __all__ = [
@@ -318,5 +292,4 @@ __all__ = [
     "simulate_batch",
     "extra_controls",
     "generate_guess",
-    "generate_guesses",
 ]

@@ -1,24 +1,14 @@
 """Solve the paper's entry problem from a cold start and measure the result.
 
-``solve_reference`` = generated guesses -> LGR collocation with hp refinement ->
+``solve_reference`` = generated guess -> LGR collocation with hp refinement ->
 diagnostics (boundary conditions, vertical impact, norm drift, constraint
-violations in physical units, solver statistics).
-
-The NLP is not convex, and its first, cold pass decides which local optimum the
-refinement polishes: from the single best simulated flight, a change of the guess
-in its 14th digit (another CPU's or library's rounding of ``exp``, say) moves that
-pass from the optimum (J = 1.4709 on the first mesh, J* = 1.458947 refined) to a
-local optimum with J = 2.38 and a 200 s shorter flight, which then refines to a
-converged, feasible and wrong answer. So the first mesh is solved from the few best
-simulated flights (``ReferenceOptions.starts``) and the refinement goes on from the
-lowest cost among those that succeeded. If none succeeds, a continuation is tried:
-first a relaxed final flight path angle, then the exact vertical impact from that
-solution.
+violations in physical units, solver statistics). If the exact problem fails
+from the simulated guess, a continuation is tried: first a relaxed final flight
+path angle, then the exact vertical impact from that solution.
 """
 
 from __future__ import annotations
 
-import math
 import resource
 import time
 from dataclasses import dataclass, field
@@ -75,8 +65,6 @@ class ReferenceOptions:
     :param n_min: LGR points of a new subinterval (ph rule).
     :param n_max: LGR points beyond which an interval is split.
     :param nlp_tolerance: IPOPT ``tol``.
-    :param starts: how many of the best simulated flights the first mesh is solved from
-        (module docstring); the refinement continues from the lowest first-mesh cost.
     """
 
     first_mesh: tuple = (39, 6)
@@ -89,11 +77,6 @@ class ReferenceOptions:
     n_min: int = 4
     n_max: int = 10
     nlp_tolerance: float = 1e-9
-    starts: int = 3
-
-    def __post_init__(self):
-        if int(self.starts) != self.starts or self.starts < 1:
-            raise ValueError(f"starts must be a positive integer, got {self.starts}")
 
 
 @dataclass
@@ -180,39 +163,6 @@ def _solver_settings(options: ReferenceOptions):
     return solver_opts, first
 
 
-def _best_start(cp, candidates, first, solver_opts, recorder):
-    """The hp loop from the candidate guess whose first-mesh solve succeeds with the lowest cost.
-
-    Each candidate's first mesh is solved cold (passes labelled ``s1``, ``s2``, ... when there
-    are several); the loop then refines from the best of them with the remaining mesh passes.
-
-    :return: ``(result, (guess, flight), costs)``: the hp loop's result, the candidate it started
-        from and every candidate's first-mesh cost (NaN where IPOPT failed).
-    """
-    import dataclasses
-
-    from rventry_env.reference.collocation import CollocationResult, refine_ph, solve
-
-    one_pass = dataclasses.replace(solver_opts, max_mesh_iterations=1)
-    firsts = []
-    for i, (guess, _) in enumerate(candidates):
-        label = f"s{i + 1}" if len(candidates) > 1 else ""
-        firsts.append(solve(cp, guess, first, one_pass, recorder, label=label))
-    costs = [r.solution.cost if r.solution.success else math.nan for r in firsts]
-    ok = [i for i, r in enumerate(firsts) if r.solution.success]
-    best = min(ok, key=lambda i: costs[i]) if ok else 0
-    res = firsts[best]
-    sol = res.solution
-    if sol.success and not res.converged and solver_opts.max_mesh_iterations > 1:
-        mesh = refine_ph(first, sol.errors, solver_opts.mesh_tolerance, solver_opts.n_min, solver_opts.n_max)
-        rest = dataclasses.replace(solver_opts, max_mesh_iterations=solver_opts.max_mesh_iterations - 1)
-        more = solve(cp, sol, mesh, rest, recorder, warm_start=sol.max_error <= solver_opts.warm_start_error,
-                     first_iteration=1)  # fmt: skip
-        res = CollocationResult(more.solution, res.records + more.records, more.converged,
-                                res.total_time_s + more.total_time_s)  # fmt: skip
-    return res, candidates[best], costs
-
-
 def solve_reference(
     config: EntryOcpConfig | None = None,
     options: ReferenceOptions | None = None,
@@ -225,19 +175,19 @@ def solve_reference(
     :param progress: called once per mesh pass.
     """
     from rventry_env.reference.collocation import CompiledProblem, solve
-    from rventry_env.reference.guess import generate_guesses
+    from rventry_env.reference.guess import generate_guess
 
     config = config or EntryOcpConfig()
     options = options or ReferenceOptions()
     recorder = RecordingProgress(progress)
     start = time.perf_counter()
     cpu_start = time.process_time()
-    candidates = generate_guesses(config, options.starts)
+    guess, flight = generate_guess(config)
     t_guess = time.perf_counter() - start
     solver_opts, first = _solver_settings(options)
     cp = CompiledProblem(entry_ocp(config))
-    res, (guess, flight), start_costs = _best_start(cp, candidates, first, solver_opts, recorder)
-    stages = [f"exact, first mesh from {len(candidates)} simulated flights"]
+    res = solve(cp, guess, first, solver_opts, recorder)
+    stages = ["exact"]
     if not res.solution.success:
         # continuation: a relaxed final flight-path angle first, then the exact condition
         relaxed_config = config.replace(final_gamma_max_deg=options.relaxed_gamma_deg)
@@ -258,8 +208,7 @@ def solve_reference(
         "rss_peak_mb": _rss_peak_mb(),
     }
     info = {"params": flight.params, "miss_m": flight.miss_m, "speed_error_mps": flight.speed_error,
-            "gamma_deg": flight.gamma_deg, "tf_s": float(flight.t[-1]),
-            "first_mesh_costs": start_costs}  # fmt: skip
+            "gamma_deg": flight.gamma_deg, "tf_s": float(flight.t[-1])}  # fmt: skip
     return ReferenceSolve(
         config, sol, recorder.records, res.converged, stages, timings, diagnostics(config, sol), info,
         options.mesh_tolerance,

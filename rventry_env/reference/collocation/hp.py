@@ -34,7 +34,6 @@ def solve(
     label: str = "",
     warm_start: bool = False,
     parameters=None,
-    first_iteration: int = 0,
 ) -> CollocationResult:
     """Solve ``problem`` by LGR collocation with hp mesh refinement.
 
@@ -48,8 +47,6 @@ def solve(
     :param warm_start: the guess is already a converged solution of a nearby
         problem: use the warm-start IPOPT options from the first pass.
     :param parameters: values of the problem's parameters (default: its defaults).
-    :param first_iteration: the number of the first pass in the records (a loop that goes on
-        from an earlier pass's solution and mesh).
     :return: :class:`CollocationResult`; ``converged`` is true when the NLP
         succeeded and the mesh error met the tolerance.
     """
@@ -77,7 +74,7 @@ def solve(
             progress(rec)
         return sol
 
-    for it in range(first_iteration, first_iteration + opts.max_mesh_iterations):
+    for it in range(opts.max_mesh_iterations):
         sol = one_pass(it, warm)
         if warm and opts.warm_ipopt and not sol.success:
             # the warm-start options trust the previous point; when IPOPT fails from it (an
