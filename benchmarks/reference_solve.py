@@ -41,12 +41,14 @@ def _one_entry() -> dict:
         "guess_s": rs.timings["guess_s"],
         "iterations_per_pass": [r.nlp_iterations for r in rs.records],
         "nodes_per_pass": [r.n_nodes for r in rs.records],
+        "pass_labels": [f"{r.iteration}{r.label}" for r in rs.records],
         "rss_peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "cost": sol.cost,
         "tf_s": sol.tf,
         "mesh_error": sol.max_error,
         "max_violation": sol.max_violation,
         "converged": rs.converged,
+        "stages": rs.stages,
     }
 
 
@@ -56,7 +58,10 @@ def _one_betts(limit) -> dict:
     from rventry_env.reference.betts_shuttle import solve_shuttle
 
     cpu = time.process_time()
-    res = solve_shuttle(None if limit == "none" else float(limit))
+    try:
+        res = solve_shuttle(None if limit == "none" else float(limit))
+    except RuntimeError as err:  # not converged: reported as such, never as figures
+        return {"case": "no_heating_limit" if limit == "none" else f"heating_limit_{float(limit):g}", "error": str(err)}
     return {
         "case": res.case,
         "tf_s": res.tf_s,
@@ -102,11 +107,13 @@ def main(argv=None) -> int:
     runs = [_run_child("entry") for _ in range(args.repeat)]
     print("\nEntry problem (paper Example 2, exact vertical impact), cold start in a fresh process")
     print(f"{'run':>3s} {'wall s':>7s} {'cpu s':>7s} {'import s':>8s} {'guess s':>7s} {'rss MB':>7s} "
-          f"{'J*':>10s} {'tf s':>10s} {'mesh err':>9s}  iterations per pass (nodes)")  # fmt: skip
+          f"{'J*':>10s} {'tf s':>10s} {'mesh err':>9s}  pass: iterations (nodes)")  # fmt: skip
     for i, r in enumerate(runs):
-        passes = ", ".join(f"{it} ({n})" for it, n in zip(r["iterations_per_pass"], r["nodes_per_pass"]))
+        passes = ", ".join(f"{lab}: {it} ({n})" for lab, it, n in zip(r["pass_labels"], r["iterations_per_pass"],
+                                                                   r["nodes_per_pass"]))
         print(f"{i:3d} {r['wall_s']:7.2f} {r['cpu_s']:7.2f} {r['import_s']:8.2f} {r['guess_s']:7.2f} "
               f"{r['rss_peak_mb']:7.1f} {r['cost']:10.6f} {r['tf_s']:10.3f} {r['mesh_error']:9.2e}  {passes}")  # fmt: skip
+        print(f"    converged: {r['converged']}, stages: {', '.join(r['stages'])}")
     wall = statistics.median(r["wall_s"] for r in runs)
     cpu = statistics.median(r["cpu_s"] for r in runs)
     print(f"median wall {wall:.2f} s (target < 30 s), median CPU {cpu:.2f} s")
@@ -118,6 +125,9 @@ def main(argv=None) -> int:
         print(f"{'case':18s} {'tf s':>22s} {'rel err':>8s} {'latitude deg':>24s} {'rel err':>8s} {'mesh err':>9s} "
               f"{'nodes':>5s} {'wall s':>7s}")  # fmt: skip
         for b in betts:
+            if "error" in b:
+                print(f"{b['case']:18s} NOT CONVERGED: {b['error']}")
+                continue
             p = b["published"]
             print(f"{b['case']:18s} {b['tf_s']:10.3f} [{p['tf_s']:9.2f}] {b['tf_rel_error']:8.1e} "
                   f"{b['latitude_deg']:11.5f} [{p['latitude_deg']:9.4f}] {b['latitude_rel_error']:8.1e} "

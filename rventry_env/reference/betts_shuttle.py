@@ -229,6 +229,8 @@ def solve_shuttle(
     :param heating_limit_btu: ``None`` or 70 (BTU/ft^2/s) for the two published cases.
     :param mesh_tolerance: target max relative error of the hp loop.
     :param progress: per-pass reporter.
+    :raises RuntimeError: when the hp loop does not converge (an NLP failure or the mesh tolerance
+        not met): a failed solve is never returned as a result.
     """
     import time
 
@@ -240,6 +242,14 @@ def solve_shuttle(
                 SolverOptions(mesh_tolerance=mesh_tolerance), progress=progress)  # fmt: skip
     sol = res.solution
     case = "no_heating_limit" if heating_limit_btu is None else f"heating_limit_{heating_limit_btu:g}"
+    if not res.converged:
+        last = res.records[-1]
+        why = f"IPOPT: {sol.status}" if not sol.success else f"mesh error {sol.max_error:.2e} > {mesh_tolerance:g}"
+        raise RuntimeError(
+            f"Betts' shuttle ({case}) did not converge at mesh tolerance {mesh_tolerance:g}: {why} on pass "
+            f"{last.iteration}{last.label} ({last.n_nodes} nodes, max violation {sol.max_violation:.1e}); "
+            f"iterations per pass {[r.nlp_iterations for r in res.records]}"
+        )
     return ShuttleResult(
         case=case, tf_s=sol.tf, latitude_deg=float(sol.x[-1, 2] / DEG), published=PUBLISHED.get(case, {}),
         converged=res.converged, mesh_error=sol.max_error, n_nodes=sol.mesh.n_nodes,

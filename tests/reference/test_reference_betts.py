@@ -27,3 +27,13 @@ def test_bad_heating_limit_is_rejected():
 
     with pytest.raises(ValueError, match="heating limit"):
         shuttle_problem(-5.0)
+
+
+@pytest.mark.slow
+def test_default_tolerance_matches_published_optimum_without_heating_limit():
+    """At the default mesh tolerance (1e-7) the refined passes start warm from a coarse point; a
+    warm pass that IPOPT cannot finish is solved again cold rather than returned as the answer."""
+    res = solve_shuttle(None)
+    assert res.converged and res.mesh_error <= 1e-7, (res.nlp_iterations, res.mesh_error)
+    assert res.tf_rel_error < 1e-4, (res.tf_s, res.published)
+    assert res.latitude_rel_error < 1e-4, (res.latitude_deg, res.published)

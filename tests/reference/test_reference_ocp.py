@@ -157,3 +157,22 @@ def test_the_entry_problem_carries_the_papers_boundary_conditions_and_bounds():
     assert p.state_lower[10] == 0.0 and p.state_upper[10] == pytest.approx(math.radians(25.0))
     assert p.control_upper[0] == -p.control_lower[0] == pytest.approx(math.radians(10.0))
     assert p.control_upper[1] == -p.control_lower[1] == pytest.approx(math.radians(30.0))
+
+
+def test_failed_warm_pass_is_solved_again_cold():
+    """A warm-started pass that IPOPT does not finish is redone with the cold options, and both
+    attempts are reported; the result is the cold attempt's."""
+    prob = _double_integrator()
+    t = np.linspace(0, 1, 5)
+    guess = SampledGuess(t, np.column_stack([t, np.ones_like(t)]), np.zeros((5, 1)))
+    rec = RecordingProgress()
+    opts = SolverOptions(warm_ipopt={"max_iter": 0})  # the warm attempt cannot succeed
+    res = solve(prob, guess, Mesh.uniform(2, 4), opts, progress=rec, warm_start=True)
+    warm, cold = rec.records[:2]
+    assert not warm.success and warm.label == "" and warm.iteration == 0
+    assert cold.success and cold.label == "c" and cold.iteration == 0
+    assert res.converged and res.solution.cost == pytest.approx(12.0, rel=1e-8)
+    # without a warm start nothing is retried
+    rec2 = RecordingProgress()
+    assert solve(prob, guess, Mesh.uniform(2, 4), opts, progress=rec2).converged
+    assert [r.label for r in rec2.records] == [""]

@@ -58,7 +58,8 @@ def solve(
     sol = None
     converged = False
     warm = warm_start
-    for it in range(opts.max_mesh_iterations):
+
+    def one_pass(it, warm, tag=""):
         t_pass = time.perf_counter()
         tr = transcribe(cp, mesh, opts, warm=warm)
         sol = solve_on_mesh(tr, guess, parameters)
@@ -66,11 +67,19 @@ def solve(
         rec = MeshIterationRecord(
             iteration=it, n_intervals=mesh.n_intervals, n_nodes=mesh.n_nodes, max_error=sol.max_error,
             status=sol.status, success=sol.success, nlp_iterations=sol.nlp_iterations,
-            solve_time_s=time.perf_counter() - t_pass, cost=sol.cost, tf=sol.tf, label=label,
+            solve_time_s=time.perf_counter() - t_pass, cost=sol.cost, tf=sol.tf, label=label + tag,
         )  # fmt: skip
         records.append(rec)
         if progress is not None:
             progress(rec)
+        return sol
+
+    for it in range(opts.max_mesh_iterations):
+        sol = one_pass(it, warm)
+        if warm and opts.warm_ipopt and not sol.success:
+            # the warm-start options trust the previous point; when IPOPT fails from it (an
+            # "infeasible" verdict deep in a small barrier, say) the pass is solved again cold
+            sol = one_pass(it, False, tag="c")
         if not sol.success and not opts.refine_after_failure:
             break
         if sol.success and sol.max_error <= opts.mesh_tolerance:

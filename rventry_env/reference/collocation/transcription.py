@@ -144,6 +144,9 @@ class SolverOptions:
     :param warm_ipopt: IPOPT options for the passes after the first, which start
         from the previous mesh's solution: a small initial barrier parameter and
         tiny bound pushes keep IPOPT from walking away from a nearly optimal point.
+        A warm-started pass that IPOPT fails is solved again with the cold options
+        (Betts' shuttle at mesh tolerance 1e-7: a warm second pass from a point with
+        error 2.5e-3 is declared infeasible after 351 iterations; cold, it succeeds).
     :param warm_start_error: use ``warm_ipopt`` only when the previous pass's max
         error is below this (a coarse solution is not "nearly optimal").
     :param graph: ``"mx"`` (default) evaluates the node functions through
