@@ -15,8 +15,8 @@ CARDS = (
               "DAgger of mpc-flight", 10),
     AgentCard("dagger", "it lands like mpc on the standard and wide sets, at a network's cost per decision",
               "DAgger of mpc", 20),
-    AgentCard("ppo-scratch", "it is PPO learned from scratch with a reverse curriculum, no teacher: it lands from the "
-              "last half of the flight (the half rung), not yet from the task's own start"),
+    AgentCard("ppo-scratch", "it is PPO learned from scratch with a reverse curriculum, no teacher: it lands the whole "
+              "flight on the standard set, not yet the wide and flight-grade sets"),
     AgentCard("ppo-plain", "it is what off-the-shelf RL learns from scratch on the raw reward: a baseline, not a law "
               "to fly", "plain PPO", 30),
 )  # fmt: skip

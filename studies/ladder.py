@@ -164,10 +164,17 @@ def _changed(config: dict, default: dict, prefix: str = "") -> dict:
     return out
 
 
+def _first_sections() -> dict:
+    """The shipped config's first sections, without its stages: what each run is compared with."""
+    from rventry_agents.scratch_config import load_config
+
+    return load_config().stage_configs()[0][1].to_dict()
+
+
 def history(folder: Path) -> dict:
     """What a from-scratch run reached as it trained: from its config and ``evaluations.json`` (a run
     stopped before its end has no metadata, but every chunk's record)."""
-    from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config
+    from rventry_agents.scratch_config import load_config
     from rventry_env.evaluation.summary import task_metric_key
 
     config = json.loads((folder / "config.json").read_text())
@@ -181,7 +188,7 @@ def history(folder: Path) -> dict:
     load_config(config)  # checked: a run of this trainer
     state = folder / "checkpoint" / "state.json"  # a run started from another's checkpoint names it there
     start = json.loads(state.read_text()).get("init_from") if state.is_file() else None
-    return {"run": folder.name, "init_from": start, "changed": _changed(config, load_config(DEFAULT_CONFIG).to_dict()),
+    return {"run": folder.name, "init_from": start, "changed": _changed(config, _first_sections()),
             "timesteps": last["timesteps"], "wall_s": last["wall_s"],
             "window_s": windows[-1][0] if windows else None, "window_reached_at": reached,
             "frontier_success": last["curriculum"]["frontier_success"] if last.get("curriculum") else None,
@@ -198,7 +205,7 @@ def _histories(args) -> None:
         print(f"{r['run']}: {r['timesteps']:,} steps, {r['wall_s'] / 60:.0f} min, window {r['window_s']} s, "
               f"full task success {r['select_success']:.2f}; changed: {r['changed']}")  # fmt: skip
     write_record(args.json, {"about": "runs of rventry train ppo-scratch: the settings each changed from the shipped "
-                                      "config, and where each stood when it stopped", "runs": runs})
+                                      "config's first sections (its stages left out), and where each stood when it stopped", "runs": runs})
 
 
 def _summary(path: Path) -> None:

@@ -288,10 +288,11 @@ def test_every_shipped_scratch_config_loads_and_round_trips(name):
                                                                                  "ppo_scratch_late.toml"]
 
 
-def test_the_shipped_from_scratch_policy_lands_the_half_rung_and_says_what_it_is():
-    """``ppo-scratch`` is a milestone of a from-scratch run: no teacher, no demonstrations, its config
-    the reverse curriculum's. On held-out episodes of the half rung (450-550 s before impact) it lands
-    100 of 100 (docs/results/ladder.json); 20 of them here, seeds apart from training's."""
+def test_the_shipped_from_scratch_policy_lands_the_whole_flight_and_says_what_it_is():
+    """``ppo-scratch`` is the selected policy of a from-scratch run: no teacher, no demonstrations, a
+    reverse curriculum to the whole flight. On held-out episodes of the standard set it lands about
+    nine in ten (docs/results/ladder.json); 20 of them here, seeds apart from training's and
+    selection's."""
     from rventry_env.evaluation.agents import agent_cards, load_agent
     from rventry_env.evaluation.rollout import rollout
     from rventry_env.evaluation.rungs import rung
@@ -299,8 +300,28 @@ def test_the_shipped_from_scratch_policy_lands_the_half_rung_and_says_what_it_is
     law = load_agent("ppo-scratch")
     meta = law.metadata
     assert meta["provenance"]["start"] == "scratch" and meta["provenance"]["algorithm"] == "PPO (rejax), from scratch"
-    assert meta["config"]["curriculum"]["kind"] == "reverse" and meta["window_s"] > 500
+    assert meta["config"]["curriculum"]["kind"] == "reverse" and meta["final_window_s"] > 1000
     assert "from scratch" in agent_cards()["ppo-scratch"].why
-    half = rung("half")
-    batch = rollout(law, 20, seed=1000, dispersion=half.dispersion, starts=half.starts())
-    assert np.mean(batch.is_success) >= 0.9
+    standard = rung("standard")
+    batch = rollout(law, 20, seed=1000, dispersion=standard.dispersion, starts=standard.starts())
+    assert np.mean(batch.is_success) >= 0.75
+
+
+def test_the_shipped_config_is_the_shipped_policys_recipe():
+    """The shipped policy was trained as a chain of runs, each started from the last one's checkpoint
+    under a changed config (its provenance names them); the shipped config declares the same chain as
+    stages: one stage where each run started, and the last stage's config is the last run's."""
+    from rventry_agents.jax_policy import SHIPPED
+
+    meta = json.loads((SHIPPED["ppo-scratch"] / "metadata.json").read_text())
+    chain, start = [], meta["provenance"].get("init_from")
+    while start:
+        chain.append(start["timesteps"])
+        start = start.get("init_from")
+    stages = load_config().stage_configs()
+    assert [first for first, _ in stages[1:]] == sorted(chain)
+    budget = ("total_timesteps", "max_wall_s")
+    last = stages[-1][1].to_dict()
+    for config in (last, meta["config"]):
+        config["train"] = {k: v for k, v in config["train"].items() if k not in budget}
+    assert last == meta["config"]
