@@ -15,6 +15,9 @@ from pathlib import Path
 from rventry_env.util.args import interval, positive_float, positive_int
 from rventry_env.util.files import atomic_write, check_writable, write_json
 
+# a shipped file is replaced only by a solve whose cost is no higher than this, relative (a cold solve may
+# converge to a local optimum: docs/reference.md)
+SHIP_COST_RTOL = 1e-6
 # the shipped files, and the margins each must be solved with
 SHIPPED = {"optimum": (0.0, 0.0), "guidance": (0.30, 0.06)}
 MAX_EXPORT_ROWS = 2_000_000
@@ -111,6 +114,12 @@ def _solve(args) -> int:
         why = f"IPOPT: {sol.status}" if not sol.success else f"mesh error {sol.max_error:.2e} > {args.mesh_tolerance:g}"
         print(f"rventry reference solve: the solve did not converge ({why}); nothing written", file=sys.stderr)
         return 1
+    if args.ship is not None and out.exists():
+        shipped = _load(out).cost
+        if sol.cost > shipped * (1 + SHIP_COST_RTOL):
+            print(f"rventry reference solve: J* = {sol.cost:.6f} is above the shipped file's {shipped:.6f}: a local "
+                  f"optimum, not the optimum; {out} not replaced", file=sys.stderr)  # fmt: skip
+            return 1
     npz, js = save_reference(rs, out)
     print(f"wrote {npz} and {js}")
     from rventry_env.task.glossary import terms_line

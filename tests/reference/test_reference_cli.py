@@ -2,6 +2,7 @@
 
 import csv
 import json
+import types
 
 import numpy as np
 import pytest
@@ -119,3 +120,28 @@ def test_a_file_that_is_not_a_reference_is_named_never_unpickled(tmp_path, capsy
     assert "is not an rventry reference file" in err and "allow_pickle" not in err
     assert main(["reference", "show", "--file", str(tmp_path)]) == 2
     assert "is a directory" in capsys.readouterr().err
+
+
+def test_ship_keeps_the_shipped_file_against_a_worse_local_optimum(tmp_path, monkeypatch, capsys):
+    """A converged solve whose cost is above the shipped file's is a local optimum: the file stays."""
+    from rventry_env.reference import data_file
+    from rventry_env.reference import pipeline
+
+    shipped = data_file.DEFAULT_PATH
+    copy = tmp_path / shipped.name
+    copy.write_bytes(shipped.read_bytes())
+    (tmp_path / shipped.with_suffix(".json").name).write_bytes(shipped.with_suffix(".json").read_bytes())
+    before = copy.read_bytes()
+    j_star = load_reference(copy).cost
+
+    class Worse:  # what solve_reference returns, at J = 2.38: converged, and not the optimum
+        converged, timings = True, {"solve_time_s": 1.0}
+        solution = types.SimpleNamespace(cost=2.380528, tf=814.4, max_error=8.9e-7, max_violation=1e-9,
+                                         success=True, status="Solve_Succeeded")  # fmt: skip
+
+    monkeypatch.setattr(data_file, "DEFAULT_PATH", copy)
+    monkeypatch.setattr(pipeline, "solve_reference", lambda *a, **k: Worse())
+    assert main(["reference", "solve", "--ship", "optimum", "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert f"J* = 2.380528 is above the shipped file's {j_star:.6f}" in err and "not replaced" in err
+    assert copy.read_bytes() == before
