@@ -86,6 +86,24 @@ def test_a_grossly_wrong_sidecar_is_refused_naming_the_field(tmp_path):
 # ------------------------------------------------------------------ the trace, one record per channel
 
 
+def test_band_time_is_the_record_time_in_the_band():
+    """The time a record spends in a band: its samples there times the median sampling interval, on
+    either axis (a glide that starts at 60 km, dives to 50 km and climbs back to 59 km)."""
+    from types import SimpleNamespace
+
+    from rventry_env.validation.trace.attribution import band_time
+
+    t = np.arange(0.0, 300.01, 0.5)
+    h = 55e3 + 5e3 * np.cos(2 * np.pi * t / 300.0) - 1e3 * t / 300.0
+    record = SimpleNamespace(altitude=lambda: np.concatenate([h, [np.nan]]))
+    replay = SimpleNamespace(t_obs=t, rows=np.arange(t.size), record=record)
+    assert band_time(replay, "time", 10.0, 20.0) == pytest.approx(10.5)  # 21 samples of 0.5 s
+    top = band_time(replay, "altitude", 59.5e3, 60.0e3)  # only the first seconds reach it
+    assert top == pytest.approx(0.5 * np.count_nonzero(h >= 59.5e3)) and top < 30.0
+    assert band_time(replay, "altitude", 40e3, 70e3) == pytest.approx(0.5 * t.size)
+    assert band_time(replay, "altitude", 61e3, 62e3) == 0.0
+
+
 def _trace(tmp_path, spec):
     rep = identify_record(_record(tmp_path, [spec])).report
     assert rep["unexplained"], rep["statement"]
@@ -111,6 +129,25 @@ def test_lift_in_an_altitude_band_is_lift_not_the_atmosphere(tmp_path):
     a = rep["attribution"][0]
     assert a["size"] < 0 and 49e3 <= a["band"][0] and a["band"][1] <= 54e3 and a["axis"] == "altitude"
     assert any("not the atmosphere" in p for p in rep["trace"]["points_to"])
+
+
+@pytest.mark.slow
+def test_a_lift_band_at_50_hz_is_lift_in_that_band_alone(tmp_path):
+    """C_L x 0.8 between 50 and 53 km, 15001 samples. A correction over the record's top 0.5 km (its
+    first 8 s) lowered the residual by standing in for an entry velocity beyond the bound the first
+    samples give it: a 199 m/s wind beside the lift, a claim the record does not make. A band must be
+    flown for the trace's time resolution before a correction in it is a finding."""
+    from rventry_env.validation.trace.attribution import MIN_BAND_TIME, band_time
+
+    ident = identify_record(_record(tmp_path, ["lift_band=0.8,50,53"], rate=50.0, seed=0))
+    rep = ident.report
+    assert rep["unexplained"], rep["statement"]
+    assert [(a["channel"], a["axis"]) for a in rep["attribution"]] == [("vertical_lift", "altitude")], rep["statement"]
+    a = rep["attribution"][0]
+    assert a["size"] < 0 and 49e3 <= a["band"][0] and a["band"][1] <= 54e3
+    assert band_time(ident.replay, "altitude", *a["band"]) >= MIN_BAND_TIME
+    assert rep["trace"]["after_trace"]["position_rms_m"] < 45.0  # the noise: 20 m per component
+    assert all(rv["bic_behind"] >= 0 for rv in rep["trace"]["rivals"])  # no refused fit passes for a rival
 
 
 @pytest.mark.slow

@@ -47,6 +47,10 @@ REFINE_FTOL = 1e-6
 REFINE_BUDGET = 6  # refinements before the search stops (a pair's members count; the last pair may add its two)
 AERO_MAX = 1.0  # an aerodynamic correction beyond 100 % of the drag is not a correction
 BAND_FRACTION = 0.5  # the band: where the correction is at least this fraction of its peak
+# the least time the record must spend in a correction's band: the trace's resolution in time. A force
+# acting for less is an impulse: over the record's first seconds the fit cannot tell it from the entry state
+# (which the record bounds to its noise), over its last seconds it moves almost no observation
+MIN_BAND_TIME = MIN_TIME_SPACING
 
 
 def _span(replay, axis: str) -> tuple[float, float]:
@@ -219,6 +223,39 @@ def _band(s: np.ndarray, g: np.ndarray) -> tuple[float, float, float]:
     while b < len(g) - 1 and keep[b + 1]:
         b += 1
     return peak, float(s[a]), float(s[b])
+
+
+def _channel_profile(lin: "_Linearized", theta: np.ndarray, channel: str, s: np.ndarray) -> np.ndarray:
+    """One channel's correction on ``s`` (the wind's magnitude)."""
+    k = len(lin.knots)
+    coef = theta[[lin.n0 + lin.names.index(n) for n in channel_parameters(channel, k)]]
+    if channel == "wind":
+        return np.hypot(np.interp(s, lin.knots, coef[:k]), np.interp(s, lin.knots, coef[k:]))
+    return np.interp(s, lin.knots, coef)
+
+
+def band_time(replay, axis: str, lo: float, hi: float) -> float:
+    """The time (s) the record spends in a band: its samples there times the record's median sampling interval."""
+    s = replay.t_obs if axis == "time" else replay.record.altitude()[replay.rows]
+    inside = np.count_nonzero(np.isfinite(s) & (s >= lo - 1e-9) & (s <= hi + 1e-9))
+    dt = float(np.median(np.diff(replay.t_obs))) if len(replay.t_obs) > 1 else 0.0
+    return inside * dt
+
+
+def _unsupported(ctx, lin: "_Linearized", theta: np.ndarray, channels) -> list[str]:
+    """Channels whose band the record flies through for less than :data:`MIN_BAND_TIME`.
+
+    Such a correction acts as an impulse: at the record's start it stands in for an entry state
+    beyond the bound the first samples give it (a 200 m/s wind over the top 0.5 km of a glide,
+    the first 8 s), at its end it moves almost no observation. Neither is a finding about a force.
+    """
+    s = _profile_grid(lin.knots[0], lin.knots[-1])
+    out = []
+    for c in channels:
+        _, a, b = _band(s, _channel_profile(lin, theta, c, s))
+        if band_time(ctx.replay, lin.axis, a, b) < MIN_BAND_TIME:
+            out.append(c)
+    return out
 
 
 def _mach_in(ctx, axis: str, lo: float, hi: float) -> tuple[list | None, dict | None]:
@@ -487,8 +524,9 @@ def _screen_fits(ctx, final, sigma_entries, n_groups: int, say) -> list[dict]:
 
 
 def _eligible(f: dict, chosen: dict, threshold: float) -> bool:
-    """Whether a fit may lead: refined, inside its physical bounds, and (a pair) better than its members."""
-    if not f.get("refined") or f["outside"]:
+    """Whether a fit may lead: refined, inside its physical bounds, every band flown long enough to tell
+    it from the entry state, and (a pair) better than its members."""
+    if not f.get("refined") or f["outside"] or f.get("unsupported"):
         return False
     # a pair must beat each of its members alone (same axis), refined alike, by the threshold too
     return len(f["channels"]) == 1 or all(
@@ -517,6 +555,7 @@ def _refine_ranked(ctx, final, chosen: dict, threshold: float, sigma_entries, n_
         f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], n_eff), refined=True,
                  cost_ratio=float(r @ r) / cost_final)  # fmt: skip
         f["outside"] = sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound))
+        f["unsupported"] = _unsupported(ctx, f["lin"], theta, f["channels"])
         return 1
 
     order = [next(f for f in ranked if f["axis"] == axis) for axis in ("altitude", "time")
@@ -567,7 +606,7 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     table = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"], "bic_gain": b_final - f["bic"],
               "screened_bic_gain": b_final - f["bic_screened"], "refined": bool(f.get("refined")),
               "cost_ratio": f.get("cost_ratio"), "refine_replays": f.get("refine_nfev"),
-              "outside_bounds": f.get("outside") or []}
+              "outside_bounds": f.get("outside") or [], "bands_too_brief": f.get("unsupported") or []}
              for f in ranked]  # fmt: skip
     out = {
         "method": "piecewise-linear corrections over altitude and over time per force channel, knots by BIC, "
@@ -581,12 +620,16 @@ def trace_residual(ctx, final, threshold: float, say=lambda msg: None) -> dict:
     if best is None:
         out.update({"attribution": [], "rivals": [], "points_to": [], "leading": None,
                     "statement": "No force channel explains the residual: every leading correction is outside its "
-                                 "physical bounds."})  # fmt: skip
+                                 "physical bounds or acts over a band the record flies through for less than "
+                                 f"{MIN_BAND_TIME:g} s."})  # fmt: skip
         return out
+    # a rival is a reading the record cannot tell from the winner: a fit refused (outside its bounds, a band
+    # flown too briefly) is none
+    rival_fits = [f for f in ranked if f is not best and f["bic"] - best["bic"] < threshold
+                  and not (f.get("refined") and (f["outside"] or f.get("unsupported")))]  # fmt: skip
     rivals = [{"channels": list(f["channels"]), "axis": f["axis"], "knots": f["knots"],
-               "bic_behind": f["bic"] - best["bic"]}
-              for f in ranked if f is not best and f["bic"] - best["bic"] < threshold]  # fmt: skip
-    out["rival_fits"] = [f for f in ranked if f is not best and f["bic"] - best["bic"] < threshold]  # not in the report
+               "bic_behind": f["bic"] - best["bic"]} for f in rival_fits]  # fmt: skip
+    out["rival_fits"] = rival_fits  # not in the report
     # what the screening ranked above the result and the refinement budget left unrefined (normally none)
     out["unrefined_above_leading"] = sum(1 for f in ranked if not f.get("refined") and f["bic"] < best["bic"])
     out["fit"] = TraceFit(best, b_final, n_eff, sigma_entries, n_groups)  # for what follows; not in the report
@@ -634,7 +677,7 @@ def _describe_rivals(ctx, final, rivals: list, fits: list, alpha_dependent: bool
     it is part of the result."""
     words = []
     for rv, f in zip(rivals, fits):
-        if not f.get("refined") or f.get("outside"):
+        if not f.get("refined") or f.get("outside") or f.get("unsupported"):
             continue
         if "attribution" not in rv:
             rv["attribution"], _ = _describe_fit(ctx, f, final.model)
@@ -703,7 +746,8 @@ def refit_without(ctx, trace: dict, reduced, threshold: float) -> "TraceFit":
     theta, r, at_bound = _refine(ctx, f, reduced)
     rss, nval = _rss_by_group(r, tf.sigma_entries, f["lin"].group_of, tf.n_groups)
     f.update(theta=theta, r=r, rss=rss, bic=bic_effective(rss, nval, f["k_params"], tf.n_eff), refined=True,
-             outside=sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound)))  # fmt: skip
+             outside=sorted(set(_outside_bounds(f["lin"], theta, f["channels"])) | set(at_bound)),
+             unsupported=_unsupported(ctx, f["lin"], theta, f["channels"]))  # fmt: skip
     b_reduced = bic_effective(reduced.rss_by_group, reduced.n_by_group, reduced.n_params, tf.n_eff)
     return TraceFit(f, b_reduced, tf.n_eff, tf.sigma_entries, tf.n_groups)
 

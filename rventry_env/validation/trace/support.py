@@ -41,7 +41,7 @@ def drop_surrogates(ctx, state, trace: dict, threshold: float, say=lambda msg: N
             say(f"support: {' + '.join(rest) or 'the current model'} with the traced correction (without {e})")
             reduced = ctx.fit(st, current)
             tf = refit_without(ctx, trace, reduced, threshold)
-            if tf.f["outside"]:
+            if tf.f["outside"] or tf.f["unsupported"]:
                 continue
             trials[e] = (tf.f["bic"], reduced, tf)
         rows = [{"without": e, "bic_with": with_bic, "bic_without": b, "earns": b - with_bic > threshold}
