@@ -120,27 +120,44 @@ class Curriculum:
         return True
 
 
-def ppo_class(resets: int):
+def ppo_class(resets: int, train_actor: bool = True):
     """rejax's PPO, stepping its environments with :func:`~rventry_env.envs.functional.step_batch`'s
-    optimistic autoreset (``resets`` fresh starts a step) where ``resets`` > 0, with gymnax's own else."""
+    optimistic autoreset (``resets`` fresh starts a step) where ``resets`` > 0, with gymnax's own else;
+    with the policy held as it is (the actor's parameters, its optimizer's state and its observation
+    statistics) where not ``train_actor``, while the critic and the reward statistics learn (a
+    critic's warm-up, ``[ppo] train_actor``)."""
     from rejax import PPO
 
-    if resets <= 0:
-        return PPO
-    from rventry_env.envs.functional import step_batch
+    base = PPO
+    if resets > 0:
+        from rventry_env.envs.functional import step_batch
 
-    class OptimisticResetPPO(PPO):
-        @property
-        def vmap_step(self):
-            return lambda keys, states, actions, params: step_batch(self.env, keys, states, actions, params, resets)
+        class OptimisticResetPPO(PPO):
+            @property
+            def vmap_step(self):
+                return lambda keys, states, actions, params: step_batch(self.env, keys, states, actions, params, resets)
 
-    return OptimisticResetPPO
+        base = OptimisticResetPPO
+    if train_actor:
+        return base
+
+    class HeldActorPPO(base):
+        """The policy held: the actor's parameters and its observation statistics (which the
+        actor's inputs are scaled by) stay as they are."""
+
+        def update_actor(self, ts, batch):
+            return ts
+
+        def update_and_normalize_obs(self, rms_state, x, batched=True):
+            return rms_state, self.normalize_obs(rms_state, x)
+
+    return HeldActorPPO
 
 
 def _agent(cfg: ScratchConfig, env, params, chunk: int):
     """rejax PPO for ``env`` (its evaluation replaced: the run evaluates between chunks)."""
     p = cfg.ppo
-    algo = ppo_class(cfg.env.resets).create(
+    algo = ppo_class(cfg.env.resets, p.train_actor).create(
         env=env, env_params=params, num_envs=cfg.env.num_envs, num_steps=p.num_steps, num_epochs=p.num_epochs,
         num_minibatches=p.num_minibatches, learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda,
         clip_eps=p.clip_eps, ent_coef=p.ent_coef, vf_coef=p.vf_coef, max_grad_norm=p.max_grad_norm,
@@ -160,11 +177,16 @@ def _initial_state(algo, cfg: ScratchConfig, seed: int):
 
 
 def _seed_of(run: Path) -> int | None:
-    """The ``[train] seed`` of the run in ``run`` (None where its config is not there)."""
-    try:
-        return int(json.loads((run / "config.json").read_text())["train"]["seed"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
+    """The ``[train] seed`` of the run (or the exported policy) in ``run`` (None where its config is not there)."""
+    for name, key in (("config.json", ("train", "seed")), ("metadata.json", ("seed",))):
+        try:
+            value = json.loads((run / name).read_text())
+            for k in key:
+                value = value[k]
+            return int(value)
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+    return None
 
 
 def _reseeded(ts, seed: int):
@@ -189,6 +211,17 @@ def _entered(ts, cfg: ScratchConfig, seed_before: int | None):
         ts = _reseeded(ts, cfg.train.seed)
         changes += f", seed {cfg.train.seed} folded into its random key"
     return ts, changes
+
+
+def _with_optimizers(ts, algo):
+    """The training state with ``algo``'s optimizers (its learning rate and gradient clip), their
+    state (Adam's moments and count) as it was: a stage's new settings reach the updates (the
+    optimizer is a static part of the state, which the state would otherwise keep)."""
+    import jax
+
+    fresh = algo.initialize_network_params(jax.random.PRNGKey(0))
+    return ts.replace(actor_ts=ts.actor_ts.replace(tx=fresh["actor_ts"].tx),
+                      critic_ts=ts.critic_ts.replace(tx=fresh["critic_ts"].tx))  # fmt: skip
 
 
 def _next_stage(trainer: Trainer, cfg: ScratchConfig) -> Trainer:
@@ -305,14 +338,22 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
 
 
 def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path | None = None) -> dict:
-    from rventry_agents.scratch_state import Checkpoint, plot_learning_curve, record_chunk
+    from rventry_agents.scratch_state import (
+        Checkpoint,
+        PolicyStart,
+        plot_learning_curve,
+        read_start,
+        record_chunk,
+    )
 
-    start = out if resume else source  # the checkpoint this run goes on from, if any
-    point = None if start is None else Checkpoint.read(start)
+    start = out if resume else source  # the checkpoint (or the exported policy) this run goes on from, if any
+    point = None if start is None else read_start(start)
     steps = 0 if point is None else point.steps
     stages = cfg.stage_configs()
     stage = cfg.stage_at(steps)
     trainer = Trainer(stages[stage][1], out, stages[stage][1].train.seed)
+    if isinstance(point, PolicyStart):
+        point.check(trainer.cfg)
     if point is None:
         ts = _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed)
         history, wall_before = [], 0.0
@@ -322,8 +363,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     changes = ""  # what this run changed in the state it starts from
     if source is not None:  # another run's checkpoint, as if this run's stage were entered from it
         ts, changes = _entered(ts, trainer.cfg, _seed_of(source))
-    elif resume and history and history[-1].get("stage", 0) < stage:  # stopped on a stage's first step
-        ts, changes = _entered(ts, trainer.cfg, stages[history[-1].get("stage", 0)][1].train.seed)
+    elif resume and history and (last := history[-1].get("stage", 0)) < stage:  # stopped on a stage's first step
+        ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
@@ -340,7 +381,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         if stage + 1 < len(stages) and steps >= stages[stage + 1][0]:  # the next stage starts here
             stage += 1
             trainer = _next_stage(trainer, stages[stage][1])
-            ts, changes = _entered(ts, trainer.cfg, stages[stage - 1][1].train.seed)
+            ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)
             progress(f"stage {stage} from {steps:,d} steps{changes}")
             compiles = True
         c0 = time.perf_counter()
@@ -437,4 +478,4 @@ def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, r
     }  # fmt: skip
 
 
-__all__ = ["train_scratch", "Curriculum", "Trainer", "make_shaping", "save_milestone"]
+__all__ = ["Curriculum", "Trainer", "make_shaping", "save_milestone", "train_scratch"]

@@ -130,13 +130,18 @@ class PPOSection(RejaxPPOSection):
     normalized. ``restart_exploration``: a run started from another run's checkpoint
     (``init_from``) sets the noise's log standard deviation back to ``log_std_init`` (the learned
     one has often shrunk by then to where the policy barely explores the curriculum's new starts);
-    a fresh run starts there anyway, and a resumed run goes on with its own."""
+    a fresh run starts there anyway, and a resumed run goes on with its own. ``train_actor =
+    false`` holds the policy as it is (the actor and its observation statistics) while the critic
+    and the reward statistics learn: the critic's warm-up of a run started from a policy alone (a
+    ``policy.npz`` without its critic), whose new critic would otherwise steer the policy's first
+    updates with values it has not learned yet."""
 
     num_minibatches: int = setting(8, ge=1)
     num_epochs: int = setting(4, ge=1)
     hidden_layer_sizes: tuple[int, ...] = widths((64, 64))
     log_std_init: float = setting(-1.0, lt=2)
     restart_exploration: bool = False
+    train_actor: bool = True
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -36,15 +36,22 @@ def check_out(out: Path, cfg, resume: bool) -> None:
 
 
 def check_source(source: Path, out: Path) -> Path:
-    """The run folder another run starts from (``init_from``), refused before anything is compiled
-    unless it holds a checkpoint and is not the new run's own folder."""
-    if not (source / CHECKPOINT / "state.json").is_file():
+    """The folder another run starts from (``init_from``), refused before anything is compiled
+    unless it holds a checkpoint or an exported policy and is not the new run's own folder."""
+    if not (source / CHECKPOINT / "state.json").is_file() and not PolicyStart.holds(source):
         raise ValueError(f"cannot start from {source}: it holds no {CHECKPOINT}/ (a from-scratch run writes one after "
-                         "each chunk)")  # fmt: skip
+                         "each chunk) and no policy.npz with its metadata.json (a run's selected policy, or a "
+                         "shipped one)")  # fmt: skip
     if source.resolve() == out.resolve():
         raise ValueError(f"--init-from {source} is the new run's own --out; give a new --out, or --resume to go on "
                          "with that run")  # fmt: skip
     return source
+
+
+def read_start(source: Path):
+    """Where a run starts from: the :class:`Checkpoint` in ``source``, or else its exported policy
+    (:class:`PolicyStart`)."""
+    return Checkpoint.read(source) if (source / CHECKPOINT / "state.json").is_file() else PolicyStart.read(source)
 
 
 def _resumable(config: dict) -> dict:
@@ -104,7 +111,7 @@ class Checkpoint:
         shutil.rmtree(old, ignore_errors=True)
 
     @classmethod
-    def read(cls, out: Path) -> "Checkpoint":
+    def read(cls, out: Path) -> Checkpoint:
         path = out / CHECKPOINT / "state.json"
         try:
             s = json.loads(path.read_text())
@@ -133,6 +140,111 @@ class Checkpoint:
                                   f"{np.shape(want)} here (the network, num_envs and the algorithm's sizes must "
                                   "match)")  # fmt: skip
         return ts, self.history, self.wall_s, self.steps
+
+
+class PolicyStart:
+    """An exported policy (``policy.npz`` and its ``metadata.json``: a run's selected policy, or a
+    shipped one) as the start of a run: its actor and its observation statistics, in a training
+    state whose critic, optimizers and reward statistics are new (the export holds none of them).
+    Its steps and wall time are the whole run's that exported it (what the policy cost, the
+    chunks trained after the selected one included), its window the run's last; a run from it
+    starts with an empty history. A new critic steers the first updates with values it has not
+    learned: ``[ppo] train_actor = false`` for the first chunks holds the actor while it learns."""
+
+    def __init__(self, out: Path, arrays: dict, meta: dict):
+        self.out, self.arrays, self.meta = out, arrays, meta
+        self.steps = int(meta["timesteps"])
+        self.wall_s = float(meta["wall_s"])
+        best = meta.get("best_evaluation") or {}
+        self.window = float(meta.get("final_window_s") or (best.get("curriculum") or {}).get("window_s") or 0.0)
+        self.history: list = []
+        self.init_from = meta.get("provenance", {}).get("init_from")
+
+    @staticmethod
+    def holds(folder: Path) -> bool:
+        return (folder / "policy.npz").is_file() and (folder / "metadata.json").is_file()
+
+    @classmethod
+    def read(cls, folder: Path) -> PolicyStart:
+        if not cls.holds(folder):
+            raise ConfigError(f"cannot start from {folder}: it holds neither a {CHECKPOINT}/ nor a policy.npz with its "
+                              "metadata.json")  # fmt: skip
+        try:
+            meta = json.loads((folder / "metadata.json").read_text())
+            with np.load(folder / "policy.npz") as f:
+                arrays = {k: f[k] for k in f.files}
+            return cls(folder, arrays, meta)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ConfigError(f"cannot start from {folder}: its policy.npz or metadata.json is not an exported policy "
+                              f"({type(exc).__name__}: {exc})") from None  # fmt: skip
+
+    def origin(self) -> dict:
+        """This policy as the start of another run: its folder, the run it was selected in, steps and window."""
+        p = self.meta.get("provenance", {})
+        out = {"policy": str(self.out), "timesteps": self.steps, "window_s": self.window}
+        if self.meta.get("shipped_from"):
+            out["run"] = self.meta["shipped_from"]
+        if "selected_at_timesteps" in p:
+            out["selected_at_timesteps"] = int(p["selected_at_timesteps"])
+        return out if self.init_from is None else {**out, "init_from": self.init_from}
+
+    def check(self, cfg) -> None:
+        """Refuse a config the policy cannot go on under: other actions, activation or command time."""
+        a = self.arrays
+        got = {"[env] actions": str(a["actions"]), "[ppo] activation": str(a["activation"]),
+               "[env] command_time_s": float(a["command_time_s"])}  # fmt: skip
+        want = {"[env] actions": cfg.env.actions, "[ppo] activation": cfg.ppo.activation,
+                "[env] command_time_s": float(cfg.env.command_time_s)}  # fmt: skip
+        for key, value in want.items():
+            if got[key] != value:
+                raise ConfigError(f"cannot start from {self.out}: its policy has {key} = {got[key]!r} and this config "
+                                  f"{value!r}")  # fmt: skip
+
+    def restore(self, template):
+        """(training state, history, wall time, steps): ``template`` (a new training state of this
+        config) with the policy's actor, observation statistics and step count."""
+        import jax.numpy as jnp
+
+        a = self.arrays
+        actor = template.actor_ts.params["params"]
+        hidden = actor["features"]
+        n = sum(k.startswith("kernel_") for k in a)
+        if n != len(hidden):
+            raise ConfigError(f"cannot start from {self.out}: its policy has {n} hidden layers and this config's "
+                              f"network {len(hidden)}")  # fmt: skip
+        layers = {f"Dense_{i}": {"kernel": a[f"kernel_{i}"], "bias": a[f"bias_{i}"]} for i in range(n)}
+        new = {"features": layers, "action_mean": {"kernel": a["mean_kernel"], "bias": a["mean_bias"]},
+               "action_log_std": a["log_std"]}  # fmt: skip
+        params = {**template.actor_ts.params, "params": _like(actor, new, self.out)}
+        step = jnp.asarray(self.steps, jnp.asarray(template.global_step).dtype)
+        ts = template.replace(actor_ts=template.actor_ts.replace(params=params), global_step=step)
+        rms = getattr(ts, "obs_rms_state", None)
+        if rms is not None:
+            mean, var = (jnp.asarray(a[k], rms.mean.dtype) for k in ("obs_mean", "obs_var"))
+            if mean.shape != rms.mean.shape:
+                raise ConfigError(f"cannot start from {self.out}: its policy sees {mean.shape[0]} features and this "
+                                  f"environment {rms.mean.shape[0]}")  # fmt: skip
+            # counted as the steps that made them: the statistics the actor was trained under barely move
+            count = jnp.asarray(float(self.steps), rms.mean.dtype)
+            ts = ts.replace(obs_rms_state=rms.replace(mean=mean, var=var, count=count))
+        return ts, [], self.wall_s, self.steps
+
+
+def _like(template: dict, new: dict, source: Path, where: str = "") -> dict:
+    """``new``'s arrays in ``template``'s tree, each of its shape and dtype (refused, naming the array, where not)."""
+    import jax.numpy as jnp
+
+    out = {}
+    for key, want in template.items():
+        if isinstance(want, dict):
+            out[key] = _like(want, new[key], source, f"{where}{key}.")
+            continue
+        have = np.asarray(new[key])
+        if have.shape != np.shape(want):
+            raise ConfigError(f"cannot start from {source}: its policy's {where}{key} has shape {have.shape} and this config's "
+                              f"network {np.shape(want)} (the network must match)")  # fmt: skip
+        out[key] = jnp.asarray(have, jnp.asarray(want).dtype)
+    return out
 
 
 def _renamed(tree):
@@ -185,4 +297,13 @@ def plot_learning_curve(history: list[dict], path: Path, title: str) -> Path | N
     return save_figure(fig, path)
 
 
-__all__ = ["CHECKPOINT", "Checkpoint", "check_out", "check_source", "record_chunk", "plot_learning_curve"]
+__all__ = [
+    "CHECKPOINT",
+    "Checkpoint",
+    "PolicyStart",
+    "check_out",
+    "check_source",
+    "plot_learning_curve",
+    "read_start",
+    "record_chunk",
+]

@@ -163,7 +163,7 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     window = json.loads((out / "checkpoint" / "state.json").read_text())["window_s"]
     stepped = json.loads(json.dumps(SMALL))
     stepped["curriculum"]["step_weighted"] = True
-    stepped["ppo"].update(log_std_init=-2.5, restart_exploration=True)
+    stepped["ppo"].update(log_std_init=-2.5, restart_exploration=True, learning_rate=1e-3)
     other = tmp_path / "other"
     meta = train_scratch(stepped, out=other, timesteps=3072, init_from=out, progress=lambda s: None)
     assert [h["timesteps"] for h in json.loads((other / "evaluations.json").read_text())] == [1024, 2048, 3072]
@@ -176,8 +176,9 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     # the same change as a stage of one config: entered at 2048 steps as `other` started from `out`,
     # straight through or on resuming a run stopped there, it trains the same state to the byte
     staged = json.loads(json.dumps(SMALL))
+    # (the learning rate too: the optimizer is a static part of the state, which a stage must replace)
     staged["stages"] = [{"from_timesteps": 2048, "curriculum": {"step_weighted": True},
-                         "ppo": {"log_std_init": -2.5, "restart_exploration": True}}]  # fmt: skip
+                         "ppo": {"log_std_init": -2.5, "restart_exploration": True, "learning_rate": 1e-3}}]  # fmt: skip
     meta = train_scratch(staged, out=tmp_path / "staged", timesteps=3072, progress=lambda s: None)
     assert meta["train_compilations"] == 2 and meta["config"]["stages"] == staged["stages"]
     train_scratch(staged, out=tmp_path / "stopped", timesteps=2048, progress=lambda s: None)
@@ -188,6 +189,20 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
         assert [h["stage"] for h in json.loads((tmp_path / run / "evaluations.json").read_text())] == [0, 0, 1]
         assert (tmp_path / run / "checkpoint" / "train_state.msgpack").read_bytes() == (
             other / "checkpoint" / "train_state.msgpack").read_bytes(), run
+    # a run from the exported policy alone (no checkpoint), the policy held: a new critic learns, the actor and its
+    # observation statistics stay
+    exported = tmp_path / "exported"
+    exported.mkdir()
+    for name in ("policy.npz", "metadata.json"):
+        shutil.copy(out / name, exported / name)
+    held = json.loads(json.dumps(SMALL))
+    held["ppo"]["train_actor"] = False
+    meta = train_scratch(held, out=tmp_path / "held", timesteps=4096, init_from=exported, progress=lambda s: None)
+    selected = json.loads((exported / "metadata.json").read_text())["provenance"]["selected_at_timesteps"]
+    assert meta["provenance"]["init_from"] == {"policy": str(exported), "timesteps": 2048, "window_s": window,
+                                               "selected_at_timesteps": selected}  # fmt: skip
+    with np.load(exported / "policy.npz") as a, np.load(tmp_path / "held" / "policy.npz") as b:
+        assert sorted(a.files) == sorted(b.files) and all(np.array_equal(a[k], b[k]) for k in a.files)
     # a checkpoint written while the environment state's field was named ``flight`` still starts a run
     old = tmp_path / "old"
     shutil.copytree(out, old)
@@ -207,7 +222,7 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
         train_scratch(wider, out=tmp_path / "wider", init_from=out, progress=lambda s: None)
     with pytest.raises(ValueError, match="is the new run's own --out"):
         train_scratch(SMALL, out=out, init_from=out, progress=lambda s: None)
-    with pytest.raises(ValueError, match="holds no checkpoint"):
+    with pytest.raises(ValueError, match="holds no checkpoint/ .* and no policy.npz"):
         train_scratch(SMALL, out=tmp_path / "new", init_from=tmp_path / "wider", progress=lambda s: None)
     # the export flies what the training state's deterministic policy flies
     cfg = load_config(SMALL)
@@ -279,13 +294,71 @@ def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
         load_saved(str(tmp_path / "nothing_here"))
 
 
-@pytest.mark.parametrize("name", ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml"])
+SHIPPED_CONFIGS = ["ppo_scratch.toml", "ppo_scratch_flight.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml"]
+
+
+@pytest.mark.parametrize("name", SHIPPED_CONFIGS)
 def test_every_shipped_scratch_config_loads_and_round_trips(name):
     path = DEFAULT_CONFIG.parent / name
     cfg = load_config(path)
     assert load_config(cfg.to_dict()) == cfg
-    assert sorted(p.name for p in DEFAULT_CONFIG.parent.glob("ppo_scratch*.toml")) == ["ppo_scratch.toml", "ppo_scratch_gpu.toml",
-                                                                                 "ppo_scratch_late.toml"]
+    assert sorted(p.name for p in DEFAULT_CONFIG.parent.glob("ppo_scratch*.toml")) == SHIPPED_CONFIGS
+
+
+def _shipped_policy_trainer(tmp_path, **changes):
+    """A trainer of the shipped recipe's last stage (a few environments), and the shipped policy as a start."""
+    from rventry_agents.jax_policy import SHIPPED
+    from rventry_agents.scratch import Trainer
+    from rventry_agents.scratch_state import read_start
+
+    cfg = load_config().stage_configs()[-1][1]
+    tables = cfg.to_dict()
+    for section, table in changes.items():
+        tables[section].update(table)
+    cfg = load_config(tables)
+    return Trainer(cfg, tmp_path, cfg.train.seed), read_start(SHIPPED["ppo-scratch"])
+
+
+def test_a_run_starts_from_an_exported_policy_with_its_actor_its_statistics_and_its_steps(tmp_path):
+    """``init_from`` an exported policy (no checkpoint): its actor and observation statistics in a new
+    training state, which exports the same arrays again; its steps and window are the run's that
+    exported it. A config it does not fit is refused, naming what differs."""
+    pytest.importorskip("rejax")
+    from rventry_agents.jax_policy import SHIPPED
+    from rventry_agents.scratch import _initial_state
+    from rventry_agents.scratch_state import PolicyStart, check_source
+
+    trainer, start = _shipped_policy_trainer(tmp_path, env={"num_envs": 32})
+    assert isinstance(start, PolicyStart)
+    meta = json.loads((SHIPPED["ppo-scratch"] / "metadata.json").read_text())
+    ts, history, wall, steps = start.restore(_initial_state(trainer.algo, trainer.cfg, 0))
+    assert (steps, wall, history) == (meta["timesteps"], meta["wall_s"], []) and int(ts.global_step) == steps
+    origin = start.origin()
+    assert origin["selected_at_timesteps"] == meta["provenance"]["selected_at_timesteps"] < steps
+    assert origin["window_s"] == meta["final_window_s"] and origin["init_from"] == meta["provenance"]["init_from"]
+    trainer.env.export(tmp_path / "again.npz", trainer.algo, ts)
+    with np.load(SHIPPED["ppo-scratch"] / "policy.npz") as a, np.load(tmp_path / "again.npz") as b:
+        assert sorted(a.files) == sorted(b.files)
+        assert all(np.array_equal(a[k], b[k]) for k in a.files), [k for k in a.files if not np.array_equal(a[k], b[k])]
+    narrow, _ = _shipped_policy_trainer(tmp_path, env={"num_envs": 32}, ppo={"hidden_layer_sizes": [32, 32]})
+    with pytest.raises(ConfigError, match=r"policy's (features\.Dense_\d|action_mean)\.kernel has shape \(\d+, \d+\) and this config's network"):
+        start.restore(_initial_state(narrow.algo, narrow.cfg, 0))
+    with pytest.raises(ConfigError, match=r"\[env\] actions = 'commands' and this config 'rates'"):
+        start.check(load_config({"env": {"actions": "rates"}}))
+    with pytest.raises(ValueError, match="holds no checkpoint/ .* and no policy.npz with its metadata.json"):
+        check_source(tmp_path, tmp_path / "out")
+
+
+@pytest.mark.slow
+def test_the_shipped_policy_restored_flies_its_selection_set_as_recorded(tmp_path):
+    """Started again from its export, the shipped policy flies the selection set as its run recorded
+    when it was selected: every episode, the same median miss to the bit."""
+    pytest.importorskip("rejax")
+    from rventry_agents.scratch import _initial_state
+
+    trainer, start = _shipped_policy_trainer(tmp_path)
+    ts = start.restore(_initial_state(trainer.algo, trainer.cfg, 0))[0]
+    assert trainer.select(ts) == start.meta["best_evaluation"]["select"]
 
 
 def test_the_shipped_from_scratch_policy_lands_the_whole_flight_and_says_what_it_is():
@@ -322,6 +395,7 @@ def test_the_shipped_config_is_the_shipped_policys_recipe():
     assert [first for first, _ in stages[1:]] == sorted(chain)
     budget = ("total_timesteps", "max_wall_s")
     last = stages[-1][1].to_dict()
-    for config in (last, meta["config"]):
+    recorded = load_config(meta["config"]).to_dict()  # read as a config now reads it: later keys at their defaults
+    for config in (last, recorded):
         config["train"] = {k: v for k, v in config["train"].items() if k not in budget}
-    assert last == meta["config"]
+    assert last == recorded
