@@ -294,7 +294,7 @@ def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
         load_saved(str(tmp_path / "nothing_here"))
 
 
-SHIPPED_CONFIGS = ["ppo_scratch.toml", "ppo_scratch_flight.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml"]
+SHIPPED_CONFIGS = ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml"]
 
 
 @pytest.mark.parametrize("name", SHIPPED_CONFIGS)
