@@ -5,9 +5,13 @@ For one set of effects, the replay's step is built symbolically from the one cop
 parameters) and the same RK4 stages, Euler-parameter projection and control handling as
 :class:`~rventry_env.validation.replay.record_replay.Replay`. Forward-mode automatic differentiation
 (``jtimes``) carries the sensitivity matrix S = dx/d(theta) through every step along with the
-state, so the Jacobian of the discrete replay is exact (not a finite difference of it), and
-costs about three replays whatever the number of parameters. ``mapaccum`` runs the steps in
-CasADi's virtual machine without a Python loop.
+state, so the Jacobian of the discrete replay is exact (not a finite difference of it). Its cost
+grows with the number of columns of S (an 82-column trace step is about 14 times a 7-column
+one), so with more than :data:`REVERSE_ABOVE` free parameters the step's own Jacobian
+d(x_next)/d(x, p) is taken by reverse mode instead (one sweep per state, whatever the number of
+parameters) and chained, S_next = dx_next/dx S + [0, dx_next/dp]: the same derivative, equal to
+rounding (1e-14 relative), at a third to a quarter of the cost for the trace's 32- to 71-column
+replays. ``mapaccum`` runs the steps in CasADi's virtual machine without a Python loop.
 
 Observed samples between nodes come from the same cubic Hermite interpolant as the NumPy
 replay, applied to the states and to their sensitivities.
@@ -56,6 +60,21 @@ def _call(buffer, args, results) -> None:
     for i, r in enumerate(results):
         buf.set_res(i, memoryview(r))
     run()
+
+
+# more free parameters than this: the step's Jacobian by reverse mode (one sweep per state, whatever the
+# number of parameters), chained with the sensitivities; fewer: forward mode along the sensitivities
+REVERSE_ABOVE = 12
+
+
+def _chain(e, x, p, s, n_init: int):
+    """d(e)/d(theta) = de/dx S + [0, de/dp], the Jacobians of ``e`` by reverse mode (one sweep per entry of e)."""
+    import casadi as ca
+
+    z = ca.vertcat(x, p)
+    jac = ca.jtimes(e, z, ca.SX.eye(e.shape[0]), True).T  # (n_e, n_x + n_p)
+    nx = x.shape[0]
+    return ca.mtimes(jac[:, :nx], s) + ca.horzcat(ca.SX.zeros(e.shape[0], n_init), jac[:, nx:])
 
 
 class SensitivityReplay:
@@ -112,13 +131,19 @@ class SensitivityReplay:
         seeds = ca.vertcat(s, ca.horzcat(ca.SX.zeros(n_p, n_init), ca.SX.eye(n_p)))
         z = ca.vertcat(x, p)
         n = replay.grid.n_steps
-        step = ca.Function("step", [x, s, h, u, p], _dense(xn, ca.jtimes(xn, z, seeds), k1, ca.jtimes(k1, z, seeds)))
+        self.mode = "reverse" if n_p > REVERSE_ABOVE else "forward"
+        if self.mode == "forward":
+            dxn, dk1 = ca.jtimes(xn, z, seeds), ca.jtimes(k1, z, seeds)
+        else:
+            dxn, dk1 = _chain(xn, x, p, s, n_init), _chain(k1, x, p, s, n_init)
+        step = ca.Function("step", [x, s, h, u, p], _dense(xn, dxn, k1, dk1))
         self._steps_buffer = step.mapaccum("replay", n, [0, 1], [0, 1]).buffer()
         value_step = ca.Function("step_values", [x, h, u, p], _dense(xn, k1))  # the same expressions
         self._values_buffer = value_step.mapaccum("replay_values", n, [0], [0]).buffer()
         ue = ca.SX.sym("ue", 2 + q)
         fe = f(x, ue[0], ue[1], [ue[2 + i] for i in range(q)])
-        self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, ca.jtimes(fe, z, seeds))).buffer()
+        dfe = ca.jtimes(fe, z, seeds) if self.mode == "forward" else _chain(fe, x, p, s, n_init)
+        self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, dfe)).buffer()
         self._end_values_buffer = ca.Function("end_values", [x, ue, p], _dense(fe)).buffer()
         # observations and their derivatives at the samples
         rec = replay.record
@@ -194,4 +219,4 @@ class SensitivityReplay:
         return y, np.einsum("nji,nkj->nik", dy, s_s, optimize=True)
 
 
-__all__ = ["SensitivityReplay"]
+__all__ = ["REVERSE_ABOVE", "SensitivityReplay"]
