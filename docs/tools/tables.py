@@ -681,7 +681,7 @@ def reference_show_table(doc: dict) -> str:
         ["eB1(tf), etaB(tf)", exact, "vertical impact, exact"],
         ["target miss", "< 1 mm" if miss < 1e-3 else f"{sig(miss)} m", ""],
         ["unit-norm drift at the nodes / between nodes", f"{sci(d['norm_drift_nodes'], 1)} / {sci(d['norm_drift_between_nodes'], 1)}", ""],
-        ["max aero load, min dynamic pressure at the nodes", f"{load:.3f} g, {q / 1e3:.2f} kPa",
+        ["max aero load, min dynamic pressure (at the nodes and between them)", f"{load:.3f} g, {q / 1e3:.2f} kPa",
          f"<= {bounds['a_max_g']:g} g, >= {bounds['q_min'] / 1e3:g} kPa"],
     ]  # fmt: skip
     return "\n".join([md(["quantity", "value", "target"], rows), "", source(SHIPPED_REFERENCE, command=doc.get("command"))])
