@@ -1350,7 +1350,12 @@ def rhs_throughput_table(doc: dict) -> str:
     rows = [[RHS_LABELS.get(name, name), *(sci(r[c], 2) for c in cols)] for name, r in rates.items()]
     header = ["form", *(_batch_label(c) for c in cols)]
     table = md(header, rows).replace("|---|" + "---|" * len(cols), "|---|" + "---:|" * len(cols), 1)
-    return "\n".join([table, "", machine_note(doc, ("numpy",)), "", source(RHS_FORMS, command=_timed_command(doc))])
+    rv, sph = rates["rv-Euler"], rates["spherical"]
+    big = [c for c in cols if c != "scalar" and int(c) >= 10_000]
+    ratios = (f"rv-Euler / spherical: {', '.join(f'{rv[c] / sph[c]:.1f}x at {_batch_label(c)}' for c in big)}; "
+              f"spherical / rv-Euler for one state in Python floats: {sph['scalar'] / rv['scalar']:.1f}x.")  # fmt: skip
+    return "\n".join([table, "", ratios, "", machine_note(doc, ("numpy",)), "",
+                      source(RHS_FORMS, command=_timed_command(doc))])
 
 
 def _pair(built: dict, cse: dict | None, key: str, bold: bool = False) -> str:
