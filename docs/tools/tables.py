@@ -662,6 +662,30 @@ def reference_table(doc: dict) -> str:
                       source(SHIPPED_REFERENCE, command=doc.get("command"))])
 
 
+
+def reference_show_table(doc: dict) -> str:
+    """``rventry reference show``: the shipped optimum, its ends against the boundary conditions, its norm drift
+    and its path constraints against their bounds."""
+    d, bounds = doc["diagnostics"], doc["constants"]["problem"]
+    exact = "exactly 0" if d["final_eB1"] == 0 and d["final_etaB"] == 0 else f"{d['final_eB1']:.1e}, {d['final_etaB']:.1e}"
+    ends = (d["final_radius_error_m"], d["final_speed_error_mps"], d["final_alpha_deg"])
+    miss = d["target_miss_m"]
+    load, q = d["max_aero_accel_g"], d["min_dynamic_pressure_pa"]
+    rows = [
+        ["J* (Eq. `Ex2-Cost`)", f"{doc['cost']:.6f}", ""],
+        ["tf", f"{doc['tf_s']:.3f} s", ""],
+        ["final mesh max relative error", f"{sci(doc['mesh_error'], 2)} ({doc['n_intervals']} intervals, {doc['n_nodes']} nodes)",
+         f"<= {sci(doc['mesh_tolerance'], 0)}"],
+        ["max constraint violation (scaled NLP, IPOPT's view)", sci(doc["max_constraint_violation"], 1), ""],
+        [f"r(tf) - R_e, v(tf) - {bounds['final_speed']:g} m/s, alpha(tf)", ", ".join(f"{v:g}" for v in ends), ""],
+        ["eB1(tf), etaB(tf)", exact, "vertical impact, exact"],
+        ["target miss", "< 1 mm" if miss < 1e-3 else f"{sig(miss)} m", ""],
+        ["unit-norm drift at the nodes / between nodes", f"{sci(d['norm_drift_nodes'], 1)} / {sci(d['norm_drift_between_nodes'], 1)}", ""],
+        ["max aero load, min dynamic pressure (at the nodes and between them)", f"{load:.3f} g, {q / 1e3:.2f} kPa",
+         f"<= {bounds['a_max_g']:g} g, >= {bounds['q_min'] / 1e3:g} kPa"],
+    ]  # fmt: skip
+    return "\n".join([md(["quantity", "value", "target"], rows), "", source(SHIPPED_REFERENCE, command=doc.get("command"))])
+
 ORBIT_RECORDS = ("docs/results/orbit.json", "docs/results/orbit_n.json")
 
 
@@ -1306,6 +1330,58 @@ def decision_cost_table(doc: dict) -> str:
                       source(DECISION_COST, command=_timed_command(doc))])
 
 
+RHS_FORMS = "docs/results/rhs_forms.json"
+RHS_LABELS = {"rv-Euler": "rv-Euler two-body", "spherical": "spherical two-body", "Cartesian": "Cartesian two-body",
+              "entry (rv-Euler)": "entry dynamics (`entry_rhs`, 12 states)"}  # fmt: skip
+
+
+def _batch_label(b: str) -> str:
+    """A batch column: "scalar", or B=10, B=1e3 from 1000 on."""
+    if b == "scalar":
+        return "scalar"
+    n = int(b)
+    return f"B={n}" if n < 1000 else f"B=1e{round(math.log10(n))}" if 10 ** round(math.log10(n)) == n else f"B={n:,}"
+
+
+def rhs_throughput_table(doc: dict) -> str:
+    """``benchmarks/rhs_forms.py``: states per second of each right-hand side, one state and NumPy batches."""
+    rates = doc["throughput_states_per_s"]
+    cols = list(next(iter(rates.values())))
+    rows = [[RHS_LABELS.get(name, name), *(sci(r[c], 2) for c in cols)] for name, r in rates.items()]
+    header = ["form", *(_batch_label(c) for c in cols)]
+    table = md(header, rows).replace("|---|" + "---|" * len(cols), "|---|" + "---:|" * len(cols), 1)
+    rv, sph = rates["rv-Euler"], rates["spherical"]
+    big = [c for c in cols if c != "scalar" and int(c) >= 10_000]
+    ratios = (f"rv-Euler / spherical: {', '.join(f'{rv[c] / sph[c]:.1f}x at {_batch_label(c)}' for c in big)}; "
+              f"spherical / rv-Euler for one state in Python floats: {sph['scalar'] / rv['scalar']:.1f}x.")  # fmt: skip
+    return "\n".join([table, "", ratios, "", machine_note(doc, ("numpy",)), "",
+                      source(RHS_FORMS, command=_timed_command(doc))])
+
+
+def _pair(built: dict, cse: dict | None, key: str, bold: bool = False) -> str:
+    """A count as built / after CSE (one figure where they agree), in bold where asked."""
+    a, b = built[key], (cse or built)[key]
+    text = f"{a}" if a == b else f"{a} / {b}"
+    return f"**{text}**" if bold else text
+
+
+def rhs_op_count_table(doc: dict) -> str:
+    """``benchmarks/rhs_forms.py --cse``: CasADi SX instructions per evaluation of each form, as built / after CSE."""
+    built, cse = doc["op_counts"]["as built"], doc["op_counts"].get("with CSE")
+    rows = []
+    for name, c in built.items():
+        e = (cse or {}).get(name)
+        two_body = name in ("rv-Euler", "spherical")  # the paper's comparison: its arithmetic and trig in bold
+        rows.append([RHS_LABELS.get(name, name).split(" (")[0], *(_pair(c, e, k) for k in ("add/sub", "mul", "div", "neg")),
+                     _pair(c, e, "arithmetic", two_body), _pair(c, e, "sqrt"), _pair(c, e, "trig", two_body),
+                     _pair(c, e, "exp/log/pow"), _pair(c, e, "weighted")])  # fmt: skip
+    header = ["form", "add/sub", "mul", "div", "neg", "arithmetic", "sqrt", "trig", "exp", "14-flop-sin total"]
+    table = md(header, rows).replace("|---|" + "---|" * 9, "|---|" + "---:|" * 9, 1)
+    other = sorted({c["other"] for c in built.values() if c.get("other")})
+    note = f"Instructions of no class counted: {'; '.join(other)}." if other else "Every instruction falls in a column."
+    return "\n".join([table, "", note, "", source(RHS_FORMS, command=_timed_command(doc))])
+
+
 # tables of timings: measured on a quiet machine, each by one command (docs/results/README.md)
 TIMINGS: tuple[Table, ...] = (
     Table("env-speed", (ENV_SPEED,), env_speed_table, ("docs/benchmarks/environment.md",)),
@@ -1313,6 +1389,7 @@ TIMINGS: tuple[Table, ...] = (
     Table("reference-solve-summary", (REFERENCE_SOLVE,), reference_solve_summary, ("docs/benchmarks/collocation.md",)),
     Table("reference-betts", (REFERENCE_SOLVE,), betts_table, ("docs/reference.md",)),
     Table("decision-cost", (DECISION_COST,), decision_cost_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("rhs-throughput", (RHS_FORMS,), rhs_throughput_table, ("docs/core.md",)),
 )  # fmt: skip
 
 
@@ -1326,6 +1403,7 @@ TABLES: tuple[Table, ...] = (
     Table("orbit", ORBIT_RECORDS, orbit_table, ("docs/benchmarks/rv_euler.md",)),
     Table("orbit-sweep", ORBIT_RECORDS[:1], orbit_sweep_table, ("docs/core.md",)),
     Table("reference-solution", (SHIPPED_REFERENCE,), reference_table, ("docs/benchmarks/collocation.md",)),
+    Table("reference-show", (SHIPPED_REFERENCE,), reference_show_table, ("docs/reference.md",)),
     Table("mpc-benchmark", ("docs/results/bench_mpc_eval.json",), mpc_benchmark, ("docs/benchmarks/guidance.md",)),
     *(Table(f"set-{d}", _set_records(d), set_table(d), ("docs/benchmarks/flight_grade.md",))
       for d in ("flight", "peer", "peer-0.1")),
@@ -1362,6 +1440,7 @@ TABLES: tuple[Table, ...] = (
     Table("env-accuracy", (ENV_ACCURACY,), env_accuracy_table, ("docs/benchmarks/environment.md",)),
     Table("random-actions", (RANDOM_ACTIONS,), random_actions_table, ("docs/benchmarks/environment.md",)),
     Table("baselines", (BASELINES, *JAX_BASELINES), baselines_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("rhs-op-counts", (RHS_FORMS,), rhs_op_count_table, ("docs/core.md",)),
     *(t for t in TIMINGS if REFERENCE_SOLVE not in t.records),  # the reference solve's: not yet recorded (docs/reference.md)
 )  # fmt: skip
 
