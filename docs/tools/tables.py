@@ -642,17 +642,29 @@ def ppo_table(flight: dict, standard: dict, wide: dict, peer: dict, seeds: dict,
 SHIPPED_REFERENCE = "rventry_env/reference/data/entry_reference_v1.json"
 
 
+def _exact_ends(d: dict) -> str:
+    """The optimum's final eB1 and etaB: exactly 0, or their values."""
+    return "exactly 0" if d["final_eB1"] == 0 and d["final_etaB"] == 0 else f"{d['final_eB1']:.1e}, {d['final_etaB']:.1e}"
+
+
+def _optimum_rows(doc: dict, cost: str, tf: str, violation: str) -> list:
+    """The rows every table of a collocation optimum opens with: its cost, final time, mesh error and
+    constraint violation, under the given names."""
+    return [
+        [cost, f"{doc['cost']:.6f}", ""],
+        [tf, f"{doc['tf_s']:.3f} s", ""],
+        ["final mesh max relative error", f"{sci(doc['mesh_error'], 2)} ({doc['n_intervals']} intervals, {doc['n_nodes']} nodes)",
+         f"<= {sci(doc['mesh_tolerance'], 0)}"],
+        [violation, sci(doc["max_constraint_violation"], 1), ""],
+    ]  # fmt: skip
+
+
 def reference_table(doc: dict) -> str:
     """The shipped collocation optimum, from the summary its solve wrote beside it."""
     d = doc["diagnostics"]
-    exact = "exactly 0" if d["final_eB1"] == 0 and d["final_etaB"] == 0 else f"{d['final_eB1']:.1e}, {d['final_etaB']:.1e}"
     rows = [
-        ["J*", f"{doc['cost']:.6f}", ""],
-        ["t_f", f"{doc['tf_s']:.3f} s", ""],
-        ["final mesh max relative error", f"{sci(doc['mesh_error'], 2)} ({doc['n_intervals']} intervals, {doc['n_nodes']} nodes)",
-         f"<= {sci(doc['mesh_tolerance'], 0)}"],
-        ["max constraint violation (scaled NLP)", sci(doc["max_constraint_violation"], 1), ""],
-        ["eB1(t_f), etaB(t_f)", exact, "exact"],
+        *_optimum_rows(doc, "J*", "t_f", "max constraint violation (scaled NLP)"),
+        ["eB1(t_f), etaB(t_f)", _exact_ends(d), "exact"],
         ["IPOPT iterations per mesh pass", ", ".join(map(str, doc["nlp_iterations_per_pass"])), ""],
         ["|lambda|, the norm-keeping control, largest", f"{sci(d['max_abs_lambda_per_s'], 1)} /s", "0 (the paper's problem)"],
         ["the shipped file's solve: wall (CPU), peak memory of the process",
@@ -667,18 +679,13 @@ def reference_show_table(doc: dict) -> str:
     """``rventry reference show``: the shipped optimum, its ends against the boundary conditions, its norm drift
     and its path constraints against their bounds."""
     d, bounds = doc["diagnostics"], doc["constants"]["problem"]
-    exact = "exactly 0" if d["final_eB1"] == 0 and d["final_etaB"] == 0 else f"{d['final_eB1']:.1e}, {d['final_etaB']:.1e}"
     ends = (d["final_radius_error_m"], d["final_speed_error_mps"], d["final_alpha_deg"])
     miss = d["target_miss_m"]
     load, q = d["max_aero_accel_g"], d["min_dynamic_pressure_pa"]
     rows = [
-        ["J* (Eq. `Ex2-Cost`)", f"{doc['cost']:.6f}", ""],
-        ["tf", f"{doc['tf_s']:.3f} s", ""],
-        ["final mesh max relative error", f"{sci(doc['mesh_error'], 2)} ({doc['n_intervals']} intervals, {doc['n_nodes']} nodes)",
-         f"<= {sci(doc['mesh_tolerance'], 0)}"],
-        ["max constraint violation (scaled NLP, IPOPT's view)", sci(doc["max_constraint_violation"], 1), ""],
+        *_optimum_rows(doc, "J* (Eq. `Ex2-Cost`)", "tf", "max constraint violation (scaled NLP, IPOPT's view)"),
         [f"r(tf) - R_e, v(tf) - {bounds['final_speed']:g} m/s, alpha(tf)", ", ".join(f"{v:g}" for v in ends), ""],
-        ["eB1(tf), etaB(tf)", exact, "vertical impact, exact"],
+        ["eB1(tf), etaB(tf)", _exact_ends(d), "vertical impact, exact"],
         ["target miss", "< 1 mm" if miss < 1e-3 else f"{sig(miss)} m", ""],
         ["unit-norm drift at the nodes / between nodes", f"{sci(d['norm_drift_nodes'], 1)} / {sci(d['norm_drift_between_nodes'], 1)}", ""],
         ["max aero load, min dynamic pressure (at the nodes and between them)", f"{load:.3f} g, {q / 1e3:.2f} kPa",
