@@ -4,6 +4,7 @@ turns a small hand-written record into the rows it must show, every column and t
 from __future__ import annotations
 
 import copy
+import json
 import importlib.util
 import sys
 from pathlib import Path
@@ -185,8 +186,10 @@ def test_the_cost_per_decision_shows_every_law_one_vehicle_and_batched():
 
 def test_each_timing_table_reads_its_record_and_renders_it():
     t = tables()
-    fixtures = {t.ENV_SPEED: ENV_SPEED, t.REFERENCE_SOLVE: REFERENCE_SOLVE, t.DECISION_COST: DECISION_COST}
+    rhs = json.loads((ROOT / t.RHS_FORMS).read_text())  # the committed record: its table is checked against it too
+    fixtures = {t.ENV_SPEED: ENV_SPEED, t.REFERENCE_SOLVE: REFERENCE_SOLVE, t.DECISION_COST: DECISION_COST, t.RHS_FORMS: rhs}
     names = {x.name for x in t.TIMINGS}
-    assert names == {"env-speed", "reference-solve", "reference-solve-summary", "reference-betts", "decision-cost"}
+    assert names == {"env-speed", "reference-solve", "reference-solve-summary", "reference-betts", "decision-cost",
+                     "rhs-throughput"}
     for table in t.TIMINGS:
         assert table.render(*(fixtures[p] for p in table.records)).startswith("|"), table.name
