@@ -352,13 +352,16 @@ def test_a_run_starts_from_an_exported_policy_with_its_actor_its_statistics_and_
 @pytest.mark.slow
 def test_the_shipped_policy_restored_flies_its_selection_set_as_recorded(tmp_path):
     """Started again from its export, the shipped policy flies the selection set as its run recorded
-    when it was selected: every episode, the same median miss to the bit."""
+    when it was selected: every episode landed, the same median miss (to rounding)."""
     pytest.importorskip("rejax")
     from rventry_agents.scratch import _initial_state
 
     trainer, start = _shipped_policy_trainer(tmp_path)
     ts = start.restore(_initial_state(trainer.algo, trainer.cfg, 0))[0]
-    assert trainer.select(ts) == start.meta["best_evaluation"]["select"]
+    got, recorded = trainer.select(ts), start.meta["best_evaluation"]["select"]
+    assert got["episodes"] == recorded["episodes"] and got["success_rate"] == recorded["success_rate"]
+    # the same episodes flown again; XLA's threading may round a sum differently from the training process's
+    assert got == pytest.approx(recorded, rel=1e-5, abs=1e-6)
 
 
 def test_the_shipped_from_scratch_policy_lands_the_whole_flight_and_says_what_it_is():
