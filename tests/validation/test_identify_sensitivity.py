@@ -56,6 +56,24 @@ def test_sensitivities_are_the_derivative_of_the_numpy_replay(flown, axis):
         assert np.max(np.abs(jac[:, :, i] - fd)) <= 1e-5 * np.max(np.abs(fd)), eng.names[i - 6] if i >= 6 else i
 
 
+def test_the_reverse_mode_jacobian_is_the_forward_modes(flown, monkeypatch):
+    """Above a number of parameters the step's Jacobian is taken by reverse mode and chained with the
+    sensitivities: the same derivative as forward mode along them, to rounding."""
+    from rventry_env.validation.replay import sensitivity
+
+    setup, replay = flown
+    offsets = np.array([30.0, -20.0, 10.0, 0.1, -0.2, 0.05])
+    out = {}
+    for above in (10_000, 0):
+        monkeypatch.setattr(sensitivity, "REVERSE_ABOVE", above)
+        eng = _engine(setup, replay, "altitude", 3)
+        params = 0.01 * np.random.default_rng(0).standard_normal(len(eng.names))
+        out[eng.mode] = eng.evaluate(offsets, params)
+    (y_f, j_f), (y_r, j_r) = out["forward"], out["reverse"]
+    assert np.allclose(y_r, y_f, rtol=1e-12, atol=0)
+    assert np.max(np.abs(j_r - j_f)) <= 1e-10 * np.max(np.abs(j_f))
+
+
 @pytest.mark.parametrize("axis", ["altitude", "time"])
 def test_the_prediction_without_sensitivities_is_the_sensitivity_replays_to_the_last_bit(flown, axis):
     """A fit's rejected trial points are replayed without derivatives: the same numbers, not close ones."""

@@ -67,13 +67,12 @@ def _call(buffer, args, results) -> None:
 REVERSE_ABOVE = 12
 
 
-def _chain(e, x, p, s, n_init: int):
-    """d(e)/d(theta) = de/dx S + [0, de/dp], the Jacobians of ``e`` by reverse mode (one sweep per entry of e)."""
+def _chain(e, z, nx: int, s, n_init: int):
+    """d(e)/d(theta) = de/dx S + [0, de/dp], with z = (x, p) and x its first ``nx`` entries; the
+    Jacobians of ``e`` by reverse mode (one sweep per entry of e)."""
     import casadi as ca
 
-    z = ca.vertcat(x, p)
     jac = ca.jtimes(e, z, ca.SX.eye(e.shape[0]), True).T  # (n_e, n_x + n_p)
-    nx = x.shape[0]
     return ca.mtimes(jac[:, :nx], s) + ca.horzcat(ca.SX.zeros(e.shape[0], n_init), jac[:, nx:])
 
 
@@ -132,18 +131,17 @@ class SensitivityReplay:
         z = ca.vertcat(x, p)
         n = replay.grid.n_steps
         self.mode = "reverse" if n_p > REVERSE_ABOVE else "forward"
-        if self.mode == "forward":
-            dxn, dk1 = ca.jtimes(xn, z, seeds), ca.jtimes(k1, z, seeds)
-        else:
-            dxn, dk1 = _chain(xn, x, p, s, n_init), _chain(k1, x, p, s, n_init)
-        step = ca.Function("step", [x, s, h, u, p], _dense(xn, dxn, k1, dk1))
+
+        def d(e):  # d(e)/d(theta), by the mode chosen for this many parameters
+            return ca.jtimes(e, z, seeds) if self.mode == "forward" else _chain(e, z, x.shape[0], s, n_init)
+
+        step = ca.Function("step", [x, s, h, u, p], _dense(xn, d(xn), k1, d(k1)))
         self._steps_buffer = step.mapaccum("replay", n, [0, 1], [0, 1]).buffer()
         value_step = ca.Function("step_values", [x, h, u, p], _dense(xn, k1))  # the same expressions
         self._values_buffer = value_step.mapaccum("replay_values", n, [0], [0]).buffer()
         ue = ca.SX.sym("ue", 2 + q)
         fe = f(x, ue[0], ue[1], [ue[2 + i] for i in range(q)])
-        dfe = ca.jtimes(fe, z, seeds) if self.mode == "forward" else _chain(fe, x, p, s, n_init)
-        self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, dfe)).buffer()
+        self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, d(fe))).buffer()
         self._end_values_buffer = ca.Function("end_values", [x, ue, p], _dense(fe)).buffer()
         # observations and their derivatives at the samples
         rec = replay.record
