@@ -146,18 +146,17 @@ class PolicyStart:
     """An exported policy (``policy.npz`` and its ``metadata.json``: a run's selected policy, or a
     shipped one) as the start of a run: its actor and its observation statistics, in a training
     state whose critic, optimizers and reward statistics are new (the export holds none of them).
-    Its steps and wall time are the whole run's that exported it (what the policy cost, the
-    chunks trained after the selected one included), its window the run's last; a run from it
-    starts with an empty history. A new critic steers the first updates with values it has not
-    learned: ``[ppo] train_actor = false`` for the first chunks holds the actor while it learns."""
+    Its steps, wall time and curriculum window are what its metadata gives: a run's export, the
+    whole run's (what the policy cost, the chunks trained after the selected one included) and its
+    last window; a milestone's, where it was kept. A run from it starts with an empty history. A
+    new critic steers the first updates with values it has not learned: ``[ppo] train_actor =
+    false`` for the first chunks holds the policy while it learns."""
 
     def __init__(self, out: Path, arrays: dict, meta: dict):
         self.out, self.arrays, self.meta = out, arrays, meta
         self.steps = int(meta["timesteps"])
         self.wall_s = float(meta["wall_s"])
-        best = meta.get("best_evaluation") or {}
-        self.window = float(meta.get("final_window_s") or (best.get("curriculum") or {}).get("window_s") or 0.0)
-        self.history: list = []
+        self.window = float(meta["final_window_s"] if "final_window_s" in meta else meta["window_s"])
         self.init_from = meta.get("provenance", {}).get("init_from")
 
     @staticmethod

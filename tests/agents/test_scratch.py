@@ -326,7 +326,7 @@ def test_a_run_starts_from_an_exported_policy_with_its_actor_its_statistics_and_
     pytest.importorskip("rejax")
     from rventry_agents.jax_policy import SHIPPED
     from rventry_agents.scratch import _initial_state
-    from rventry_agents.scratch_state import PolicyStart, check_source
+    from rventry_agents.scratch_state import PolicyStart, check_source, read_start
 
     trainer, start = _shipped_policy_trainer(tmp_path, env={"num_envs": 32})
     assert isinstance(start, PolicyStart)
@@ -347,6 +347,17 @@ def test_a_run_starts_from_an_exported_policy_with_its_actor_its_statistics_and_
         start.check(load_config({"env": {"actions": "rates"}}))
     with pytest.raises(ValueError, match="holds no checkpoint/ .* and no policy.npz with its metadata.json"):
         check_source(tmp_path, tmp_path / "out")
+    # a milestone's export starts where it was kept: its steps, wall time and window
+    kept = tmp_path / "milestone"
+    kept.mkdir()
+    shutil.copy(SHIPPED["ppo-scratch"] / "policy.npz", kept / "policy.npz")
+    milestone = {"timesteps": 409_993_216, "wall_s": 9000.0, "window_s": 981.0, "provenance": {}}
+    (kept / "metadata.json").write_text(json.dumps(milestone))
+    assert [read_start(kept).origin()[k] for k in ("timesteps", "window_s")] == [409_993_216, 981.0]
+    (kept / "metadata.json").write_text(json.dumps({k: v for k, v in milestone.items() if k != "window_s"}))
+    with pytest.raises(ConfigError, match=r"milestone: its policy.npz or metadata.json is not an exported policy "
+                                          r"\(KeyError: 'window_s'\)"):
+        read_start(kept)
 
 
 @pytest.mark.slow
