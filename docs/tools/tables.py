@@ -1444,7 +1444,7 @@ TABLES: tuple[Table, ...] = (
     Table("dagger-flight-heldout", dagger_flight_records(), dagger_flight_heldout_table,
           ("docs/benchmarks/learned_policies.md",)),
     Table("apollo4", (APOLLO4,), apollo4_table, ("docs/benchmarks/identification.md", "docs/validation.md")),
-    Table("env-accuracy", (ENV_ACCURACY,), env_accuracy_table, ("docs/benchmarks/environment.md",)),
+    Table("env-accuracy", (ENV_ACCURACY,), env_accuracy_table, ("docs/benchmarks/environment.md", "docs/env.md")),
     Table("random-actions", (RANDOM_ACTIONS,), random_actions_table, ("docs/benchmarks/environment.md",)),
     Table("baselines", (BASELINES, *JAX_BASELINES), baselines_table, ("docs/benchmarks/learned_policies.md",)),
     Table("rhs-op-counts", (RHS_FORMS,), rhs_op_count_table, ("docs/core.md",)),
