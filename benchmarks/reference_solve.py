@@ -5,7 +5,9 @@ the CasADi functions, generating the guess and every mesh pass (module imports
 are timed separately). Reported per run: wall time, CPU time of the process (the
 machine may be shared; CPU time is what the solve itself costs), IPOPT iterations
 per mesh pass, peak resident memory (ru_maxrss, the whole process), J*, tf and
-the final mesh error. Then the two Betts cases against the published optimum.
+the final mesh error. Then the shipped optimum's controls replayed open loop through
+``entry_rhs`` (DOP853, rtol 1e-11): the position error at impact and along the flight.
+Then the two Betts cases against the published optimum.
 
     python benchmarks/reference_solve.py [--repeat 3] [--json bench.json] [--skip-betts]
 """
@@ -23,6 +25,7 @@ import time
 from rventry_env.util.provenance import start_run, write_record
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+REPLAY_RTOL = 1e-11  # the open-loop replay's DOP853 tolerance (tests/reference/test_reference_replay.py's)
 
 
 def _one_entry() -> dict:
@@ -50,6 +53,18 @@ def _one_entry() -> dict:
         "converged": rs.converged,
         "stages": rs.stages,
     }
+
+
+def _one_replay() -> dict:
+    """The shipped optimum's controls through the NumPy entry dynamics, open loop (no timing target)."""
+    from rventry_env.reference import load_reference
+    from rventry_env.reference.open_loop import entry_rhs_numpy, replay_controls
+
+    t0 = time.perf_counter()
+    res = replay_controls(entry_rhs_numpy(), load_reference(), rtol=REPLAY_RTOL)
+    return {"rtol": REPLAY_RTOL, "method": "DOP853", "position_error_at_impact_m": res.position_error_at_impact_m,
+            "max_position_error_m": res.max_position_error_m, "altitude_at_tf_m": res.altitude_at_tf_m,
+            "wall_s": time.perf_counter() - t0}  # fmt: skip
 
 
 def _one_betts(limit) -> dict:
@@ -95,7 +110,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.child:
         kind, arg = args.child
-        print(json.dumps(_one_entry() if kind == "entry" else _one_betts(arg)))
+        print(json.dumps({"entry": _one_entry, "replay": _one_replay}.get(kind, lambda: _one_betts(arg))()))
         return 0
     if args.repeat < 1:
         parser.error("--repeat must be >= 1")
@@ -118,6 +133,11 @@ def main(argv=None) -> int:
     cpu = statistics.median(r["cpu_s"] for r in runs)
     print(f"median wall {wall:.2f} s (target < 30 s), median CPU {cpu:.2f} s")
 
+    replay = _run_child("replay")
+    print(f"\nThe shipped optimum's controls replayed open loop (DOP853, rtol {replay['rtol']:g}): position error "
+          f"{replay['position_error_at_impact_m']:.2f} m at impact (target <= 100 m), "
+          f"{replay['max_position_error_m']:.2f} m at most along the flight")  # fmt: skip
+
     betts = []
     if not args.skip_betts:
         betts = [_run_child("betts", "none"), _run_child("betts", "70")]
@@ -133,7 +153,7 @@ def main(argv=None) -> int:
                   f"{b['latitude_deg']:11.5f} [{p['latitude_deg']:9.4f}] {b['latitude_rel_error']:8.1e} "
                   f"{b['mesh_error']:9.2e} {b['n_nodes']:5d} {b['wall_s']:7.2f}")  # fmt: skip
     if args.json:
-        write_record(args.json, {"load_average": load, "entry": runs, "betts": betts}, indent=2)
+        write_record(args.json, {"load_average": load, "entry": runs, "replay": replay, "betts": betts}, indent=2)
         print(f"\nwrote {args.json}")
     return 0
 

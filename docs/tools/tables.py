@@ -1047,6 +1047,15 @@ def env_accuracy_table(doc: dict) -> str:
                       source(ENV_ACCURACY, command="python benchmarks/env_speed.py --accuracy --json out/env_accuracy.json")])
 
 
+def reference_dt_table(doc: dict) -> str:
+    """The reference's step-mean rates flown through the env at several dt: the running cost's O(dt) gap to J*."""
+    rows = [[f"{r['dt_s']:g}", f"{r['cost_ratio']:.3f}", f"{sig(r['miss_km'] * 1e3, 2)} m", f"{sig(r['vertical_error_deg'], 2)} deg",
+             "yes" if r["is_success"] else "**no**"] for r in doc["reference_dt"]]  # fmt: skip
+    header = ["dt (s), one substep", "running cost / J*", "miss", "vertical error", "success"]
+    return "\n".join([md(header, rows), "", "The nominal flight, flown by `ReferencePolicy` (the step-mean rates).", "",
+                      source(ENV_ACCURACY, command="python benchmarks/env_speed.py --accuracy --json out/env_accuracy.json")])
+
+
 RANDOM_ACTIONS = "docs/results/random_actions.json"
 
 
@@ -1102,7 +1111,8 @@ def scan_defaults_table(doc: dict) -> str:
     seeds = f"seeds {doc['seed']}-{doc['seed'] + doc['episodes'] - 1}"
     text = (f"{doc['episodes']} `{doc['dispersion']}` episodes ({seeds}) and the nominal flight per variant, "
             f"{doc['wall_s']:.0f} s on {doc['workers']} workers{_load_text(doc)}: the times are this machine's.")
-    return "\n".join([md(header, rows), "", text, "", source(SCAN_DEFAULTS, command=doc.get("command"))])
+    command = doc.get("command") or (doc.get("provenance") or {}).get("command")
+    return "\n".join([md(header, rows), "", text, "", source(SCAN_DEFAULTS, command=command)])
 
 
 BASELINES = "docs/results/bench_baselines.json"
@@ -1219,8 +1229,22 @@ def _passes(r: dict) -> str:
     return ", ".join(f"{it} ({n})" for it, n in zip(r["iterations_per_pass"], r["nodes_per_pass"]))
 
 
-def reference_solve_table(doc: dict) -> str:
-    """``benchmarks/reference_solve.py``: each cold-start solve of the entry problem, in a fresh process."""
+def _optimum_found(runs: list, shipped: dict) -> str:
+    """Whether each cold solve found the shipped optimum (J* to 1e-4 relative and t_f to 0.1 s, as
+    ``tests/reference/test_reference_cold_solve.py`` asks) or another local optimum."""
+    found = [abs(r["cost"] - shipped["cost"]) <= 1e-4 * shipped["cost"] and abs(r["tf_s"] - shipped["tf_s"]) <= 0.1
+             for r in runs]  # fmt: skip
+    if all(found):
+        return f"Every cold solve found the shipped optimum (J* = {shipped['cost']:.6f}, t_f = {shipped['tf_s']:.3f} s)."
+    missed = ", ".join(f"run {i} (J = {r['cost']:.6f}, t_f = {r['tf_s']:.1f} s)" for i, (r, ok) in
+                       enumerate(zip(runs, found)) if not ok)  # fmt: skip
+    return (f"**Not the shipped optimum** (J* = {shipped['cost']:.6f}, t_f = {shipped['tf_s']:.3f} s): {missed} converged "
+            f"on a local optimum of higher cost.")
+
+
+def reference_solve_table(doc: dict, shipped: dict) -> str:
+    """``benchmarks/reference_solve.py``: each cold-start solve of the entry problem, in a fresh process, and
+    whether it found the shipped optimum."""
     runs = doc["entry"]
     wall = statistics.median(r["wall_s"] for r in runs)
     first = _passes(runs[0])
@@ -1235,20 +1259,25 @@ def reference_solve_table(doc: dict) -> str:
             ["J*, t_f, final mesh error", *(f"{r['cost']:.6f}, {r['tf_s']:.3f} s, {sci(r['mesh_error'], 2)}" for r in runs),
              ""]]  # fmt: skip
     header = ["", *(f"run {i}" for i in range(len(runs))), "target"]
-    return "\n".join([md(header, rows), "", machine_note(doc, ("casadi", "numpy", "scipy")), "",
-                      source(REFERENCE_SOLVE, command=_timed_command(doc))])
+    return "\n".join([md(header, rows), "", _optimum_found(runs, shipped), "", machine_note(doc, ("casadi", "numpy", "scipy")),
+                      "", source(REFERENCE_SOLVE, SHIPPED_REFERENCE, command=_timed_command(doc))])
 
 
-def reference_solve_summary(doc: dict) -> str:
-    """The benchmark page's lines of ``benchmarks/reference_solve.py``: the cold-start solve's wall time and memory."""
-    runs = doc["entry"]
+def reference_solve_summary(doc: dict, shipped: dict) -> str:
+    """The benchmark page's lines of ``benchmarks/reference_solve.py``: the cold-start solve's wall time, memory and
+    optimum, and the shipped optimum replayed open loop."""
+    runs, replay = doc["entry"], doc["replay"]
     wall = statistics.median(r["wall_s"] for r in runs)
+    err = replay["position_error_at_impact_m"]
     rows = [["cold-start solve, wall (each run in a fresh process)", ", ".join(f"{r['wall_s']:.1f} s" for r in runs),
              f"median < 30 s: {_met(wall < 30)}"],
             ["CPU time of the process", ", ".join(f"{r['cpu_s']:.1f} s" for r in runs), ""],
-            ["peak memory (whole process)", ", ".join(f"{r['rss_peak_mb']:.0f} MB" for r in runs), ""]]  # fmt: skip
-    return "\n".join([md(["quantity", "measured", "target"], rows), "", machine_note(doc, ("casadi",)), "",
-                      source(REFERENCE_SOLVE, command=_timed_command(doc))])
+            ["peak memory (whole process)", ", ".join(f"{r['rss_peak_mb']:.0f} MB" for r in runs), ""],
+            ["J found by the cold solve", ", ".join(f"{r['cost']:.6f}" for r in runs), f"J* = {shipped['cost']:.6f}"],
+            [(f"the shipped optimum's controls replayed open loop through `entry_rhs`, {replay['method']} rtol "
+              f"{replay['rtol']:g}: position error at impact"), f"{sig(err, 2)} m", f"<= 100 m: {_met(err <= 100)}"]]  # fmt: skip
+    return "\n".join([md(["quantity", "measured", "target"], rows), "", _optimum_found(runs, shipped), "",
+                      machine_note(doc, ("casadi",)), "", source(REFERENCE_SOLVE, SHIPPED_REFERENCE, command=_timed_command(doc))])
 
 
 def _betts_case(case: str) -> str:
@@ -1270,7 +1299,8 @@ def betts_table(doc: dict) -> str:
               "wall"]  # fmt: skip
     worst = max(max(b["tf_rel_error"], b["latitude_rel_error"]) for b in doc["betts"])
     verdict = f"Largest relative error {sci(worst, 0)} against the target's 1e-3: {_met(worst <= 1e-3)}."
-    return "\n".join([md(header, rows), "", verdict, "", source(REFERENCE_SOLVE, command=_timed_command(doc))])
+    return "\n".join([md(header, rows), "", verdict, "", machine_note(doc, ("casadi",)), "",
+                      source(REFERENCE_SOLVE, command=_timed_command(doc))])
 
 
 # the laws of benchmarks/decision_cost.py: what each is, and the targets of a learned policy per vehicle in a
@@ -1392,8 +1422,9 @@ def rhs_op_count_table(doc: dict) -> str:
 # tables of timings: measured on a quiet machine, each by one command (docs/results/README.md)
 TIMINGS: tuple[Table, ...] = (
     Table("env-speed", (ENV_SPEED,), env_speed_table, ("docs/benchmarks/environment.md",)),
-    Table("reference-solve", (REFERENCE_SOLVE,), reference_solve_table, ("docs/reference.md",)),
-    Table("reference-solve-summary", (REFERENCE_SOLVE,), reference_solve_summary, ("docs/benchmarks/collocation.md",)),
+    Table("reference-solve", (REFERENCE_SOLVE, SHIPPED_REFERENCE), reference_solve_table, ("docs/reference.md",)),
+    Table("reference-solve-summary", (REFERENCE_SOLVE, SHIPPED_REFERENCE), reference_solve_summary,
+          ("docs/benchmarks/collocation.md",)),
     Table("reference-betts", (REFERENCE_SOLVE,), betts_table, ("docs/reference.md",)),
     Table("decision-cost", (DECISION_COST,), decision_cost_table, ("docs/benchmarks/learned_policies.md",)),
     Table("rhs-throughput", (RHS_FORMS,), rhs_throughput_table, ("docs/core.md",)),
@@ -1444,11 +1475,12 @@ TABLES: tuple[Table, ...] = (
     Table("dagger-flight-heldout", dagger_flight_records(), dagger_flight_heldout_table,
           ("docs/benchmarks/learned_policies.md",)),
     Table("apollo4", (APOLLO4,), apollo4_table, ("docs/benchmarks/identification.md", "docs/validation.md")),
-    Table("env-accuracy", (ENV_ACCURACY,), env_accuracy_table, ("docs/benchmarks/environment.md",)),
+    Table("env-accuracy", (ENV_ACCURACY,), env_accuracy_table, ("docs/benchmarks/environment.md", "docs/env.md")),
+    Table("env-reference-dt", (ENV_ACCURACY,), reference_dt_table, ("docs/env.md",)),
     Table("random-actions", (RANDOM_ACTIONS,), random_actions_table, ("docs/benchmarks/environment.md",)),
     Table("baselines", (BASELINES, *JAX_BASELINES), baselines_table, ("docs/benchmarks/learned_policies.md",)),
     Table("rhs-op-counts", (RHS_FORMS,), rhs_op_count_table, ("docs/core.md",)),
-    *(t for t in TIMINGS if REFERENCE_SOLVE not in t.records),  # the reference solve's: not yet recorded (docs/reference.md)
+    *TIMINGS,
 )  # fmt: skip
 
 
