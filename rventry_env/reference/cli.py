@@ -81,6 +81,7 @@ def _solve(args) -> int:
     from rventry_env.reference.entry_ocp import EntryOcpConfig
     from rventry_env.reference.pipeline import ReferenceOptions, save_reference, solve_reference
 
+    paths = {"optimum": DEFAULT_PATH, "guidance": GUIDANCE_PATH}
     if args.ship is not None:
         want = SHIPPED[args.ship]
         if (args.q_margin, args.load_margin) != want:
@@ -88,7 +89,7 @@ def _solve(args) -> int:
                 f"--ship {args.ship} is the reference solved with --q-margin {want[0]:g} --load-margin {want[1]:g}, "
                 f"not {args.q_margin:g} / {args.load_margin:g}; use --out for any other solve"
             )
-        out = DEFAULT_PATH if args.ship == "optimum" else GUIDANCE_PATH
+        out = paths[args.ship]
     else:
         out = args.out if args.out is not None else Path("reference.npz")
     if out.suffix != ".npz":
@@ -114,12 +115,17 @@ def _solve(args) -> int:
         why = f"IPOPT: {sol.status}" if not sol.success else f"mesh error {sol.max_error:.2e} > {args.mesh_tolerance:g}"
         print(f"rventry reference solve: the solve did not converge ({why}); nothing written", file=sys.stderr)
         return 1
-    if args.ship is not None and out.exists():
-        shipped = _load(out).cost
+    # the problem of a shipped file (its margins): a cost above that file's is a local optimum of it
+    shipped_path = next((paths[k] for k, m in SHIPPED.items() if m == (args.q_margin, args.load_margin)), None)
+    if shipped_path is not None and shipped_path.exists():
+        shipped = _load(shipped_path).cost
         if sol.cost > shipped * (1 + SHIP_COST_RTOL):
-            print(f"rventry reference solve: J* = {sol.cost:.6f} is above the shipped file's {shipped:.6f}: a local "
-                  f"optimum, not the optimum; {out} not replaced", file=sys.stderr)  # fmt: skip
-            return 1
+            local = (f"rventry reference solve: J* = {sol.cost:.6f} is above the shipped file's {shipped:.6f} for the "
+                     "same problem: a local optimum, not the optimum (a cold first pass is fragile: docs/reference.md)")  # fmt: skip
+            if args.ship is not None:
+                print(f"{local}; {out} not replaced", file=sys.stderr)
+                return 1
+            print(f"warning: {local}; written to {out} as solved", file=sys.stderr)
     npz, js = save_reference(rs, out)
     print(f"wrote {npz} and {js}")
     from rventry_env.task.glossary import terms_line

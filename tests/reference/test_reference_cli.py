@@ -145,3 +145,33 @@ def test_ship_keeps_the_shipped_file_against_a_worse_local_optimum(tmp_path, mon
     err = capsys.readouterr().err
     assert f"J* = 2.380528 is above the shipped file's {j_star:.6f}" in err and "not replaced" in err
     assert copy.read_bytes() == before
+
+
+def test_out_writes_a_local_optimum_of_the_shipped_problem_with_a_warning(tmp_path, monkeypatch, capsys):
+    """``--out`` writes what was solved, and names a cost above the shipped optimum's a local optimum."""
+    from rventry_env.reference import pipeline
+
+    j_star = load_reference().cost
+    written = []
+
+    def solved(cost):
+        return types.SimpleNamespace(converged=True, timings={"solve_time_s": 1.0}, solution=types.SimpleNamespace(
+            cost=cost, tf=814.4, max_error=8.9e-7, max_violation=1e-9, success=True, status="Solve_Succeeded"))  # fmt: skip
+
+    def save(rs, out):
+        written.append((rs.solution.cost, out))
+        return out, out.with_suffix(".json")
+
+    monkeypatch.setattr(pipeline, "save_reference", save)
+    out = tmp_path / "cold.npz"
+    monkeypatch.setattr(pipeline, "solve_reference", lambda *a, **k: solved(2.380528))
+    assert main(["reference", "solve", "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: rventry reference solve: J* = 2.380528 is above the shipped file's {j_star:.6f}" in err
+    assert f"written to {out}" in err and written == [(2.380528, out)]
+    # the optimum itself, and a problem no shipped file solves (other margins), pass without a word
+    monkeypatch.setattr(pipeline, "solve_reference", lambda *a, **k: solved(j_star))
+    assert main(["reference", "solve", "--out", str(out), "--quiet"]) == 0
+    monkeypatch.setattr(pipeline, "solve_reference", lambda *a, **k: solved(9.0))
+    assert main(["reference", "solve", "--out", str(out), "--q-margin", "0.1", "--quiet"]) == 0
+    assert "local optimum" not in capsys.readouterr().err and len(written) == 3
