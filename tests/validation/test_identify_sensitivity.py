@@ -56,6 +56,53 @@ def test_sensitivities_are_the_derivative_of_the_numpy_replay(flown, axis):
         assert np.max(np.abs(jac[:, :, i] - fd)) <= 1e-5 * np.max(np.abs(fd)), eng.names[i - 6] if i >= 6 else i
 
 
+def test_the_time_offsets_column_is_the_derivative_of_the_shifted_replay(flown):
+    """The record's time offset reads the controls later: the prediction is the NumPy replay's with the
+    controls shifted, its Jacobian column the central difference, and at zero offset the replay is the
+    one without the effect to the last bit."""
+    from rventry_env.validation.search.effects import Structure, build_model
+
+    setup, replay = flown
+    st = Structure(("time_offset", "wind"))
+    names = ("time_offset_s", "wind_east_mps", "wind_north_mps")
+    eng = SensitivityReplay(replay, lambda v: build_model(setup, st, v), names)
+    offsets = np.array([30.0, -20.0, 10.0, 0.1, -0.2, 0.05])
+    for tau in (0.37, -0.61):
+        params = np.array([tau, 4.0, -3.0])
+        y, jac = eng.evaluate(offsets, params)
+        assert np.array_equal(eng.predict(offsets, params), y)
+        model = build_model(setup, st, {"wind_east_mps": 4.0, "wind_north_mps": -3.0})
+        numpy_y = replay.predict(model, offsets[None, :], tau)[..., 0]
+        assert np.max(np.abs(y - numpy_y)) < 1e-6 * np.max(np.abs(numpy_y))
+        d = np.array([1e-4, 0.0, 0.0])
+        fd = (eng.evaluate(offsets, params + d)[0] - eng.evaluate(offsets, params - d)[0]) / 2e-4
+        assert np.max(np.abs(fd)) > 1.0  # m/s: the offset moves the replay
+        assert np.max(np.abs(jac[:, :, 6] - fd)) <= 1e-5 * np.max(np.abs(fd))
+    # the shift is real: a replay with the controls of another time is another replay
+    assert not np.array_equal(eng.predict(offsets, np.array([0.3, 0.0, 0.0])), eng.predict(offsets, np.zeros(3)))
+    plain = SensitivityReplay(replay, lambda v: build_model(setup, Structure(("wind",)), v), names[1:])
+    assert np.array_equal(plain.evaluate(offsets, np.array([4.0, -3.0]))[0],
+                          eng.evaluate(offsets, np.array([0.0, 4.0, -3.0]))[0])  # fmt: skip
+
+
+def test_control_rates_are_the_derivatives_of_the_schedule():
+    """The time derivatives the time offset needs: of the Akima cubics, of the linear fallback, and of a
+    bank from the vertical L/D (the arccos), 0 where a control is held beyond its samples."""
+    from rventry_env.validation.replay.controls import ControlSchedule, Interpolant
+
+    t = np.linspace(0.0, 100.0, 41)
+    sched = ControlSchedule(Interpolant(t, 0.2 + 0.03 * np.sin(t / 9.0)), Interpolant(t, np.sin(t / 15.0)),
+                            Interpolant(t, 0.25 * np.cos(t / 11.0)), 0.368)  # fmt: skip
+    s = np.linspace(1.3, 98.7, 57)
+    h = 1e-6
+    for i in range(2):
+        fd = (sched.many(s + h)[i] - sched.many(s - h)[i]) / (2 * h)
+        assert np.max(np.abs(sched.rates(s)[i] - fd)) < 1e-6 * np.max(np.abs(fd)), i
+    short = Interpolant(t[:3], np.array([0.0, 1.0, 4.0]))  # samples at 0, 2.5, 5 s: too few for a cubic, linear
+    assert np.allclose(short.rate(np.array([1.0, 4.0, 6.0])), [1.0 / 2.5, 3.0 / 2.5, 0.0])
+    assert np.array_equal(sched.rates(np.array([-5.0, 105.0]))[0], [0.0, 0.0])
+
+
 def test_the_reverse_mode_jacobian_is_the_forward_modes(flown, monkeypatch):
     """Above a number of parameters the step's Jacobian is taken by reverse mode and chained with the
     sensitivities: the same derivative as forward mode along them, to rounding."""

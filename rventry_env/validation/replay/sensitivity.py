@@ -13,6 +13,12 @@ parameters) and chained, S_next = dx_next/dx S + [0, dx_next/dp]: the same deriv
 rounding (1e-14 relative), at a third to a quarter of the cost for the trace's 32- to 71-column
 replays. ``mapaccum`` runs the steps in CasADi's virtual machine without a Python loop.
 
+A record's time offset (the parameter ``time_offset_s``, :mod:`~rventry_env.validation.search.effects`)
+is not a force: it moves the controls along the record's time. Each replay reads them at the fitted
+offset (:meth:`~rventry_env.validation.replay.record_replay.Replay.shifted_controls`), with their time
+derivatives, and the step flies ``c + (p - tau) dc/dt`` at ``p = tau``: the controls' values, and
+the exact derivative in the offset.
+
 Observed samples between nodes come from the same cubic Hermite interpolant as the NumPy
 replay, applied to the states and to their sensitivities.
 
@@ -32,7 +38,7 @@ from rventry_env.core.backend import casadi_ns
 from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.physics import entry_rhs
-from rventry_env.validation.replay.record_replay import N_RV, Replay, hermite_weights, inertial_speed
+from rventry_env.validation.replay.record_replay import N_RV, TIME_OFFSET, Replay, hermite_weights, inertial_speed
 
 
 def _dense(*exprs, cse: bool = False) -> list:
@@ -103,7 +109,12 @@ class SensitivityReplay:
         h = ca.SX.sym("h")
         self.forcing = forcing
         q = 0 if forcing is None else forcing.n_inputs
-        u = ca.SX.sym("u", 6 + 3 * q)
+        # the record's time offset: the controls at every stage are read that much later, c(t + tau); the
+        # stage inputs then hold c and dc/dt at the fitted tau and tau itself, and the step flies
+        # c + (p_tau - tau) dc/dt: the same value (p_tau - tau is 0), with the exact derivative in tau
+        self._i_tau = self.names.index(TIME_OFFSET) if TIME_OFFSET in self.names else None
+        n_tau = 0 if self._i_tau is None else 7  # the 6 stage control rates and tau
+        u = ca.SX.sym("u", 6 + 3 * q + n_tau)
         s = ca.SX.sym("S", N_RV, self.n_sens)
         values = {name: p[i] for i, name in enumerate(self.names)}
         model = build(values)
@@ -121,10 +132,16 @@ class SensitivityReplay:
         def w(stage):  # the forcing's known inputs at one RK4 stage
             return [u[6 + stage * q + i] for i in range(q)]
 
-        k1 = f(x, u[0], u[3], w(0))
-        k2 = f(x + 0.5 * h * k1, u[1], u[4], w(1))
-        k3 = f(x + 0.5 * h * k2, u[1], u[4], w(1))
-        k4 = f(x + h * k3, u[2], u[5], w(2))
+        def c(i):  # control i of the stage inputs (alpha at 3 stages, then mu), at the record's time offset
+            if self._i_tau is None:
+                return u[i]
+            b = 6 + 3 * q
+            return u[i] + (p[self._i_tau] - u[b + 6]) * u[b + i]
+
+        k1 = f(x, c(0), c(3), w(0))
+        k2 = f(x + 0.5 * h * k1, c(1), c(4), w(1))
+        k3 = f(x + 0.5 * h * k2, c(1), c(4), w(1))
+        k4 = f(x + h * k3, c(2), c(5), w(2))
         xn = x + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
         xn = ca.vertcat(xn[0], xn[1:5] / ca.norm_2(xn[1:5]), xn[5], xn[6:10] / ca.norm_2(xn[6:10]))
         seeds = ca.vertcat(s, ca.horzcat(ca.SX.zeros(n_p, n_init), ca.SX.eye(n_p)))
@@ -139,8 +156,11 @@ class SensitivityReplay:
         self._steps_buffer = step.mapaccum("replay", n, [0, 1], [0, 1]).buffer()
         value_step = ca.Function("step_values", [x, h, u, p], _dense(xn, k1))  # the same expressions
         self._values_buffer = value_step.mapaccum("replay_values", n, [0], [0]).buffer()
-        ue = ca.SX.sym("ue", 2 + q)
-        fe = f(x, ue[0], ue[1], [ue[2 + i] for i in range(q)])
+        ue = ca.SX.sym("ue", 2 + q + (0 if self._i_tau is None else 3))
+        ce = [ue[0], ue[1]]
+        if self._i_tau is not None:  # the end's controls at the time offset, as the stages'
+            ce = [ue[i] + (p[self._i_tau] - ue[2 + q + 2]) * ue[2 + q + i] for i in range(2)]
+        fe = f(x, ce[0], ce[1], [ue[2 + i] for i in range(q)])
         self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, d(fe))).buffer()
         self._end_values_buffer = ca.Function("end_values", [x, ue, p], _dense(fe)).buffer()
         # observations and their derivatives at the samples
@@ -171,9 +191,15 @@ class SensitivityReplay:
         x0 = rp.init.rv_euler(offsets[None, :])[:, 0]
         p = np.asarray(params, float).reshape(-1, 1) if len(params) else np.zeros((0, 1))
         stage, end = rp.stage_controls, rp.end_controls
+        if self._i_tau is not None:
+            tau = float(p[self._i_tau, 0])
+            stage, end, stage_rate, end_rate = rp.shifted_controls(tau)
         if self.forcing is not None and self.forcing.n_inputs:
             stage = np.concatenate([stage, self.forcing.stage_inputs])
             end = np.concatenate([end, self.forcing.end_inputs])
+        if self._i_tau is not None:
+            stage = np.concatenate([stage, stage_rate, np.full((1, stage.shape[1]), tau)])
+            end = np.concatenate([end, end_rate, [tau]])
         return x0, p, stage, end
 
     def predict(self, offsets: np.ndarray, params: np.ndarray) -> np.ndarray:
