@@ -163,3 +163,49 @@ def test_screening_subsets_from_one_factorisation_are_least_squares_on_their_col
         ref, *_ = np.linalg.lstsq(lin.jac[:, cols], -lin.r, rcond=None)
         assert np.allclose(step, ref, rtol=1e-8, atol=0.0)
         assert np.allclose(r_new, lin.r + lin.jac[:, cols] @ ref, rtol=1e-10, atol=1e-12)
+
+
+def test_the_written_out_observation_jacobian_is_the_symbolic_one(flown):
+    """An ECEF record's observation Jacobian, written out over all samples, is CasADi's symbolic Jacobian of
+    the same observation to rounding, also off the unit norm of the Euler parameters."""
+    import casadi as ca
+
+    from rventry_env.core.euler_parameters import dcm
+    from rventry_env.validation.replay.sensitivity import ecef_observation_jacobian
+
+    setup, replay = flown
+    xs = replay.states(setup.model, replay.init.rv_euler(np.zeros((1, 6))))[..., 0]
+    xs = xs * (1.0 + 1e-3 * np.random.default_rng(2).standard_normal(xs.shape))  # norms off 1
+    x = ca.SX.sym("x", 10)
+    qa, qb = x[1:5] / ca.norm_2(x[1:5]), x[6:10] / ca.norm_2(x[6:10])
+    c_ae, c_ba = dcm(*[qa[i] for i in range(4)]), dcm(*[qb[i] for i in range(4)])
+    y = ca.vertcat(*[x[0] * c_ae[0][j] for j in range(3)],
+                   *[x[5] * sum(c_ba[0][i] * c_ae[i][j] for i in range(3)) for j in range(3)])  # fmt: skip
+    symbolic = ca.Function("symbolic", [x], [ca.jacobian(y, x)])
+    mine = ecef_observation_jacobian(xs)
+    for k in range(0, len(xs), 37):
+        ref = np.asarray(symbolic(xs[k]))  # (6, 10)
+        assert np.max(np.abs(mine[k].T - ref)) <= 1e-12 * np.max(np.abs(ref)), k
+
+
+def test_a_kept_replay_is_a_new_one_and_the_fit_counts_it_alike(flown):
+    """A fit that starts where a screening step was taken gets that replay kept: the same fit, bit for bit,
+    with the same count of replays, as one that replays every point."""
+    from rventry_env.validation.replay.sensitivity import ReplayCache
+    from rventry_env.validation.search.effects import Structure
+    from rventry_env.validation.search.fit import OutputErrorProblem
+
+    setup, replay = flown
+    sigma, groups = np.array([20.0] * 3 + [0.2] * 3), np.array([0] * 3 + [1] * 3)
+    fits = {}
+    for size in (0, 8):
+        kept = ReplayCache(size)
+        prob = OutputErrorProblem(replay, setup, Structure(("drag_coefficient", "wind")), sigma, groups,
+                                  replays=kept)  # fmt: skip
+        prob.linearized(prob.start, {"all": list(range(len(prob.names)))})
+        fits[size] = (prob.solve(prob.start), kept.served)
+    (plain, served_plain), (kept_fit, served) = fits[0], fits[8]
+    assert served_plain == 0 and served >= 1
+    assert np.array_equal(plain.values, kept_fit.values) and np.array_equal(plain.stderr, kept_fit.stderr)
+    assert plain.nfev == kept_fit.nfev and plain.bic == kept_fit.bic
+    assert kept_fit.values[6] == pytest.approx(1.05, abs=0.01)  # the record's C_D x 1.05
