@@ -218,7 +218,13 @@ class SensitivityReplay:
         fe = f(x, ce[0], ce[1], [ue[2 + i] for i in range(q)])
         self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, d(fe))).buffer()
         self._end_values_buffer = ca.Function("end_values", [x, ue, p], _dense(fe)).buffer()
-        # observations and their derivatives at the samples
+        self._build_observation(x)
+
+    def _build_observation(self, x) -> None:
+        """The observation at the samples (its values, and its Jacobian where it is taken symbolically)."""
+        import casadi as ca
+
+        replay = self.replay
         rec = replay.record
         if rec.kind == "ecef" or rec.speed_frame == "inertial":
             qa = x[1:5] / ca.norm_2(x[1:5])
