@@ -853,6 +853,10 @@ IDENTIFY_TABLES = {
     "identify-findings": ("docs/results/bench_identify_bank_bias.json", "docs/results/bench_identify_density_wave.json"),
     "identify-heldout": ("docs/results/bench_identify_heldout.json",),
     "identify-flights": ("docs/results/bench_identify_flights.json",),
+    "identify-speed-before": ("docs/results/bench_identify_speed_before.json",),
+    "identify-speed": ("docs/results/bench_identify_speed.json",),
+    "identify-speed-50hz-before": ("docs/results/bench_identify_speed_50hz_before.json",),
+    "identify-speed-50hz": ("docs/results/bench_identify_speed_50hz.json",),
 }
 
 

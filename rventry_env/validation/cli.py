@@ -19,7 +19,7 @@ from rventry_env.util.args import seed as seed_type
 SHIPPED_RECORDS = {"apollo4": "the Apollo 4 entry shipped with rventry (drag-only start)",
                    "apollo10": "the Apollo 10 entry shipped with rventry (digitised from the report's figures)"}
 EFFECTS_HELP = ("j2_gravity, density_profile, lift_coefficient, drag_coefficient, wind, mass, mach_drag, "
-                "measured_density")  # fmt: skip
+                "measured_density, time_offset")  # fmt: skip
 
 
 def register(subparsers) -> None:

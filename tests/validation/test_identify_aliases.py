@@ -2,7 +2,7 @@
 
 Records come from the independent Cartesian truth model (``simulate_record``) with effects the
 identification is not told: a mass error, the U.S. Standard Atmosphere 1976 in place of the
-exponential one, a Mach-dependent drag, and effects outside the candidate set (a clock offset).
+exponential one, a Mach-dependent drag, and a clock offset of the record (its time-offset effect).
 """
 
 import json
@@ -40,6 +40,16 @@ def test_mass_density_level_and_both_coefficients_are_one_direction():
     # a drag-only capsule: C_D and the mass are the same thing
     assert not admissible(("mass", "drag_coefficient"), ST, 0.0)
     assert admissible(("mass", "drag_coefficient"), ST, 1.0)
+
+
+def test_a_time_offset_is_a_direction_of_its_own():
+    """The record's time offset moves the controls' timing, which no force moves: admissible with every
+    other effect, never an alias of one."""
+    st = Structure((), density_knots=(40e3, 50e3, 60e3), mach_knots=(10.0, 20.0))
+    for other in ("wind", "density_profile", "lift_coefficient", "drag_coefficient", "mass", "mach_drag"):
+        assert admissible(("time_offset", other), st, 1.0)
+        assert sparsest_equivalent((other, "time_offset"), "time_offset", st, 1.0) == (other, "time_offset")
+    assert alias_groups({"time_offset_s": 0.5}, ("time_offset",), st, 1.0) == []
 
 
 def test_adding_an_alias_adds_nothing_and_a_redundant_set_is_thinned():
@@ -106,13 +116,40 @@ def test_a_mach_dependent_drag_is_named(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_clock_offset_is_reported_as_unexplained(tmp_path):
-    """A time-tag offset is outside the candidate set: the report must say that something remains."""
-    rep = _run(tmp_path, ["time_offset=0.5"], duration=300.0, seed=5)
-    assert rep["unexplained"] is True
-    assert rep["effect"] != "none"
-    assert "outside the candidate set" in rep["statement"]
-    assert rep["adequacy"]["whiteness"]["ljung_box_p"] < 1e-3
+@pytest.mark.parametrize("offset,seed", [(0.5, 5), (-0.5, 3)], ids=["early", "late"])
+def test_a_clock_offset_is_the_records_time_offset_not_a_wind(tmp_path, offset, seed):
+    """State rows tagged early (or late) against the controls: the record's time offset, found with its
+    uncertainty, and nothing invented in the world for it (no wind, no density profile, no trace)."""
+    rep = _run(tmp_path, [f"time_offset={offset}"], duration=300.0, seed=seed)
+    assert rep["effects"] == ["time_offset"], rep["steps"]
+    assert not rep["unexplained"], rep["adequacy"]["statement"]
+    found = rep["record_effects"]["time_offset"]
+    assert 0 < found["stderr_s"] < 0.02
+    assert abs(found["value_s"] - offset) <= 2 * found["stderr_s"], found
+    assert rep["parameters"] == {"time_offset_s": found["value_s"]}
+    assert rep["parameter_stderr"] == {"time_offset_s": found["stderr_s"]}
+    # the identified model is the current one: the offset is how the record reads the flight
+    assert rep["model"]["wind"] is None and rep["model"]["atmosphere"]["type"] == "ExponentialAtmosphere"
+    assert rep["trace"] is None and rep["attribution"] == []
+    assert "clock offset of the record" in rep["statement"]
+    assert rep["after"]["position_rms_m"] < 1.25 * np.sqrt(3) * 20.0
+    assert rep["whiteness"]["after"]["ljung_box_p"] > 1e-3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("specs,tails", [([], "normal"), ([], "student-t3"), (["drag_coefficient=1.1"], "normal")],
+                         ids=["none", "none-t3", "cd1.1"])  # fmt: skip
+def test_a_record_on_one_clock_gets_no_time_offset(tmp_path, specs, tails):
+    """No false alarm: a record whose states and controls share their time tags is given no time offset,
+    and the offset fitted alone on a clean record is zero within its uncertainty."""
+    path = simulate_record(tmp_path / "rec.csv", parse_effects(specs), noise=(20.0, 0.2), duration=300.0, rate=1.0,
+                           seed=11, noise_tails=tails)  # fmt: skip
+    rep = identify_record(path).report
+    assert "time_offset" not in rep["effects"] and rep["record_effects"] == {}, rep["steps"]
+    assert rep["effects"] == [s.split("=")[0] for s in specs] and not rep["unexplained"]
+    if not specs:
+        alone = rep["candidates"]["time_offset"]
+        assert abs(alone["parameters"]["time_offset_s"]) <= 3 * alone["stderr"]["time_offset_s"], alone
 
 
 @pytest.mark.slow

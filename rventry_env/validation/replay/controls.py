@@ -40,6 +40,7 @@ class Interpolant:
         self.t = np.asarray(t, float)
         self.v = np.asarray(v, float)
         self._spline = None
+        self._rate = None
         if len(self.t) >= 5:
             from scipy.interpolate import Akima1DInterpolator
 
@@ -57,6 +58,20 @@ class Interpolant:
         if self._spline is None:
             return np.interp(tc, self.t, self.v)
         return np.asarray(self._spline(tc), float)
+
+    def rate(self, t: np.ndarray) -> np.ndarray:
+        """Time derivatives at an array of times: the interpolant's own (0 where it is held beyond the ends)."""
+        t = np.asarray(t, float)
+        inside = (t >= self.t[0]) & (t <= self.t[-1])
+        tc = np.clip(t, self.t[0], self.t[-1])
+        if self._spline is None:
+            k = np.clip(np.searchsorted(self.t, tc, side="right") - 1, 0, len(self.t) - 2)
+            slope = (self.v[k + 1] - self.v[k]) / (self.t[k + 1] - self.t[k])
+        else:
+            if self._rate is None:
+                self._rate = self._spline.derivative()
+            slope = np.asarray(self._rate(tc), float)
+        return np.where(inside, slope, 0.0)
 
 
 def _series(t: np.ndarray, values: np.ndarray | None, unwrap: bool = False) -> Interpolant | None:
@@ -115,6 +130,28 @@ class ControlSchedule:
         else:
             mu = self.bank.many(t)
         return alpha, mu
+
+    def rates(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Time derivatives (rad/s) of :meth:`many`'s alpha and mu at an array of times.
+
+        A bank from the vertical L/D, mu = +-arccos((L/D)_v / (L/D)), has the derivative of the arccos
+        (0 where the ratio is clipped); the sign taken from the bank record changes nowhere smoothly
+        and has none.
+        """
+        t = np.asarray(t, float)
+        alpha_rate = np.zeros(t.shape) if self.alpha is None else self.alpha.rate(t)
+        if self.ld_vertical is not None:
+            ratio = self.ld_vertical.many(t) / self.lift_to_drag
+            inside = np.abs(ratio) < 1.0
+            mu_rate = np.where(inside, -self.ld_vertical.rate(t) / self.lift_to_drag
+                               / np.sqrt(np.where(inside, 1.0 - ratio * ratio, 1.0)), 0.0)  # fmt: skip
+            if self.bank is not None:
+                mu_rate = np.where(np.sin(self.bank.many(t)) < 0, -mu_rate, mu_rate)
+        elif self.bank is None:
+            mu_rate = np.zeros(t.shape)
+        else:
+            mu_rate = self.bank.rate(t)
+        return alpha_rate, mu_rate
 
     def _alpha(self, t: float) -> float:
         return self.alpha_default if self.alpha is None else self.alpha(t)

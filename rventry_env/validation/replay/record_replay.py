@@ -41,6 +41,7 @@ from rventry_env.validation.replay.replay_setup import ReplaySetup
 
 N_RV = 10  # rv-Euler parameters integrated (alpha and sigma come from the record)
 MAX_RK4_STEPS = 50_000  # a bound on the work of one replay
+TIME_OFFSET = "time_offset_s"  # the parameter of a record's time-tag offset (:meth:`Replay.shifted_controls`)
 
 
 @dataclass(frozen=True)
@@ -228,21 +229,47 @@ class Replay:
         self.grid = make_grid(t0, self.t_obs, self.h_max)
         g = self.grid.nodes
         h = self.grid.h
-        stage_t = np.stack([g[:-1], g[:-1] + 0.5 * h, g[1:]])  # (3, N)
-        alpha, mu = controls.many(stage_t)
+        self.stage_times = np.stack([g[:-1], g[:-1] + 0.5 * h, g[1:]])  # (3, N)
+        alpha, mu = controls.many(self.stage_times)
         self.stage_controls = np.concatenate([alpha, mu])  # (6, N): alpha at 3 stages, then mu
         a_end, m_end = controls.many(np.array([g[-1]]))
         self.end_controls = np.array([a_end[0], m_end[0]])
+        self._shifted: dict = {}
+
+    def shifted_controls(self, time_offset: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The controls with the record's time tags ``time_offset`` (s) early, and their time derivatives.
+
+        A record whose state rows are tagged ``time_offset`` early (the row of time t holds the state
+        flown at t + time_offset, the controls keeping their own time) is replayed on its own tags
+        with the controls of t + time_offset at every RK4 stage t.
+
+        :return: stage controls ``(6, N)`` and end controls ``(2,)`` as :attr:`stage_controls` and
+            :attr:`end_controls`, then their time derivatives alike (rad/s). The last offset asked
+            for is kept (a fit asks for the same point's value and Jacobian).
+        """
+        key = float(time_offset)
+        hit = self._shifted.get(key)
+        if hit is None:
+            t = self.stage_times + key
+            te = np.array([self.grid.nodes[-1] + key])
+            alpha, mu = self.controls.many(t)
+            d_alpha, d_mu = self.controls.rates(t)
+            a_end, m_end = self.controls.many(te)
+            da_end, dm_end = self.controls.rates(te)
+            hit = (np.concatenate([alpha, mu]), np.array([a_end[0], m_end[0]]),
+                   np.concatenate([d_alpha, d_mu]), np.array([da_end[0], dm_end[0]]))  # fmt: skip
+            self._shifted = {key: hit}
+        return hit
 
     # ------------------------------------------------------------------ NumPy replay of any model
 
-    def rhs(self, model: EntryModel):
-        """dx/dt for rv-Euler states ``(10, B)`` with the record's controls."""
+    def rhs(self, model: EntryModel, time_offset: float = 0.0):
+        """dx/dt for rv-Euler states ``(10, B)`` with the record's controls (read ``time_offset`` s later)."""
         ctrl = self.controls
 
         def f(t, x):
             theta_u, _ = lift_up_angle((x[6], x[7], x[8], x[9]))
-            alpha, mu = ctrl.at(t)
+            alpha, mu = ctrl.at(t + time_offset if time_offset else t)
             sigma = mu + theta_u  # the paper's sigma from the conventional mu, at this state
             d = entry_rhs((*x, alpha, sigma), (0.0, 0.0), model)
             out = np.empty_like(x)
@@ -252,9 +279,10 @@ class Replay:
 
         return f
 
-    def node_states(self, model: EntryModel, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """States and their derivatives at the nodes, each ``(N + 1, 10, B)``."""
-        f = self.rhs(model)
+    def node_states(self, model: EntryModel, x0: np.ndarray, time_offset: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """States and their derivatives at the nodes, each ``(N + 1, 10, B)`` (the controls read
+        ``time_offset`` s later, :meth:`shifted_controls`)."""
+        f = self.rhs(model, time_offset)
         g = self.grid.nodes
         x = np.array(x0, dtype=float)
         xs = np.empty((len(g),) + x.shape)
@@ -293,9 +321,9 @@ class Replay:
         stacked = np.concatenate([xs, fs]).reshape(2 * len(xs), -1)
         return np.asarray(self.hermite_matrix @ stacked).reshape((-1,) + xs.shape[1:])
 
-    def states(self, model: EntryModel, x0: np.ndarray) -> np.ndarray:
+    def states(self, model: EntryModel, x0: np.ndarray, time_offset: float = 0.0) -> np.ndarray:
         """rv-Euler states at the observed samples, ``(n_obs, 10, B)``, for initial states ``x0 (10, B)``."""
-        return self.interpolate(*self.node_states(model, x0))
+        return self.interpolate(*self.node_states(model, x0, time_offset))
 
     def observe(self, states: np.ndarray, model: EntryModel) -> np.ndarray:
         """Predicted observations ``(n_obs, m, B)`` from :meth:`states`."""
@@ -310,11 +338,12 @@ class Replay:
             return np.stack([states[:, 0] - model.planet.radius, speed], axis=1)
         return np.stack([states[:, 0] - model.planet.radius, states[:, 5]], axis=1)
 
-    def predict(self, model: EntryModel, offsets: np.ndarray) -> np.ndarray:
-        """Predicted observations ``(n_obs, m, B)`` for initial-state offsets ``(B, n_init)``."""
+    def predict(self, model: EntryModel, offsets: np.ndarray, time_offset: float = 0.0) -> np.ndarray:
+        """Predicted observations ``(n_obs, m, B)`` for initial-state offsets ``(B, n_init)``, the record's
+        time tags ``time_offset`` s early (:meth:`shifted_controls`)."""
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            return self.observe(self.states(model, self.init.rv_euler(offsets)), model)
+            return self.observe(self.states(model, self.init.rv_euler(offsets), time_offset), model)
 
 
-__all__ = ["MAX_RK4_STEPS", "Grid", "InitialState", "Replay", "hermite_weights", "inertial_speed", "initial_state",
+__all__ = ["MAX_RK4_STEPS", "TIME_OFFSET", "Grid", "InitialState", "Replay", "hermite_weights", "inertial_speed", "initial_state",
            "make_grid"]

@@ -7,11 +7,17 @@ parameters) and the same RK4 stages, Euler-parameter projection and control hand
 (``jtimes``) carries the sensitivity matrix S = dx/d(theta) through every step along with the
 state, so the Jacobian of the discrete replay is exact (not a finite difference of it). Its cost
 grows with the number of columns of S (an 82-column trace step is about 14 times a 7-column
-one), so with more than :data:`REVERSE_ABOVE` free parameters the step's own Jacobian
+one), so with more than :data:`REVERSE_ABOVE` columns (entry state and free parameters) the step's own Jacobian
 d(x_next)/d(x, p) is taken by reverse mode instead (one sweep per state, whatever the number of
 parameters) and chained, S_next = dx_next/dx S + [0, dx_next/dp]: the same derivative, equal to
 rounding (1e-14 relative), at a third to a quarter of the cost for the trace's 32- to 71-column
 replays. ``mapaccum`` runs the steps in CasADi's virtual machine without a Python loop.
+
+A record's time offset (the parameter ``time_offset_s``, :mod:`~rventry_env.validation.search.effects`)
+is not a force: it moves the controls along the record's time. Each replay reads them at the fitted
+offset (:meth:`~rventry_env.validation.replay.record_replay.Replay.shifted_controls`), with their time
+derivatives, and the step flies ``c + (p - tau) dc/dt`` at ``p = tau``: the controls' values, and
+the exact derivative in the offset.
 
 Observed samples between nodes come from the same cubic Hermite interpolant as the NumPy
 replay, applied to the states and to their sensitivities.
@@ -32,7 +38,7 @@ from rventry_env.core.backend import casadi_ns
 from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.physics import entry_rhs
-from rventry_env.validation.replay.record_replay import N_RV, Replay, hermite_weights, inertial_speed
+from rventry_env.validation.replay.record_replay import N_RV, TIME_OFFSET, Replay, hermite_weights, inertial_speed
 
 
 def _dense(*exprs, cse: bool = False) -> list:
@@ -62,9 +68,64 @@ def _call(buffer, args, results) -> None:
     run()
 
 
-# more free parameters than this: the step's Jacobian by reverse mode (one sweep per state, whatever the
-# number of parameters), chained with the sensitivities; fewer: forward mode along the sensitivities
-REVERSE_ABOVE = 12
+def _dcm_and_partials(e1, e2, e3, eta) -> tuple[np.ndarray, np.ndarray]:
+    """C_BA of unit Euler parameters (:func:`~rventry_env.core.euler_parameters.dcm`), each ``(n,)``, as
+    ``(3, 3, n)``, and its partial derivatives in (e1, e2, e3, eta), ``(3, 3, 4, n)`` (quadratic entries)."""
+    z = np.zeros_like(e1)
+    a, b, g, d = 2 * e1, 2 * e2, 2 * e3, 2 * eta
+    c = np.array([
+        [1 - 2 * (e2 * e2 + e3 * e3), 2 * (e1 * e2 + e3 * eta), 2 * (e1 * e3 - e2 * eta)],
+        [2 * (e2 * e1 - e3 * eta), 1 - 2 * (e3 * e3 + e1 * e1), 2 * (e2 * e3 + e1 * eta)],
+        [2 * (e3 * e1 + e2 * eta), 2 * (e3 * e2 - e1 * eta), 1 - 2 * (e1 * e1 + e2 * e2)],
+    ])  # fmt: skip
+    dc = np.array([
+        [[z, -2 * b, -2 * g, z], [b, a, d, g], [g, -d, a, -b]],
+        [[b, a, -d, -g], [-2 * a, z, -2 * g, z], [d, g, b, a]],
+        [[g, d, a, b], [-d, g, b, -a], [-2 * a, -2 * b, z, z]],
+    ])  # fmt: skip
+    return c, dc
+
+
+def _through_normalization(m: np.ndarray, q: np.ndarray, norm: np.ndarray) -> np.ndarray:
+    """``m`` ``(3, 4, n)``, a derivative in the unit parameters ``q`` ``(4, n)``, as one in the parameters before
+    their normalization by ``norm``: m (I - q q^T) / |q|."""
+    mq = np.einsum("jkn,kn->jn", m, q)
+    return (m - mq[:, None, :] * q[None, :, :]) / norm
+
+
+def ecef_observation_jacobian(x: np.ndarray) -> np.ndarray:
+    """d(ECEF position, velocity)/d(rv-Euler state) at states ``x`` ``(n, 10)``, as ``(n, 10, 6)`` (state, observation).
+
+    The observation is r_E = r C_AE[0] and v_E = v C_BA[0] C_AE with both Euler-parameter sets
+    normalized (the sensitivity replay's ``observe``); its derivative is written out (the DCM is
+    quadratic in the parameters, the normalization's derivative is (I - q q^T) / |q|) and
+    evaluated on all samples at once, instead of a symbolic Jacobian per sample: the same
+    derivative to rounding, at a fraction of the cost on a dense record.
+    """
+    xt = np.ascontiguousarray(np.asarray(x, float).T)  # (10, n): every quantity a row over the samples
+    na = np.sqrt(np.sum(xt[1:5] ** 2, axis=0))
+    nb = np.sqrt(np.sum(xt[6:10] ** 2, axis=0))
+    qa, qb = xt[1:5] / na, xt[6:10] / nb
+    c_ae, dc_ae = _dcm_and_partials(*qa)
+    c_ba, dc_ba = _dcm_and_partials(*qb)
+    first = c_ba[0]  # (3, n)
+    r, v = xt[0], xt[5]
+    out = np.zeros((x.shape[0], N_RV, 6))
+    out[:, 0, :3] = c_ae[0].T
+    out[:, 5, 3:] = np.einsum("in,ijn->nj", first, c_ae)
+    out[:, 1:5, :3] = (r * _through_normalization(dc_ae[0], qa, na)).T
+    along = first[0] * dc_ae[0] + first[1] * dc_ae[1] + first[2] * dc_ae[2]  # (3, 4, n): d(C_BA[0] C_AE)/dq_a
+    out[:, 1:5, 3:] = (v * _through_normalization(along, qa, na)).T
+    across = np.einsum("ikn,ijn->jkn", dc_ba[0], c_ae)  # d(C_BA[0])/dq_b C_AE
+    out[:, 6:10, 3:] = (v * _through_normalization(across, qb, nb)).T
+    return out
+
+
+# more sensitivity columns (entry state and free parameters) than this: the step's Jacobian by reverse mode
+# (one sweep per state, whatever the number of columns), chained with the sensitivities; fewer: forward mode
+# along them. On a 300-step replay forward mode costs about 6 ms per column (48 ms at 8, 80 ms at 14, 101 ms
+# at 18), reverse mode about 48 ms from 8 to 14 columns and 53 ms at 18: they cross at 8
+REVERSE_ABOVE = 8
 
 
 def _chain(e, z, nx: int, s, n_init: int):
@@ -103,7 +164,12 @@ class SensitivityReplay:
         h = ca.SX.sym("h")
         self.forcing = forcing
         q = 0 if forcing is None else forcing.n_inputs
-        u = ca.SX.sym("u", 6 + 3 * q)
+        # the record's time offset: the controls at every stage are read that much later, c(t + tau); the
+        # stage inputs then hold c and dc/dt at the fitted tau and tau itself, and the step flies
+        # c + (p_tau - tau) dc/dt: the same value (p_tau - tau is 0), with the exact derivative in tau
+        self._i_tau = self.names.index(TIME_OFFSET) if TIME_OFFSET in self.names else None
+        n_tau = 0 if self._i_tau is None else 7  # the 6 stage control rates and tau
+        u = ca.SX.sym("u", 6 + 3 * q + n_tau)
         s = ca.SX.sym("S", N_RV, self.n_sens)
         values = {name: p[i] for i, name in enumerate(self.names)}
         model = build(values)
@@ -121,16 +187,22 @@ class SensitivityReplay:
         def w(stage):  # the forcing's known inputs at one RK4 stage
             return [u[6 + stage * q + i] for i in range(q)]
 
-        k1 = f(x, u[0], u[3], w(0))
-        k2 = f(x + 0.5 * h * k1, u[1], u[4], w(1))
-        k3 = f(x + 0.5 * h * k2, u[1], u[4], w(1))
-        k4 = f(x + h * k3, u[2], u[5], w(2))
+        def c(i):  # control i of the stage inputs (alpha at 3 stages, then mu), at the record's time offset
+            if self._i_tau is None:
+                return u[i]
+            b = 6 + 3 * q
+            return u[i] + (p[self._i_tau] - u[b + 6]) * u[b + i]
+
+        k1 = f(x, c(0), c(3), w(0))
+        k2 = f(x + 0.5 * h * k1, c(1), c(4), w(1))
+        k3 = f(x + 0.5 * h * k2, c(1), c(4), w(1))
+        k4 = f(x + h * k3, c(2), c(5), w(2))
         xn = x + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
         xn = ca.vertcat(xn[0], xn[1:5] / ca.norm_2(xn[1:5]), xn[5], xn[6:10] / ca.norm_2(xn[6:10]))
         seeds = ca.vertcat(s, ca.horzcat(ca.SX.zeros(n_p, n_init), ca.SX.eye(n_p)))
         z = ca.vertcat(x, p)
         n = replay.grid.n_steps
-        self.mode = "reverse" if n_p > REVERSE_ABOVE else "forward"
+        self.mode = "reverse" if self.n_sens > REVERSE_ABOVE else "forward"
 
         def d(e):  # d(e)/d(theta), by the mode chosen for this many parameters
             return ca.jtimes(e, z, seeds) if self.mode == "forward" else _chain(e, z, x.shape[0], s, n_init)
@@ -139,11 +211,20 @@ class SensitivityReplay:
         self._steps_buffer = step.mapaccum("replay", n, [0, 1], [0, 1]).buffer()
         value_step = ca.Function("step_values", [x, h, u, p], _dense(xn, k1))  # the same expressions
         self._values_buffer = value_step.mapaccum("replay_values", n, [0], [0]).buffer()
-        ue = ca.SX.sym("ue", 2 + q)
-        fe = f(x, ue[0], ue[1], [ue[2 + i] for i in range(q)])
+        ue = ca.SX.sym("ue", 2 + q + (0 if self._i_tau is None else 3))
+        ce = [ue[0], ue[1]]
+        if self._i_tau is not None:  # the end's controls at the time offset, as the stages'
+            ce = [ue[i] + (p[self._i_tau] - ue[2 + q + 2]) * ue[2 + q + i] for i in range(2)]
+        fe = f(x, ce[0], ce[1], [ue[2 + i] for i in range(q)])
         self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, d(fe))).buffer()
         self._end_values_buffer = ca.Function("end_values", [x, ue, p], _dense(fe)).buffer()
-        # observations and their derivatives at the samples
+        self._build_observation(x)
+
+    def _build_observation(self, x) -> None:
+        """The observation at the samples (its values, and its Jacobian where it is taken symbolically)."""
+        import casadi as ca
+
+        replay = self.replay
         rec = replay.record
         if rec.kind == "ecef" or rec.speed_frame == "inertial":
             qa = x[1:5] / ca.norm_2(x[1:5])
@@ -160,8 +241,12 @@ class SensitivityReplay:
                            inertial_speed(r_e[0], r_e[1], *v_e, replay.setup.model.planet.omega, ca.sqrt))
         else:
             y = ca.vertcat(x[0] - replay.setup.model.planet.radius, x[5])
-        obs = ca.Function("observe", [x], _dense(y, ca.jacobian(y, x), cse=True))
-        self._observe_buffer = obs.map(len(replay.t_obs)).buffer()
+        # an ECEF record's observation Jacobian is written out over all samples at once
+        # (ecef_observation_jacobian); the others' are small and taken symbolically, per sample
+        self._observe_buffer = None
+        if rec.kind != "ecef":
+            obs = ca.Function("observe", [x], _dense(y, ca.jacobian(y, x), cse=True))
+            self._observe_buffer = obs.map(len(replay.t_obs)).buffer()
         self._observe_values_buffer = ca.Function("observe_values", [x], _dense(y)).map(len(replay.t_obs)).buffer()
         self.n_obs_channels = int(y.shape[0])
 
@@ -171,9 +256,15 @@ class SensitivityReplay:
         x0 = rp.init.rv_euler(offsets[None, :])[:, 0]
         p = np.asarray(params, float).reshape(-1, 1) if len(params) else np.zeros((0, 1))
         stage, end = rp.stage_controls, rp.end_controls
+        if self._i_tau is not None:
+            tau = float(p[self._i_tau, 0])
+            stage, end, stage_rate, end_rate = rp.shifted_controls(tau)
         if self.forcing is not None and self.forcing.n_inputs:
             stage = np.concatenate([stage, self.forcing.stage_inputs])
             end = np.concatenate([end, self.forcing.end_inputs])
+        if self._i_tau is not None:
+            stage = np.concatenate([stage, stage_rate, np.full((1, stage.shape[1]), tau)])
+            end = np.concatenate([end, end_rate, [tau]])
         return x0, p, stage, end
 
     def predict(self, offsets: np.ndarray, params: np.ndarray) -> np.ndarray:
@@ -212,9 +303,60 @@ class SensitivityReplay:
         _call(self._end_buffer, (xs[-1], ss[-1], end, p), (fs[-1], sf[-1]))
         x_s = rp.interpolate(xs, fs)  # (n_obs, 10)
         s_s = rp.interpolate(ss, sf)  # (n_obs, n_sens, 10)
-        y, dy = np.empty((len(x_s), m)), np.empty((len(x_s), N_RV, m))
-        _call(self._observe_buffer, (x_s,), (y, dy))
+        y = np.empty((len(x_s), m))
+        if self._observe_buffer is None:
+            _call(self._observe_values_buffer, (x_s,), (y,))
+            dy = ecef_observation_jacobian(x_s)
+        else:
+            dy = np.empty((len(x_s), N_RV, m))
+            _call(self._observe_buffer, (x_s,), (y, dy))
         return y, np.einsum("nji,nkj->nik", dy, s_s, optimize=True)
 
 
-__all__ = ["REVERSE_ABOVE", "SensitivityReplay"]
+class ReplayCache:
+    """The last replays with sensitivities, by engine and point, for the points asked for again.
+
+    A fit starts where its screening's Gauss-Newton step was taken, ends on a point whose Jacobian
+    it took when it accepted it, and a trace's covariance is taken at the point its refinement
+    accepted last: each is a replay already made. A replay is deterministic (the same operations
+    on the same values), so the arrays kept are those a new replay would give, bit for bit; the
+    callers count their replays as before (the count bounds the search), only the work is saved.
+    The arrays are shared, never written to.
+
+    :param size: replays kept (the most recently used).
+    """
+
+    def __init__(self, size: int = 8):
+        from collections import OrderedDict
+
+        self.size = int(size)
+        self._kept = OrderedDict()
+        self.served = 0  # replays served from here
+
+    @staticmethod
+    def _key(engine, offsets, params) -> tuple:
+        return engine, np.asarray(offsets, float).tobytes(), np.asarray(params, float).tobytes()
+
+    def evaluate(self, engine: SensitivityReplay, offsets: np.ndarray, params: np.ndarray):
+        """:meth:`SensitivityReplay.evaluate`, from a kept replay where there is one."""
+        key = self._key(engine, offsets, params)
+        hit = self._kept.get(key)
+        if hit is None:
+            hit = self._kept[key] = engine.evaluate(offsets, params)
+            while len(self._kept) > self.size:
+                self._kept.popitem(last=False)
+        else:
+            self._kept.move_to_end(key)
+            self.served += 1
+        return hit
+
+    def predict(self, engine: SensitivityReplay, offsets: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """:meth:`SensitivityReplay.predict` (the same numbers as the evaluation's), from a kept replay where there is one."""
+        hit = self._kept.get(self._key(engine, offsets, params))
+        if hit is None:
+            return engine.predict(offsets, params)
+        self.served += 1
+        return hit[0]
+
+
+__all__ = ["REVERSE_ABOVE", "ReplayCache", "SensitivityReplay", "ecef_observation_jacobian"]

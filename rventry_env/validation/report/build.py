@@ -13,6 +13,7 @@ import numpy as np
 
 from rventry_env.validation.intake.references import explain_entry_offset
 from rventry_env.validation.record import RecordError
+from rventry_env.validation.replay.record_replay import TIME_OFFSET
 from rventry_env.validation.report.diagnostics import error_metrics
 from rventry_env.validation.report.model_io import model_to_dict
 from rventry_env.validation.search.aliases import identifiable
@@ -64,6 +65,24 @@ def statement(chosen, adeq: dict, aliases: list) -> str:
     if adeq["unexplained"] and chosen:
         head += " The named effects are the best the candidate set offers; they may stand in for the missing one."
     return head + " " + adeq["statement"]
+
+
+def record_effects(params: dict, stderr: dict) -> dict:
+    """The identified effects of the record itself (not of the world): its time-tag offset, with its uncertainty."""
+    if TIME_OFFSET not in params:
+        return {}
+    value, se = params[TIME_OFFSET], stderr.get(TIME_OFFSET)
+    return {"time_offset": {
+        "value_s": value, "stderr_s": se,
+        "statement": f"The record's state rows are tagged {value:+.4g} +/- {_fmt_se(se)} s early against its "
+                     "controls (the row of time t holds the state flown at t + that offset): a clock offset of "
+                     "the record, not a force; it is not in the identified model, which flies the controls at "
+                     "their own times.",
+    }}  # fmt: skip
+
+
+def _fmt_se(se) -> str:
+    return "n/a" if se is None or not math.isfinite(se) else f"{se:.2g}"
 
 
 def surrogate_text(trace: dict | None) -> str:
@@ -149,12 +168,15 @@ def build_report(record, replay, controls, setup, screened, ctx, state, adeq: di
     table = state.steps[0]["tried"]
     params, stderr = answer_parameters(current, chosen)
     bound = screened.bound
+    in_record = record_effects(params, stderr)
     return {
         "effect": chosen[0] if chosen else ("unexplained" if adeq["unexplained"] else "none"),
         "effects": list(chosen),
         "unexplained": adeq["unexplained"],
         "statement": (statement(chosen, adeq, aliases) + surrogate_text(trace)
+                      + "".join(" " + r["statement"] for r in in_record.values())
                       + (" " + trace["statement"] if trace else "")),
+        "record_effects": in_record,
         "attribution": trace["attribution"] if trace else [],
         "trace": None if trace is None else {k: v for k, v in trace.items() if k not in PRIVATE_TRACE_KEYS},
         "parameters": params,

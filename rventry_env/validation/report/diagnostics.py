@@ -13,7 +13,7 @@ import numpy as np
 
 from rventry_env.physics import EntryModel
 from rventry_env.validation.record import FlightRecord
-from rventry_env.validation.replay.record_replay import Replay
+from rventry_env.validation.replay.record_replay import TIME_OFFSET, Replay
 from rventry_env.validation.search.effects import Structure, build_model, log_density_ratio
 from rventry_env.validation.search.fit import FitResult
 from rventry_env.validation.search.selection import FitContext
@@ -69,9 +69,10 @@ def window_errors(t: np.ndarray, residual: np.ndarray, kind: str, n_windows: int
     return out
 
 
-def fixed_state_errors(replay: Replay, model: EntryModel, kind: str) -> dict:
-    """Errors of a replay from the declared (or first measured) initial state, nothing fitted."""
-    pred = replay.predict(model, np.zeros((1, replay.init.size)))[..., 0]
+def fixed_state_errors(replay: Replay, model: EntryModel, kind: str, time_offset: float = 0.0) -> dict:
+    """Errors of a replay from the declared (or first measured) initial state, nothing fitted (the record's
+    time offset, when one is identified, applied)."""
+    pred = replay.predict(model, np.zeros((1, replay.init.size)), time_offset)[..., 0]
     return error_metrics(pred - replay.y, kind)
 
 
@@ -90,7 +91,8 @@ def run_diagnostics(
         out["declared_entry_state"] = {
             "current_model": fixed_state_errors(replay, setup.model, kind),
             "declared_vehicle": fixed_state_errors(replay, declared, kind),
-            "identified_model": fixed_state_errors(replay, current.model, kind),
+            "identified_model": fixed_state_errors(replay, current.model, kind,
+                                                   current.parameters().get(TIME_OFFSET, 0.0)),
         }
     if record.density is None:
         return out

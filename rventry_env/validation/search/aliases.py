@@ -35,7 +35,7 @@ from rventry_env.validation.search.effects import EFFECT_NAMES, Structure
 # identifiable coordinates of the uniform aerodynamic part: ln k_D and ln k_L
 _D, _L = 0, 1
 LEVEL_CAUSES = ("mass", "density_profile", "drag_coefficient", "lift_coefficient")
-_N_FIXED = 4  # D, L, wind east, wind north; shapes get their own coordinates after these
+_N_FIXED = 5  # D, L, wind east, wind north, the record's time offset; shapes get their own coordinates after these
 
 
 def lift_capable(start_lift_scale: float, effects) -> bool:
@@ -46,8 +46,9 @@ def lift_capable(start_lift_scale: float, effects) -> bool:
 def directions(effects, structure: Structure, start_lift_scale: float) -> np.ndarray:
     """Identifiable directions moved by the parameters of ``effects``, one column per parameter.
 
-    Coordinates: ln k_D, ln k_L, wind east, wind north, then one per density-shape and
-    Mach-shape degree of freedom. A density profile of K knots moves the level of both
+    Coordinates: ln k_D, ln k_L, wind east, wind north, the record's time offset (the controls'
+    timing against the states: no force moves it), then one per density-shape and Mach-shape
+    degree of freedom. A density profile of K knots moves the level of both
     accelerations (its mean) and K - 1 shape directions; a Mach-dependent drag correction
     (fixed to 1 at the highest Mach) moves M - 1 Mach-shape directions only.
     """
@@ -78,6 +79,8 @@ def directions(effects, structure: Structure, start_lift_scale: float) -> np.nda
         elif e == "wind":
             col(index=2)
             col(index=3)
+        elif e == "time_offset":
+            col(index=4)
         elif e == "density_profile":
             col(level)
             for i in range(nk - 1):

@@ -15,6 +15,8 @@ effect                parameters                           physical bounds      
 ``mach_drag``         ``dlncd_M<m>`` per Mach knot but     C_D x 1/2 .. 2              :class:`~rventry_env.physics.mach_drag.MachDragCorrection`
                       the highest (where it is 0)
 ``measured_density``  none: the record's density column    (records with one)          :class:`~rventry_env.physics.DensityCorrection`
+``time_offset``       ``time_offset_s``: the record's time   +-10 s                      none: the record's controls are read
+                      tags that much early                                             that much later (an effect of the record)
 ====================  ===================================  ==========================  ========================================
 
 The bounds are physical, not numerical: a fit that ends on one is not explaining the record, it
@@ -26,6 +28,15 @@ would prefer is checked against it, :mod:`~rventry_env.validation.search.selecti
 the record flies (a declared C_D is the value at the top of the flight, like Apollo's trim C_D for
 M > 29.5), so a uniform change of C_D stays the ``drag_coefficient`` effect and the two are not
 nested.
+
+``time_offset`` is an effect of the record, not of the world: its state rows tagged ``time_offset_s``
+early against its controls (a clock offset between the two, the row of time t holding the state
+flown at t + ``time_offset_s``). The replay reads the controls that much later
+(:meth:`~rventry_env.validation.replay.record_replay.Replay.shifted_controls`); the model's physics
+is unchanged, so :func:`build_model` leaves it out. A record whose states and controls share one
+shifted clock flies the same trajectory (the dynamics do not depend on time): what the record
+shows, and the effect fits, is the offset between the two. It is bounded by
+:data:`TIME_OFFSET_MAX_S`: a larger misalignment is a record on another time base, not an offset.
 
 ``cl_scale`` multiplies the *declared* lift (the sidecar's aerodynamics): a model started
 drag-only has cl_scale = 0, so "lift missing altogether" is the same effect as "lift 20 % low",
@@ -49,6 +60,7 @@ from rventry_env.core.backend import NUMPY
 from rventry_env.physics import DensityCorrection, EntryModel, HorizontalWind, J2Gravity, ScaledAerodynamics
 from rventry_env.physics.atmosphere import piecewise_linear
 from rventry_env.physics.mach_drag import MachDragCorrection
+from rventry_env.validation.replay.record_replay import TIME_OFFSET
 from rventry_env.validation.replay.replay_setup import ReplaySetup
 
 EFFECT_NAMES = (
@@ -60,7 +72,10 @@ EFFECT_NAMES = (
     "mass",
     "mach_drag",
     "measured_density",
+    "time_offset",
 )
+RECORD_EFFECTS = ("time_offset",)  # effects of how the record reads the flight, not of the world
+
 # the Earth's second zonal harmonic (EGM-96): a known constant, not a free parameter
 EARTH_J2 = 1.08262668e-3
 
@@ -71,6 +86,7 @@ CD_SCALE_BOUNDS = (0.5, 2.0)
 MASS_SCALE_BOUNDS = (0.5, 2.0)
 WIND_MAX_MPS = 200.0  # the strongest winds measured at 40-120 km are about this
 MACH_DRAG_FACTOR_MAX = 2.0
+TIME_OFFSET_MAX_S = 10.0  # a record's states and controls misaligned by more are on different time bases
 PHYSICAL_BOUNDS = {
     "density_factor": [1.0 / DENSITY_FACTOR_MAX, DENSITY_FACTOR_MAX],
     "cl_scale": list(CL_SCALE_BOUNDS),
@@ -78,6 +94,7 @@ PHYSICAL_BOUNDS = {
     "mass_scale": list(MASS_SCALE_BOUNDS),
     "wind_component_mps": [-WIND_MAX_MPS, WIND_MAX_MPS],
     "mach_drag_factor": [1.0 / MACH_DRAG_FACTOR_MAX, MACH_DRAG_FACTOR_MAX],
+    "time_offset_s": [-TIME_OFFSET_MAX_S, TIME_OFFSET_MAX_S],
     "j2": "fixed at the known value 1.08262668e-3 (EGM-96)",
 }
 
@@ -217,6 +234,8 @@ def effect_parameters(name: str, setup: ReplaySetup, structure: Structure) -> li
             Param("wind_east_mps", name, 0.0, 10.0, -WIND_MAX_MPS, WIND_MAX_MPS),
             Param("wind_north_mps", name, 0.0, 10.0, -WIND_MAX_MPS, WIND_MAX_MPS),
         ]
+    if name == "time_offset":
+        return [Param(TIME_OFFSET, name, 0.0, 0.1, -TIME_OFFSET_MAX_S, TIME_OFFSET_MAX_S)]
     raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
 
 
@@ -232,7 +251,8 @@ def build_model(setup: ReplaySetup, structure: Structure, values: dict | None = 
     :param structure: the effects and their knots.
     :param values: parameter name -> value (float, array or CasADi symbol); parameters not given
         take their start values (the effect absent, or its known value). ``"j2"`` overrides
-        the known J2 (only to check what value the record would prefer).
+        the known J2 (only to check what value the record would prefer). A record effect
+        (:data:`RECORD_EFFECTS`) changes how the record is replayed, not the model: it is not in it.
     """
     values = dict(values or {})
     for p in structure_parameters(setup, structure):
@@ -310,6 +330,9 @@ __all__ = [
     "MIN_KNOT_SPACING",
     "SAMPLES_PER_KNOT",
     "PHYSICAL_BOUNDS",
+    "RECORD_EFFECTS",
+    "TIME_OFFSET",
+    "TIME_OFFSET_MAX_S",
     "Param",
     "Structure",
     "build_model",

@@ -91,6 +91,9 @@ class OutputErrorProblem:
     :param engines: a cache of compiled sensitivity replays shared between problems.
     :param extra_params: parameters fitted besides the structure's (e.g. a free J2 for the
         check of the known value).
+    :param replays: the replays kept for points asked for again
+        (:class:`~rventry_env.validation.replay.sensitivity.ReplayCache`, shared between problems);
+        a problem of its own keeps its last two.
     """
 
     def __init__(
@@ -103,6 +106,7 @@ class OutputErrorProblem:
         init_bound: np.ndarray | None = None,
         engines: dict | None = None,
         extra_params: tuple = (),
+        replays=None,
     ):
         self.replay = replay
         self.setup = setup
@@ -122,11 +126,12 @@ class OutputErrorProblem:
         engines = {} if engines is None else engines
         pnames = tuple(p.name for p in self.params)
         key = (structure.key(), pnames)
-        if key not in engines:
-            from rventry_env.validation.replay.sensitivity import SensitivityReplay
+        from rventry_env.validation.replay.sensitivity import ReplayCache, SensitivityReplay
 
+        if key not in engines:
             engines[key] = SensitivityReplay(replay, lambda v: build_model(setup, structure, v), pnames)
         self.engine = engines[key]
+        self.replays = ReplayCache(2) if replays is None else replays
         self._cache_key = None
         self._cache = None
         self.nfev = 0
@@ -144,14 +149,18 @@ class OutputErrorProblem:
         return build_model(self.setup, self.structure, values)
 
     def _evaluate(self, z: np.ndarray):
-        """(residual, Jacobian in z, prediction) at ``z``, from one replay with sensitivities (cached)."""
+        """(residual, Jacobian in z, prediction) at ``z``, from one replay with sensitivities (cached).
+
+        A point other than the last counts as one replay, whether it is replayed or served from
+        :attr:`replays` (the count bounds the search and does not depend on what was kept).
+        """
         key = z.tobytes()
         if key != self._cache_key or self._cache[1] is None:
             if key != self._cache_key:
                 self.nfev += 1  # one replay per point, whether or not its Jacobian is asked for
             th = self.theta(z)
             with np.errstate(all="ignore"):
-                pred, jac = self.engine.evaluate(th[: self.n_init], th[self.n_init:])
+                pred, jac = self.replays.evaluate(self.engine, th[: self.n_init], th[self.n_init:])
                 r = (pred - self.replay.y) / self.sigma[None, :]
                 j = jac / self.sigma[None, :, None] * self.scale[None, None, :]
             r = r[self.mask]
@@ -173,7 +182,7 @@ class OutputErrorProblem:
         if key != self._cache_key:
             th = self.theta(z)
             with np.errstate(all="ignore"):
-                pred = self.engine.predict(th[: self.n_init], th[self.n_init:])
+                pred = self.replays.predict(self.engine, th[: self.n_init], th[self.n_init:])
                 r = ((pred - self.replay.y) / self.sigma[None, :])[self.mask]
             r = np.where(np.isfinite(r), r, BAD_RESIDUAL)
             self.nfev += 1

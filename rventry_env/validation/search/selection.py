@@ -8,6 +8,7 @@ import numpy as np
 
 from rventry_env.validation.replay.record_replay import Replay
 from rventry_env.validation.replay.replay_setup import ReplaySetup
+from rventry_env.validation.replay.sensitivity import ReplayCache
 from rventry_env.validation.search.effects import EARTH_J2, Structure
 from rventry_env.validation.search.fit import FitResult, OutputErrorProblem, j2_free_param
 from rventry_env.validation.search.statistics import bic, bic_effective, effective_size, whiteness
@@ -24,6 +25,8 @@ class FitContext:
     :param knots_by_count: density-profile knots (m) by knot count.
     :param mach_by_count: Mach-drag knots by knot count.
     :param engines: compiled sensitivity replays by structure (built once, reused).
+    :param replays: the last replays with sensitivities, for points asked for again (the fits' and the
+        trace's; :class:`~rventry_env.validation.replay.sensitivity.ReplayCache`).
     """
 
     replay: Replay
@@ -36,11 +39,12 @@ class FitContext:
     threshold: float = BIC_THRESHOLD
     engines: dict = field(default_factory=dict)
     nfev: int = 0
+    replays: ReplayCache = field(default_factory=ReplayCache)
 
     def problem(self, structure: Structure, extra=()) -> OutputErrorProblem:
         return OutputErrorProblem(
             self.replay, self.setup, structure, self.sigma, self.groups, init_bound=self.init_bound,
-            engines=self.engines, extra_params=extra,
+            engines=self.engines, extra_params=extra, replays=self.replays,
         )  # fmt: skip
 
     @staticmethod

@@ -37,8 +37,9 @@ Effect values (defaults in brackets):
 * ``alpha_bias=DEG`` the record's angle of attack reads DEG more than the angle flown (a trim
   offset) [-1].
 
-``mach_drag`` and ``time_offset`` are outside the identification's candidate set in shape (a smooth Mach law
-against a piecewise-linear correction) or altogether (a clock error); the band, Mach-lift, shear, side-force,
+``mach_drag`` is outside the identification's candidate set in shape (a smooth Mach law against a
+piecewise-linear correction); ``time_offset`` is the record effect of the same name (a clock offset
+between the record's states and its controls); the band, Mach-lift, shear, side-force,
 mass-loss and control-bias effects are outside it altogether, for the residual trace
 (:mod:`rventry_env.validation.trace`); the density wave is in the set's shape only where the
 profile's knots resolve it.

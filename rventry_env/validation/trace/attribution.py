@@ -92,6 +92,7 @@ class _Linearized:
     def __init__(self, ctx, final, axis: str, n_knots: int, channels=CHANNELS, engines: dict | None = None,
                  residual: np.ndarray | None = None, finer: "_Linearized | None" = None):  # fmt: skip
         replay, setup = ctx.replay, ctx.setup
+        self.replays = ctx.replays
         self.axis, self.knots = axis, _knots(replay, axis, n_knots)
         self.n0 = final.extra["n_initial"]
         self.effect_names = tuple(final.names[self.n0:])
@@ -114,8 +115,8 @@ class _Linearized:
             st = final.structure
             engines[key] = SensitivityReplay(replay, lambda v: build_model(setup, st, v), self.names, forcing)
         self.engine = engines[key]
-        if residual is None:  # the Jacobian at the identified fit
-            self.r, self.jac = self.evaluate(self.theta0)
+        if residual is None:  # the Jacobian at the identified fit (all channels: never asked for again, not kept)
+            self.r, self.jac = self.evaluate(self.theta0, keep=False)
             ctx.nfev += 1
         else:  # the residual there is known (the corrections are zero): no replay needed
             self.r, self.jac = residual, None
@@ -135,9 +136,14 @@ class _Linearized:
 
         return block_diag(*blocks)
 
-    def evaluate(self, theta: np.ndarray):
+    def evaluate(self, theta: np.ndarray, keep: bool = True):
+        """The normalized residual and its Jacobian at ``theta``; with ``keep``, through the context's
+        kept replays (the covariance is taken at the point a refinement accepted last)."""
         with np.errstate(all="ignore"):
-            y, j = self.engine.evaluate(theta[: self.n0], theta[self.n0:])
+            if keep:
+                y, j = self.replays.evaluate(self.engine, theta[: self.n0], theta[self.n0:])
+            else:
+                y, j = self.engine.evaluate(theta[: self.n0], theta[self.n0:])
         r = ((y - self.y_obs) / self.sigma[None, :])[self.mask]
         jac = (j / self.sigma[None, :, None])[self.mask]
         return r, jac
@@ -145,7 +151,7 @@ class _Linearized:
     def residual(self, theta: np.ndarray) -> np.ndarray:
         """:meth:`evaluate`'s residual alone (the same to the last bit), from a replay without sensitivities."""
         with np.errstate(all="ignore"):
-            y = self.engine.predict(theta[: self.n0], theta[self.n0:])
+            y = self.replays.predict(self.engine, theta[: self.n0], theta[self.n0:])
         return ((y - self.y_obs) / self.sigma[None, :])[self.mask]
 
     def columns(self, channels) -> list[int]:
