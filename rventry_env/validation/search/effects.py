@@ -15,8 +15,8 @@ effect                parameters                           physical bounds      
 ``mach_drag``         ``dlncd_M<m>`` per Mach knot but     C_D x 1/2 .. 2              :class:`~rventry_env.physics.mach_drag.MachDragCorrection`
                       the highest (where it is 0)
 ``measured_density``  none: the record's density column    (records with one)          :class:`~rventry_env.physics.DensityCorrection`
-``time_offset``       ``time_offset_s``: the record's time   +-10 s                      none: the record's controls are read
-                      tags that much early                                             that much later (an effect of the record)
+``time_offset``       ``time_offset_s``: the record's      +-10 s                      none: the record's controls are read
+                      time tags that much early                                        that much later (an effect of the record)
 ====================  ===================================  ==========================  ========================================
 
 The bounds are physical, not numerical: a fit that ends on one is not explaining the record, it
