@@ -38,7 +38,7 @@ from rventry_env.core.backend import casadi_ns
 from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.physics import entry_rhs
-from rventry_env.validation.replay.record_replay import N_RV, TIME_OFFSET, Replay, hermite_weights, inertial_speed
+from rventry_env.validation.replay.record_replay import N_RV, TIME_OFFSET, Replay, inertial_speed
 
 
 def _dense(*exprs, cse: bool = False) -> list:
