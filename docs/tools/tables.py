@@ -1424,6 +1424,47 @@ def rhs_op_count_table(doc: dict) -> str:
 
 
 # tables of timings: measured on a quiet machine, each by one command (docs/results/README.md)
+SPHERICAL = "docs/results/spherical_singularity.json"
+
+
+def _spherical_cell(r: dict | None, rv: dict | None) -> str:
+    """One spherical-coordinate solve: its optimum beside rv-Euler's at the same angle, or how it failed."""
+    if r is None:
+        return "not run"
+    iters = r.get("nlp_iterations") or []
+    if not r.get("converged"):
+        psi = r.get("max_abs_psi_rate_deg_s")
+        return (f"**fails**: {r['status']}, mesh error {sci(r['mesh_error'], 1)} after {r.get('passes', 0)} passes "
+                f"(IPOPT {', '.join(map(str, iters))} iterations)" + (f", |dpsi/dt| up to {sig(psi, 2)} deg/s" if psi else "")
+                + (f"; J ends at {r['cost']:.3f}" if r.get("finite") and r.get("cost") is not None else ""))  # fmt: skip
+    text = f"{r['cost']:.6f}, tf {r['tf_s']:.0f} s, mesh error {sci(r['mesh_error'], 1)}"
+    if rv is not None and rv.get("cost"):
+        text += f" ({(r['cost'] - rv['cost']) / rv['cost']:+.1%} against rv-Euler)"
+    return text
+
+
+def spherical_table(doc: dict) -> str:
+    """``studies/spherical_singularity.py``: the entry problem in spherical coordinates, whose azimuth equation
+    divides by cos(gamma), beside rv-Euler at the same terminal flight-path angle."""
+    rv = {r["final_gamma_deg"]: r for r in doc["rv_euler"]}
+    sph = {(r["guess"], r["final_gamma_deg"]): r for r in doc["spherical"]}
+    rows = []
+    for g in sorted({r["final_gamma_deg"] for r in doc["spherical"]} | set(rv)):
+        r = rv.get(g)
+        if r is None:
+            first = "not run"
+        elif r["status"] == "shipped":
+            first = f"**{r['cost']:.6f}**, mesh error {sci(r['mesh_error'], 1)} (the shipped optimum)"
+        else:
+            first = f"{r['cost']:.6f}, tf {r['tf_s']:.0f} s, mesh error {sci(r['mesh_error'], 1)}"
+        rows.append(["-90 (exact)" if g <= -90 else f"{g:g}", first,
+                     *(_spherical_cell(sph.get((guess, g)), r) for guess in ("reference", "simulated"))])  # fmt: skip
+    header = ["gamma(tf), deg", "rv-Euler J", "spherical, guess = rv-Euler optimum converted",
+              "spherical, cold guess (the one rv-Euler uses)"]  # fmt: skip
+    return "\n".join([md(header, rows), "", machine_note(doc, ("casadi", "numpy")), "",
+                      source(SPHERICAL, command=_timed_command(doc))])
+
+
 TIMINGS: tuple[Table, ...] = (
     Table("env-speed", (ENV_SPEED,), env_speed_table, ("docs/benchmarks/environment.md",)),
     Table("reference-solve", (REFERENCE_SOLVE, SHIPPED_REFERENCE), reference_solve_table, ("docs/reference.md",)),
@@ -1432,6 +1473,7 @@ TIMINGS: tuple[Table, ...] = (
     Table("reference-betts", (REFERENCE_SOLVE,), betts_table, ("docs/reference.md",)),
     Table("decision-cost", (DECISION_COST,), decision_cost_table, ("docs/benchmarks/learned_policies.md",)),
     Table("rhs-throughput", (RHS_FORMS,), rhs_throughput_table, ("docs/core.md",)),
+    Table("spherical-singularity", (SPHERICAL,), spherical_table, ("docs/reference.md",)),
 )  # fmt: skip
 
 
