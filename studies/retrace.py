@@ -7,7 +7,7 @@ give the same floats at every chunk they share; the first chunk where they part 
 recipe, or the platform, stopped reproducing.
 
     python studies/retrace.py runs/ppo_scratch/evaluations.json
-    python studies/retrace.py runs/a/evaluations.json runs/b/evaluations.json
+    python studies/retrace.py runs/a/evaluations.json runs/b/evaluations.json --json out/retrace.json
 
 The second file defaults to the shipped ``ppo-scratch`` policy's history. Exit status 0 when
 every shared chunk is identical, 1 when one differs, 2 on a file that is not a run's history.
@@ -19,6 +19,8 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
+from rventry_env.util.provenance import start_run, write_record
 
 SHIPPED = Path(__file__).resolve().parent.parent / "rventry_agents" / "data" / "ppo_scratch" / "evaluations.json"
 
@@ -53,9 +55,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("run", type=Path, help="the run's evaluations.json")
     ap.add_argument("other", type=Path, nargs="?", default=SHIPPED,
                     help="the history to compare with (default: the shipped ppo-scratch policy's)")  # fmt: skip
+    ap.add_argument("--json", type=Path, default=None, help="write the comparison here as a record")
     args = ap.parse_args(argv)
+    start_run(None if argv is None else ["python", __file__, *argv])
     run, other = read_history(args.run), read_history(args.other)
     shared, first = compare(run, other)
+    if args.json is not None:
+        write_record(args.json, {"run": str(args.run), "other": str(args.other), "run_chunks": len(run),
+                                 "other_chunks": len(other), "shared_chunks": len(shared),
+                                 "through_steps": shared[-1] if shared else None, "first_difference_steps": first,
+                                 "identical": bool(shared) and first is None}, indent=2)  # fmt: skip
     if not shared:
         print(f"retrace: {args.run} and {args.other} share no chunk", file=sys.stderr)
         return 1

@@ -25,12 +25,16 @@ def _write(path, chunks):
 def test_identical_shared_chunks_pass_and_a_differing_one_is_named(retrace, tmp_path, capsys):
     a = _write(tmp_path / "a.json", [_chunk(1), _chunk(2), _chunk(3)])
     b = _write(tmp_path / "b.json", [_chunk(1), _chunk(2)])  # a run that stopped earlier
-    assert retrace.main([a, b]) == 0
+    assert retrace.main([a, b, "--json", str(tmp_path / "same.json")]) == 0
     assert "2 of 2 shared chunks identical, through 2 steps" in capsys.readouterr().out
+    same = json.loads((tmp_path / "same.json").read_text())
+    assert (same["identical"], same["shared_chunks"], same["through_steps"], same["first_difference_steps"]) == (True, 2, 2, None)
     # the last bit of one noise figure differs at the second chunk
     c = _write(tmp_path / "c.json", [_chunk(1), _chunk(2, std=(0.1, 0.2 + 2 ** -52)), _chunk(3, success=0.0)])
-    assert retrace.main([a, c]) == 1
+    assert retrace.main([a, c, "--json", str(tmp_path / "parted.json")]) == 1
     assert "the runs part at 2 steps (chunk 2 of 3 shared)" in capsys.readouterr().out
+    parted = json.loads((tmp_path / "parted.json").read_text())
+    assert (parted["identical"], parted["first_difference_steps"]) == (False, 2)
     d = _write(tmp_path / "d.json", [_chunk(7)])
     assert retrace.main([a, d]) == 1
     assert "share no chunk" in capsys.readouterr().err
