@@ -73,11 +73,7 @@ def _dcm_and_partials(e1, e2, e3, eta) -> tuple[np.ndarray, np.ndarray]:
     ``(3, 3, n)``, and its partial derivatives in (e1, e2, e3, eta), ``(3, 3, 4, n)`` (quadratic entries)."""
     z = np.zeros_like(e1)
     a, b, g, d = 2 * e1, 2 * e2, 2 * e3, 2 * eta
-    c = np.array([
-        [1 - 2 * (e2 * e2 + e3 * e3), 2 * (e1 * e2 + e3 * eta), 2 * (e1 * e3 - e2 * eta)],
-        [2 * (e2 * e1 - e3 * eta), 1 - 2 * (e3 * e3 + e1 * e1), 2 * (e2 * e3 + e1 * eta)],
-        [2 * (e3 * e1 + e2 * eta), 2 * (e3 * e2 - e1 * eta), 1 - 2 * (e1 * e1 + e2 * e2)],
-    ])  # fmt: skip
+    c = np.array(dcm(e1, e2, e3, eta))
     dc = np.array([
         [[z, -2 * b, -2 * g, z], [b, a, d, g], [g, -d, a, -b]],
         [[b, a, -d, -g], [-2 * a, z, -2 * g, z], [d, g, b, a]],
@@ -187,11 +183,12 @@ class SensitivityReplay:
         def w(stage):  # the forcing's known inputs at one RK4 stage
             return [u[6 + stage * q + i] for i in range(q)]
 
+        def shifted(value, rate, tau):  # a control read at the fitted offset tau: its value, and d/d(tau) exact
+            return value + (p[self._i_tau] - tau) * rate
+
         def c(i):  # control i of the stage inputs (alpha at 3 stages, then mu), at the record's time offset
-            if self._i_tau is None:
-                return u[i]
             b = 6 + 3 * q
-            return u[i] + (p[self._i_tau] - u[b + 6]) * u[b + i]
+            return u[i] if self._i_tau is None else shifted(u[i], u[b + i], u[b + 6])
 
         k1 = f(x, c(0), c(3), w(0))
         k2 = f(x + 0.5 * h * k1, c(1), c(4), w(1))
@@ -214,7 +211,7 @@ class SensitivityReplay:
         ue = ca.SX.sym("ue", 2 + q + (0 if self._i_tau is None else 3))
         ce = [ue[0], ue[1]]
         if self._i_tau is not None:  # the end's controls at the time offset, as the stages'
-            ce = [ue[i] + (p[self._i_tau] - ue[2 + q + 2]) * ue[2 + q + i] for i in range(2)]
+            ce = [shifted(ue[i], ue[2 + q + i], ue[2 + q + 2]) for i in range(2)]
         fe = f(x, ce[0], ce[1], [ue[2 + i] for i in range(q)])
         self._end_buffer = ca.Function("end", [x, s, ue, p], _dense(fe, d(fe))).buffer()
         self._end_values_buffer = ca.Function("end_values", [x, ue, p], _dense(fe)).buffer()
