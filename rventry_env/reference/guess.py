@@ -285,8 +285,49 @@ def generate_guess(
     return SampledGuess(best.t, best.x, u), best
 
 
+class ReferenceGuess:
+    """A solved trajectory as the guess for the problem ``config`` poses: the shipped optimum
+    (:func:`~rventry_env.reference.load_reference`) or a collocation solution, in any norm-keeping
+    formulation.
+
+    States and (u_alpha, u_sigma) come from the trajectory's polynomials; the formulation's extra
+    controls are :func:`extra_controls` along it, the rule the generated guess follows (lambda = 0
+    for ``projection``, the Eq. ``Ex2-EOM`` rates for ``paper``, none for ``none``), so the guess
+    obeys every formulation's dynamics where the trajectory obeys ``entry_rhs``.
+
+    :param reference: anything with ``t0``, ``tf``, ``state(t)`` and ``control(t)`` whose first two
+        controls are (u_alpha, u_sigma).
+    :param config: the problem the guess is for (default :class:`EntryOcpConfig`).
+    """
+
+    def __init__(self, reference, config: EntryOcpConfig | None = None):
+        self.config = config or EntryOcpConfig()
+        if self.config.soft_path_penalty is not None:
+            raise ValueError("ReferenceGuess has no values for the soft path constraints' slack controls: "
+                             "use it with soft_path_penalty=None")  # fmt: skip
+        self.reference = reference
+
+    @property
+    def t0(self) -> float:
+        return float(self.reference.t0)
+
+    @property
+    def tf(self) -> float:
+        return float(self.reference.tf)
+
+    def state(self, t) -> np.ndarray:
+        return np.atleast_2d(self.reference.state(np.atleast_1d(np.asarray(t, dtype=float))))
+
+    def control(self, t) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        x = self.state(t)
+        u = np.atleast_2d(self.reference.control(t))[:, :2]
+        return np.hstack([u, extra_controls(self.config, x, u)])
+
+
 __all__ = [
     "DEFAULT_GRID",
+    "ReferenceGuess",
     "GuidanceGains",
     "GuessFlight",
     "simulate_batch",

@@ -167,12 +167,16 @@ def solve_reference(
     config: EntryOcpConfig | None = None,
     options: ReferenceOptions | None = None,
     progress: Progress | None = None,
+    guess=None,
 ) -> ReferenceSolve:
-    """Solve Example 2 from a generated guess (see the module docstring).
+    """Solve Example 2 from a generated guess (see the module docstring), or from ``guess``.
 
     :param config: the problem constants (default: docs/conventions.md's).
     :param options: :class:`ReferenceOptions`.
     :param progress: called once per mesh pass.
+    :param guess: the first guess instead of the generated one: anything with ``t0``, ``tf``,
+        ``state(t)`` and ``control(t)`` giving the formulation's controls
+        (:class:`~rventry_env.reference.guess.ReferenceGuess` makes one of a solved trajectory).
     """
     from rventry_env.reference.collocation import CompiledProblem, solve
     from rventry_env.reference.guess import generate_guess
@@ -182,7 +186,9 @@ def solve_reference(
     recorder = RecordingProgress(progress)
     start = time.perf_counter()
     cpu_start = time.process_time()
-    guess, flight = generate_guess(config)
+    flight = None
+    if guess is None:
+        guess, flight = generate_guess(config)
     t_guess = time.perf_counter() - start
     solver_opts, first = _solver_settings(options)
     cp = CompiledProblem(entry_ocp(config))
@@ -207,8 +213,11 @@ def solve_reference(
         "passes": [r.as_dict() for r in recorder.records],
         "rss_peak_mb": _rss_peak_mb(),
     }
-    info = {"params": flight.params, "miss_m": flight.miss_m, "speed_error_mps": flight.speed_error,
-            "gamma_deg": flight.gamma_deg, "tf_s": float(flight.t[-1])}  # fmt: skip
+    if flight is None:
+        info = {"given": type(guess).__name__, "tf_s": float(guess.tf)}
+    else:
+        info = {"params": flight.params, "miss_m": flight.miss_m, "speed_error_mps": flight.speed_error,
+                "gamma_deg": flight.gamma_deg, "tf_s": float(flight.t[-1])}  # fmt: skip
     return ReferenceSolve(
         config, sol, recorder.records, res.converged, stages, timings, diagnostics(config, sol), info,
         options.mesh_tolerance,

@@ -13,7 +13,7 @@ from rventry_env.physics.model import EntryModel
 from rventry_env.reference import load_reference
 from rventry_env.reference.collocation import CompiledProblem
 from rventry_env.reference.entry_ocp import EntryOcpConfig, entry_ocp, position_direction
-from rventry_env.reference.guess import generate_guess
+from rventry_env.reference.guess import ReferenceGuess, generate_guess
 from rventry_env.reference.spherical_entry import (
     spherical_from_entry_states,
     spherical_problem,
@@ -109,6 +109,65 @@ def test_generated_guess_reaches_the_ground_near_the_target():
     assert np.all(np.isfinite(guess.x)) and guess.u.shape == (guess.t.size, 4)
     # the guess obeys the rate bounds it is flown with
     assert np.max(np.abs(guess.u[:, 0])) <= math.radians(10) + 1e-15
+
+
+@pytest.mark.parametrize("mode", ["projection", "paper", "none"])
+def test_the_shipped_optimum_as_a_guess_obeys_each_formulations_dynamics(mode):
+    """Its states and (u_alpha, u_sigma) are the optimum's; its extra controls make every formulation's
+    right-hand side the physics' (lambda = 0, or u1..u4 = the rates they replace), so the guess is as
+    consistent in each formulation as the optimum is with entry_rhs."""
+    ref = load_reference()
+    cfg = EntryOcpConfig(norm_mode=mode)
+    guess = ReferenceGuess(ref, cfg)
+    t = ref.t[::7]
+    x, u = guess.state(t), guess.control(t)
+    assert (guess.t0, guess.tf) == (ref.t0, ref.tf)
+    np.testing.assert_array_equal(x, ref.state(t))
+    np.testing.assert_array_equal(u[:, :2], ref.control(t))
+    cp = CompiledProblem(entry_ocp(cfg))
+    assert u.shape == (t.size, len(cp.problem.control_names))
+    physics = np.array(entry_rhs(list(x.T), list(u[:, :2].T), MODEL)).T
+    np.testing.assert_allclose(cp.rhs(x, u, np.zeros(t.size)), physics, rtol=1e-12, atol=1e-15)
+    if mode == "paper":  # the band constraints |u_i - rate| <= delta hold with room: u_i is the rate
+        np.testing.assert_allclose(u[:, 2:], physics[:, [2, 3, 7, 8]], rtol=1e-12, atol=1e-15)
+    one = guess.control(ref.tf / 2)  # a single time: one row
+    assert one.shape == (1, u.shape[1])
+    with pytest.raises(ValueError, match="slack controls"):
+        ReferenceGuess(ref, EntryOcpConfig(soft_path_penalty=10.0))
+
+
+def test_a_given_guess_replaces_the_generated_one(monkeypatch):
+    """``solve_reference(guess=...)`` hands that guess to the solver and flies no guidance-law batch."""
+    import rventry_env.reference.guess as guess_module
+    from rventry_env.reference import collocation
+    from rventry_env.reference.pipeline import solve_reference
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def solver(problem, guess, mesh, options, progress, label=""):
+        seen.append(guess)
+        raise Stop
+
+    def no_flights(config):
+        raise AssertionError("the guidance-law guess was flown although a guess was given")
+
+    monkeypatch.setattr(collocation, "solve", solver)
+    monkeypatch.setattr(collocation, "CompiledProblem", lambda problem: problem)
+    monkeypatch.setattr(guess_module, "generate_guess", no_flights)
+    given = ReferenceGuess(load_reference())
+    with pytest.raises(Stop):
+        solve_reference(guess=given)
+    assert seen == [given]
+    seen.clear()
+    monkeypatch.undo()
+    monkeypatch.setattr(collocation, "solve", solver)
+    monkeypatch.setattr(collocation, "CompiledProblem", lambda problem: problem)
+    with pytest.raises(Stop):
+        solve_reference()  # without one: the generated guess, sampled from the flight
+    assert type(seen[0]).__name__ == "SampledGuess"
 
 
 def test_spherical_equations_agree_with_rv_euler_away_from_vertical():
