@@ -1,5 +1,6 @@
-"""The tables of timings (environment speed, the reference solve, the cost per decision): each renderer
-turns a small hand-written record into the rows it must show, every column and the machine that ran it."""
+"""The tables of timings (environment speed, the reference solve, the cost per decision) and of the solves of the
+norm-keeping formulations: each renderer turns a small hand-written record into the rows it must show, every column
+and the machine that ran it."""
 
 from __future__ import annotations
 
@@ -199,6 +200,69 @@ def test_the_cost_per_decision_shows_every_law_one_vehicle_and_batched():
     out = lines(tables().decision_cost_table(small))
     assert out[2].endswith("| 300,120x | <= 10 us, >= 1,000x: set for a batch of 1024 |")
     assert out[5] == "| `mpc` | 2.5 s (430 us / 308 ms) | one NLP per vehicle: the same per vehicle | 1x |  |"
+
+
+def _formulation_solve(mode, guess, iterations, wall, cost, tf, drift, error, first_status="Solve_Succeeded"):
+    return {"norm_mode": mode, "guess": guess, "converged": True, "status": "Solve_Succeeded",
+            "first_pass": {"nlp_iterations": iterations, "wall_s": wall, "status": first_status, "nodes": 267},
+            "iterations_per_pass": [iterations, 18, 16], "cost": cost, "tf_s": tf, "mesh_error": 9.2e-7,
+            "norm_drift_nodes": drift, "replay": {"rtol": 1e-11, "method": "DOP853", "position_error_at_impact_m": error}}
+
+
+FORMULATIONS = {
+    "delta": 1e-6, "shipped": {"cost": 1.4589471, "tf_s": 1033.9291},
+    "solves": [
+        _formulation_solve("projection", "cold", 87, 8.14, 1.4589471, 1033.9291, 3.2e-12, 0.0716),
+        _formulation_solve("projection", "optimum", 12, 3.07, 1.4589473, 1033.929, 2.9e-12, 0.0702),
+        _formulation_solve("paper", "cold", 141, 26.04, 1.419678, 1037.37, 9.3e-4, 24123.0),
+        {"norm_mode": "paper", "guess": "optimum", "converged": False, "status": "Maximum_Iterations_Exceeded",
+         "first_pass": {"nlp_iterations": 3000, "wall_s": 171.3, "status": "Maximum_Iterations_Exceeded", "nodes": 267},
+         "iterations_per_pass": [3000], "cost": 1.2, "tf_s": 1000.0, "mesh_error": 3.14e-4, "norm_drift_nodes": 1e-2,
+         "replay": {"rtol": 1e-11, "error": "replay integration failed"}},
+        _formulation_solve("none", "cold", 1158, 176.2, 1.4589471, 1033.9291, 8.5e-7, 0.0716,
+                           first_status="Solved_To_Acceptable_Level"),
+        {"norm_mode": "none", "guess": "optimum", "converged": False, "status": "timed out after 1800 s",
+         "first_pass": None, "wall_s": 1800.2},
+    ],
+    "provenance": {**PROVENANCE, "command": "python studies/formulations.py --out docs/results/formulations.json"},
+}  # fmt: skip
+
+
+def test_the_formulations_table_shows_each_solve_and_each_failure():
+    out = lines(tables().formulation_table(FORMULATIONS))
+    assert out[:8] == [
+        "| formulation | guess | first pass | J | tf | norm drift at nodes | replay error at impact |",
+        "|---|---|---|---|---|---|---|",
+        "| projection (shipped) | generated (cold) | 87 iterations, 8.1 s | 1.458947 (J*) | 1033.93 s | 3.2e-12 | 0.072 m |",
+        "| projection (shipped) | the shipped optimum | 12 iterations, 3.1 s | 1.458947 (J*) | 1033.93 s | 2.9e-12 | 0.070 m |",
+        # below J* by 2.7 %, and the replay beyond 100 m: in bold
+        ("| paper (u1..u4, delta = 1e-6 band) | generated (cold) | 141 iterations, 26.0 s | 1.419678 (-2.69%) "
+         "| 1037.37 s | 9.3e-4 | **24 km** |"),
+        # a solve that ran out of iterations: its status and mesh error, none of its figures
+        ("| paper (u1..u4, delta = 1e-6 band) | the shipped optimum | 3000 iterations, 171.3 s, "
+         "`Maximum_Iterations_Exceeded` | **fails**: `Maximum_Iterations_Exceeded`, mesh error 3.1e-4 after 1 pass "
+         "| - | - | - |"),
+        ("| none (Eq. Ex2-endpoint verbatim) | generated (cold) | 1158 iterations, 176.2 s, "
+         "`Solved_To_Acceptable_Level` | 1.458947 (J*) | 1033.93 s | 8.5e-7 | 0.072 m |"),
+        # a solve that gave no solution at all
+        "| none (Eq. Ex2-endpoint verbatim) | the shipped optimum | - | **fails**: `timed out after 1800 s` | - | - | - |",
+    ]  # fmt: skip
+    assert out[9].startswith("J against the shipped optimum's J* = 1.458947 (tf = 1033.93 s), (J*) where it is within 1e-4")
+    assert out[9].endswith("(DOP853, rtol 1e-11), position error at impact; in bold beyond the 100 m the shipped optimum "
+                           "is held to.")  # fmt: skip
+    assert out[11] == MACHINE + "python 3.12.3, casadi 3.6.7, numpy 2.1.3, scipy 1.14.1."
+    assert out[13] == ("Records: `docs/results/formulations.json`; written by `OMP_NUM_THREADS=1 python "
+                       "studies/formulations.py --out docs/results/formulations.json`.")  # fmt: skip
+    # a converged solve whose replay could not run says so; a J within 1e-4 of J* is J*, one beyond is its difference
+    other = copy.deepcopy(FORMULATIONS)
+    other["solves"][0]["replay"] = {"rtol": 1e-11, "error": "replay integration failed on [0.000, 3.876] s"}
+    other["solves"][1]["cost"] = 1.4589471 * 1.0002
+    other["solves"][4]["stages"] = ["exact", "relaxed gamma <= -75 deg", "exact from relaxed"]
+    out = lines(tables().formulation_table(other))
+    assert out[2].endswith("| not replayed: replay integration failed on [0.000, 3.876] s |")
+    assert "| 1.459239 (+0.02%) |" in out[3]
+    assert out[6].startswith("| none (Eq. Ex2-endpoint verbatim) | generated (cold), through the relaxed-angle "
+                             "continuation | 1158 iterations")  # fmt: skip
 
 
 def test_each_timing_table_reads_its_record_and_renders_it():
