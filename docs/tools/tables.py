@@ -1585,6 +1585,7 @@ TABLES: tuple[Table, ...] = (
     Table("baselines", (BASELINES, *JAX_BASELINES), baselines_table, ("docs/benchmarks/learned_policies.md",)),
     Table("rhs-op-counts", (RHS_FORMS,), rhs_op_count_table, ("docs/core.md",)),
     Table("spherical-singularity", (SPHERICAL,), spherical_table, ("docs/reference.md",)),
+    Table("reference-formulations", (FORMULATIONS,), formulation_table, ("docs/reference.md",)),
     *TIMINGS,
 )  # fmt: skip
 
