@@ -361,10 +361,16 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
         trainer.curriculum.window = point.window
     changes = ""  # what this run changed in the state it starts from
+    fresh = getattr(point, "other_vehicles", False)  # the checkpoint's vehicles could not be restored on this rung
     if source is not None:  # another run's checkpoint, as if this run's stage were entered from it
+        before = _rung_of(source, steps)
+        for h in history:  # its records, ranked on the rung they flew
+            h.setdefault("rung", before)
         ts, changes = _entered(ts, trainer.cfg, _seed_of(source))
+        ts, changes = _on_rung(ts, trainer, before, changes, fresh)
     elif resume and history and (last := history[-1].get("stage", 0)) < stage:  # stopped on a stage's first step
         ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
+        ts, changes = _on_rung(ts, trainer, stages[last][1].env.rung, changes, fresh)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
@@ -375,13 +381,15 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         progress(f"stage {stage} from {steps:,d} steps{changes}")
     trainer.with_window()
     t0, rates = time.perf_counter(), []
-    best = max(history, key=_rank) if history else None
+    best = _best(history, trainer.cfg.env.rung)
     compiles = True  # the next chunk includes the compilation of its program
     while steps < cfg.train.total_timesteps:
         if stage + 1 < len(stages) and steps >= stages[stage + 1][0]:  # the next stage starts here
             stage += 1
             trainer = _next_stage(trainer, stages[stage][1])
             ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)
+            ts, changes = _on_rung(ts, trainer, stages[stage - 1][1].env.rung, changes)
+            best = _best(history, trainer.cfg.env.rung)
             progress(f"stage {stage} from {steps:,d} steps{changes}")
             compiles = True
         c0 = time.perf_counter()
@@ -395,6 +403,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         rec = record_chunk(trainer, ts, steps, wall_before + time.perf_counter() - t0, dt)
         if cfg.stages:
             rec["stage"] = stage
+        rec["rung"] = trainer.cfg.env.rung
         history.append(rec)
         if best is None or _rank(rec) > _rank(best):
             best = rec
@@ -444,6 +453,43 @@ def _provenance(trainer: Trainer, steps: int, **extra) -> dict:
     return {"algorithm": "PPO (rejax), from scratch", "start": "scratch", "curriculum": cfg.curriculum.kind,
             "shaping": cfg.shaping.potential, "actions": cfg.env.actions, "rung": cfg.env.rung, "timesteps": steps,
             **extra, "seed": cfg.train.seed, **start}  # fmt: skip
+
+
+def _on_rung(ts, trainer: Trainer, rung_before: str | None, changes: str, fresh: bool = False):
+    """The training state as a stage (or a run from another's checkpoint) on ``trainer``'s rung
+    starts from one on ``rung_before``: where the rung changed, every vehicle starts afresh from
+    the new rung's draws (:func:`~rventry_agents.scratch_state.fresh_vehicles`; ``fresh``: the
+    checkpoint's restore has done so already), and what that changed, for the progress line."""
+    from rventry_agents.scratch_state import fresh_vehicles
+
+    rung = trainer.cfg.env.rung
+    if not fresh and (rung_before is None or rung_before == rung):
+        return ts, changes
+    if not fresh:
+        ts = fresh_vehicles(ts, _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
+    return ts, changes + f", every vehicle started afresh on the {rung} rung"
+
+
+def _best(history: list[dict], rung: str) -> dict | None:
+    """The best of the chunks evaluated on ``rung``'s selection set (a chunk recorded without its
+    rung is one of a run that never changed it)."""
+    on_rung = [h for h in history if h.get("rung", rung) == rung]
+    return max(on_rung, key=_rank) if on_rung else None
+
+
+def _rung_of(run: Path, steps: int) -> str | None:
+    """The rung the run (or the exported policy) in ``run`` trained on at ``steps`` (None where its
+    config is not there)."""
+
+    try:
+        cfg = load_config(json.loads((run / "config.json").read_text()))
+        return cfg.stage_configs()[cfg.stage_at(steps)][1].env.rung
+    except (OSError, ValueError, KeyError, TypeError, IndexError):
+        pass
+    try:
+        return str(json.loads((run / "metadata.json").read_text())["rung"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def _rank(rec: dict) -> tuple:

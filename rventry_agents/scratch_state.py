@@ -87,6 +87,7 @@ class Checkpoint:
 
     def __init__(self, out: Path, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None):
         self.out, self.window, self.history, self.wall_s, self.steps = out, window, history, wall_s, steps
+        self.other_vehicles = False  # whether restore started every vehicle afresh (a rung of another form)
         self.init_from = init_from  # where the run that wrote it started, if from another run's checkpoint
 
     def origin(self) -> dict:
@@ -128,7 +129,16 @@ class Checkpoint:
 
         path = self.out / CHECKPOINT / "train_state.msgpack"
         try:
-            ts = serialization.from_state_dict(template, _renamed(serialization.msgpack_restore(path.read_bytes())))
+            saved = _renamed(serialization.msgpack_restore(path.read_bytes()))
+            want = serialization.to_state_dict(template)
+            # vehicles of another rung whose state has another form (the flight-grade errors): the
+            # template's fresh vehicles stand in for them, as fresh_vehicles puts them below
+            self.other_vehicles = isinstance(saved, dict) and _form(saved.get("env_state")) != _form(want["env_state"])
+            if self.other_vehicles:
+                saved = {**saved, **{k: want[k] for k in VEHICLES}}
+            ts = serialization.from_state_dict(template, saved)
+            if self.other_vehicles:
+                ts = fresh_vehicles(ts, template)
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ConfigError(f"cannot start from {self.out}: {path} does not hold this config's training state "
                               f"({type(exc).__name__}: {exc})") from None  # fmt: skip
@@ -244,6 +254,32 @@ def _like(template: dict, new: dict, source: Path, where: str = "") -> dict:
                               f"network {np.shape(want)} (the network must match)")  # fmt: skip
         out[key] = jnp.asarray(have, jnp.asarray(want).dtype)
     return out
+
+
+# the parts of a training state that are the vehicles in flight (rejax's PPO state)
+VEHICLES = ("env_state", "last_obs", "last_done")
+
+
+def fresh_vehicles(ts, fresh):
+    """The training state ``ts`` with every vehicle started afresh as in ``fresh`` (a new training
+    state of the config that goes on): the environments' states, their last observations and done
+    flags, and the reward statistics' running returns of the episodes cut off; the networks, the
+    optimizers, the observation and reward statistics and the random key as they were. What a
+    stage or a run on another rung starts from: the vehicles in flight were drawn on the rung
+    before, and on the flight-grade rung their state has another form (its sensor and navigation
+    errors)."""
+    out = ts.replace(**{k: getattr(fresh, k) for k in VEHICLES})
+    rms = getattr(ts, "rew_rms_state", None)
+    if rms is not None and hasattr(rms, "returns"):
+        out = out.replace(rew_rms_state=rms.replace(returns=fresh.rew_rms_state.returns))
+    return out
+
+
+def _form(tree):
+    """The nesting of a saved state's dicts, without the arrays (None where a part is absent)."""
+    if isinstance(tree, dict):
+        return {k: _form(v) for k, v in tree.items()}
+    return None if tree is None else ()
 
 
 def _renamed(tree):

@@ -120,6 +120,54 @@ SMALL = {"env": {"rung": "late", "num_envs": 32}, "ppo": {"num_steps": 32, "num_
          "train": {"total_timesteps": 2048, "chunk_timesteps": 1024, "select_episodes": 8}}  # fmt: skip
 
 
+def _errors_of(tree):
+    """The saved environment state's flight-grade errors (None where its vehicles have none)."""
+    if isinstance(tree, dict):
+        if "errors" in tree:
+            return tree["errors"]
+        return next((e for e in map(_errors_of, tree.values()) if e is not None), None)
+    return None
+
+
+@pytest.mark.slow
+def test_a_stage_on_another_rung_starts_every_vehicle_afresh_and_selects_on_that_rung(tmp_path):
+    """A stage that moves from the late rung to the flight-grade one (whose vehicles carry sensor and
+    navigation errors, a state of another form): straight through, stopped on the stage's first step
+    and resumed, or as a new run from the first stage's checkpoint (``init_from``), the vehicles in
+    flight start afresh from the new rung's draws and the three train the same state to the byte;
+    the policy is selected among the chunks flown on the new rung's selection set."""
+    pytest.importorskip("rejax")
+    from flax import serialization
+
+    from rventry_agents.scratch import train_scratch
+
+    staged = json.loads(json.dumps(SMALL))
+    staged["stages"] = [{"from_timesteps": 1024, "env": {"rung": "flight"}}]
+    runs = {}
+    for name, steps in (("straight", 2048), ("stopped", 1024)):
+        runs[name] = train_scratch(staged, out=tmp_path / name, timesteps=steps, progress=lambda s: None)
+    shutil.copytree(tmp_path / "stopped", tmp_path / "first")  # the first stage's run, its vehicles on the late rung
+    lines = []
+    runs["stopped"] = train_scratch(staged, out=tmp_path / "stopped", timesteps=2048, resume=True, progress=lines.append)
+    assert "stage 1 from 1,024 steps, every vehicle started afresh on the flight rung" in lines
+    flight = json.loads(json.dumps(SMALL))
+    flight["env"]["rung"] = "flight"
+    lines = []
+    runs["other"] = train_scratch(flight, out=tmp_path / "other", timesteps=2048, init_from=tmp_path / "first",
+                                  progress=lines.append)  # fmt: skip
+    assert lines[0].endswith("every vehicle started afresh on the flight rung")
+    # the vehicles now in flight are the flight-grade rung's, with their errors
+    saved = serialization.msgpack_restore((tmp_path / "other" / "checkpoint" / "train_state.msgpack").read_bytes())
+    assert _errors_of(saved["env_state"]) is not None
+    states = {name: (tmp_path / name / "checkpoint" / "train_state.msgpack").read_bytes() for name in runs}
+    assert states["straight"] == states["stopped"] == states["other"]
+    for name, meta in runs.items():
+        hist = json.loads((tmp_path / name / "evaluations.json").read_text())
+        assert [h["rung"] for h in hist] == ["late", "flight"], name
+        # the late chunk's selection is not ranked against the flight chunk's: the flight one is selected
+        assert meta["best_evaluation"]["timesteps"] == 2048, name
+
+
 @pytest.mark.slow
 def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     """A few thousand steps of a small config end to end: records written, the exported policy flies what
