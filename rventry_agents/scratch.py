@@ -360,17 +360,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     else:
         ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
         trainer.curriculum.window = point.window
-    changes = ""  # what this run changed in the state it starts from
-    fresh = getattr(point, "other_vehicles", False)  # the checkpoint's vehicles could not be restored on this rung
-    if source is not None:  # another run's checkpoint, as if this run's stage were entered from it
-        before = _rung_of(source, steps)
-        for h in history:  # its records, ranked on the rung they flew
-            h.setdefault("rung", before)
-        ts, changes = _entered(ts, trainer.cfg, _seed_of(source))
-        ts, changes = _on_rung(ts, trainer, before, changes, fresh)
-    elif resume and history and (last := history[-1].get("stage", 0)) < stage:  # stopped on a stage's first step
-        ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
-        ts, changes = _on_rung(ts, trainer, stages[last][1].env.rung, changes, fresh)
+    ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
@@ -453,6 +443,24 @@ def _provenance(trainer: Trainer, steps: int, **extra) -> dict:
     return {"algorithm": "PPO (rejax), from scratch", "start": "scratch", "curriculum": cfg.curriculum.kind,
             "shaping": cfg.shaping.potential, "actions": cfg.env.actions, "rung": cfg.env.rung, "timesteps": steps,
             **extra, "seed": cfg.train.seed, **start}  # fmt: skip
+
+
+def _starting(ts, trainer: Trainer, point, history: list[dict], source: Path | None, stages: list, stage: int | None):
+    """The restored training state as this run starts from it, and what that changed (for the
+    progress line): from another run's checkpoint (``source``), as if this run's stage were entered
+    from it; a resumed run (``stage``, its stage now) stopped on a stage's first step, as the stage
+    is entered; otherwise as it was."""
+    fresh = getattr(point, "other_vehicles", False)  # the checkpoint's vehicles could not be restored on this rung
+    if source is not None:
+        before = _rung_of(source, point.steps)
+        for h in history:  # its records, ranked on the rung they flew
+            h.setdefault("rung", before)
+        ts, changes = _entered(ts, trainer.cfg, _seed_of(source))
+        return _on_rung(ts, trainer, before, changes, fresh)
+    if stage is not None and history and (last := history[-1].get("stage", 0)) < stage:
+        ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
+        return _on_rung(ts, trainer, stages[last][1].env.rung, changes, fresh)
+    return ts, ""
 
 
 def _on_rung(ts, trainer: Trainer, rung_before: str | None, changes: str, fresh: bool = False):
