@@ -176,19 +176,6 @@ def _initial_state(algo, cfg: ScratchConfig, seed: int):
     return settled_state(with_log_std(algo.init_state(jax.random.PRNGKey(seed)), cfg.ppo.log_std_init))
 
 
-def _seed_of(run: Path) -> int | None:
-    """The ``[train] seed`` of the run (or the exported policy) in ``run`` (None where its config is not there)."""
-    for name, key in (("config.json", ("train", "seed")), ("metadata.json", ("seed",))):
-        try:
-            value = json.loads((run / name).read_text())
-            for k in key:
-                value = value[k]
-            return int(value)
-        except (OSError, ValueError, KeyError, TypeError):
-            continue
-    return None
-
-
 def _reseeded(ts, seed: int):
     """The training state with ``seed`` folded into its random key: a run started from another's
     checkpoint under another seed draws its own rollouts and minibatches from there (the key is
@@ -452,10 +439,10 @@ def _starting(ts, trainer: Trainer, point, history: list[dict], source: Path | N
     is entered; otherwise as it was."""
     fresh = getattr(point, "other_vehicles", False)  # the checkpoint's vehicles could not be restored on this rung
     if source is not None:
-        before = _rung_of(source, point.steps)
+        before, seed_before = _source_stage(source, point.steps)
         for h in history:  # its records, ranked on the rung they flew
             h.setdefault("rung", before)
-        ts, changes = _entered(ts, trainer.cfg, _seed_of(source))
+        ts, changes = _entered(ts, trainer.cfg, seed_before)
         return _on_rung(ts, trainer, before, changes, fresh)
     if stage is not None and history and (last := history[-1].get("stage", 0)) < stage:
         ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
@@ -471,9 +458,9 @@ def _on_rung(ts, trainer: Trainer, rung_before: str | None, changes: str, fresh:
     from rventry_agents.scratch_state import fresh_vehicles
 
     rung = trainer.cfg.env.rung
-    if not fresh and (rung_before is None or rung_before == rung):
-        return ts, changes
     if not fresh:
+        if rung_before is None or rung_before == rung:
+            return ts, changes
         ts = fresh_vehicles(ts, _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
     return ts, changes + f", every vehicle started afresh on the {rung} rung"
 
@@ -485,19 +472,23 @@ def _best(history: list[dict], rung: str) -> dict | None:
     return max(on_rung, key=_rank) if on_rung else None
 
 
-def _rung_of(run: Path, steps: int) -> str | None:
-    """The rung the run (or the exported policy) in ``run`` trained on at ``steps`` (None where its
-    config is not there)."""
-
+def _source_stage(run: Path, steps: int) -> tuple[str | None, int | None]:
+    """The rung and the seed the run (or the exported policy) in ``run`` trained under at ``steps``:
+    its stage's, from its ``config.json``, else its ``metadata.json``'s (None where neither says)."""
     try:
         cfg = load_config(json.loads((run / "config.json").read_text()))
-        return cfg.stage_configs()[cfg.stage_at(steps)][1].env.rung
+        stage = cfg.stage_configs()[cfg.stage_at(steps)][1]
+        return stage.env.rung, stage.train.seed
     except (OSError, ValueError, KeyError, TypeError, IndexError):
         pass
     try:
-        return str(json.loads((run / "metadata.json").read_text())["rung"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
+        meta = json.loads((run / "metadata.json").read_text())
+    except (OSError, ValueError):
+        return None, None
+    if not isinstance(meta, dict):
+        return None, None
+    rung, seed = meta.get("rung"), meta.get("seed")
+    return (None if rung is None else str(rung)), (seed if isinstance(seed, int) and not isinstance(seed, bool) else None)
 
 
 def _rank(rec: dict) -> tuple:

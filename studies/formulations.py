@@ -40,7 +40,6 @@ from rventry_env.util.provenance import start_run, write_record
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 MODES = ("projection", "paper", "none")
 GUESSES = ("cold", "optimum")
-REPLAY_RTOL = 1e-11  # the open-loop replay's DOP853 tolerance (benchmarks/reference_solve.py's)
 
 
 def comma_list(allowed: tuple[str, ...]):
@@ -119,18 +118,6 @@ def failed_row(mode: str, guess: str, status: str, wall_s: float | None = None) 
             "wall_s": wall_s}  # fmt: skip
 
 
-def replay_row(reference) -> dict:
-    """A solution's (u_alpha, u_sigma) through ``entry_rhs``, open loop: its errors, or why there are none."""
-    from rventry_env.reference.open_loop import entry_rhs_numpy, replay_controls
-
-    try:
-        res = replay_controls(entry_rhs_numpy(), reference, rtol=REPLAY_RTOL)
-    except (RuntimeError, ValueError) as exc:
-        return {"rtol": REPLAY_RTOL, "method": "DOP853", "error": str(exc)}
-    return {"rtol": REPLAY_RTOL, "method": "DOP853", "position_error_at_impact_m": res.position_error_at_impact_m,
-            "max_position_error_m": res.max_position_error_m, "altitude_at_tf_m": res.altitude_at_tf_m}  # fmt: skip
-
-
 def _one_solve(mode: str, guess: str, keep: str) -> dict:
     """One solve, in this (fresh) process: the record's entry."""
     import tempfile
@@ -140,6 +127,7 @@ def _one_solve(mode: str, guess: str, keep: str) -> dict:
     from rventry_env.reference.collocation.progress import RichMeshTable
     from rventry_env.reference.entry_ocp import EntryOcpConfig
     from rventry_env.reference.guess import ReferenceGuess
+    from rventry_env.reference.open_loop import REPLAY_RTOL, replay_record
     from rventry_env.reference.pipeline import save_reference, solve_reference
 
     import_s = time.perf_counter() - t0
@@ -151,8 +139,8 @@ def _one_solve(mode: str, guess: str, keep: str) -> dict:
     try:
         with tempfile.TemporaryDirectory() as tmp:  # the solution as `rventry reference solve --out` writes it
             npz, _ = save_reference(rs, Path(keep or tmp) / f"{mode}_{guess}.npz")
-            replay = replay_row(read_reference(npz))
-    except (OSError, ValueError) as exc:  # the solve's figures are kept; only its replay is missing
+            replay = replay_record(read_reference(npz))
+    except (OSError, ValueError, RuntimeError) as exc:  # the solve's figures are kept; only its replay is missing
         replay = {"rtol": REPLAY_RTOL, "method": "DOP853", "error": f"{type(exc).__name__}: {exc}"}
     return solve_row(mode, guess, rs, replay, import_s, clock.ends)
 

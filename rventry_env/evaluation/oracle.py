@@ -87,10 +87,10 @@ def draw_episode(dispersion, seed: int, task: EntryTask):
 
 def solve_draw(x0: np.ndarray, model, task: EntryTask, settings: OracleSettings):
     """Example 2 from ``x0`` with the force model ``model``: the collocation solution."""
-    from rventry_env.guidance.replanning import _ReferenceGuess
     from rventry_env.reference import load_reference
     from rventry_env.reference.collocation import CompiledProblem, SolverOptions, initial_point, solve_from, transcribe
     from rventry_env.reference.entry_ocp import EntryOcpConfig, entry_ocp
+    from rventry_env.reference.guess import ReferenceGuess
 
     from dataclasses import replace
 
@@ -106,7 +106,7 @@ def solve_draw(x0: np.ndarray, model, task: EntryTask, settings: OracleSettings)
         return solve_from(tr, initial_point(tr, guess, lbx, ubx), None, lbx, ubx)
 
     mesh = settings.mesh()
-    sol = solve(mesh, _ReferenceGuess(load_reference(), cp.problem.n_u))
+    sol = solve(mesh, ReferenceGuess(load_reference(), config))
     for _ in range(settings.refinements):
         bad = intervals_leaving_bounds(sol, model, problem, settings.between_tolerance) if sol.success else ()
         if len(bad) == 0:

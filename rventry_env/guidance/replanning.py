@@ -250,26 +250,6 @@ class _Shifted:
         return self.sol.control(np.asarray(t, dtype=float) + self.shift)
 
 
-class _ReferenceGuess:
-    """The shipped optimum as a guess for the re-planning problem's controls (zeros for the extra ones)."""
-
-    t0 = 0.0
-
-    def __init__(self, reference, n_controls: int):
-        self.reference, self.n_controls = reference, n_controls
-
-    @property
-    def tf(self) -> float:
-        return self.reference.tf
-
-    def state(self, t):
-        return self.reference.state(t)
-
-    def control(self, t):
-        u = np.atleast_2d(self.reference.control(t))
-        return np.hstack([u, np.zeros((u.shape[0], self.n_controls - u.shape[1]))])
-
-
 class PlanSolver:
     """The re-planning NLP: compiled and transcribed once, solved from any state and estimate.
 
@@ -292,7 +272,7 @@ class PlanSolver:
                               final_speed=dive_entry_speed(task, model, s.vertical_dive_m))  # fmt: skip
         config = EntryOcpConfig(problem=problem, model=model, tf_bounds=(1.0, 3000.0),
                                     soft_path_penalty=s.soft_penalty, aero_scale_parameters=True)  # fmt: skip
-        self.problem = entry_ocp(config)
+        self.config, self.problem = config, entry_ocp(config)
         self.compiled = CompiledProblem(self.problem)
         mesh = replanning_mesh(s)
         ipopt = {"mu_init": 1e-4, "warm_start_init_point": "yes",
@@ -413,10 +393,10 @@ class PlanSolver:
         """The plan for the nominal start and model on this mesh, from the shipped optimum (cached)."""
         if getattr(self, "_nominal", None) is None:
             from rventry_env.reference import load_reference
+            from rventry_env.reference.guess import ReferenceGuess
 
-            ref = load_reference()
             x0 = task.problem.initial_state(self.radius)
-            sol = self.solve(x0, np.zeros(2), _ReferenceGuess(ref, self.problem.n_u))
+            sol = self.solve(x0, np.zeros(2), ReferenceGuess(load_reference(), self.config))
             # before flight, not in it: the budget per solve is the in-flight one, so continue
             # from where a solve stopped until it converges
             for _ in range(20):

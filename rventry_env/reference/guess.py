@@ -35,7 +35,7 @@ from rventry_env.core.conversions import lift_up_angle
 from rventry_env.core.euler_parameters import dcm
 from rventry_env.core.integrate import rk4_step
 from rventry_env.physics.entry import entry_forces, entry_rhs
-from rventry_env.reference.entry_ocp import DEG, EntryOcpConfig
+from rventry_env.reference.entry_ocp import DEG, SLACK_NAMES, EntryOcpConfig
 
 _PARAMS = ("kr", "dive_range", "v_dive")
 
@@ -293,7 +293,9 @@ class ReferenceGuess:
     States and (u_alpha, u_sigma) come from the trajectory's polynomials; the formulation's extra
     controls are :func:`extra_controls` along it, the rule the generated guess follows (lambda = 0
     for ``projection``, the Eq. ``Ex2-EOM`` rates for ``paper``, none for ``none``), so the guess
-    obeys every formulation's dynamics where the trajectory obeys ``entry_rhs``.
+    obeys every formulation's dynamics where the trajectory obeys ``entry_rhs``. Where the path
+    constraints are soft (``soft_path_penalty``), their slacks start at zero: the path as the
+    trajectory flew it, feasible or not under the problem's bounds.
 
     :param reference: anything with ``t0``, ``tf``, ``state(t)`` and ``control(t)`` whose first two
         controls are (u_alpha, u_sigma).
@@ -302,9 +304,7 @@ class ReferenceGuess:
 
     def __init__(self, reference, config: EntryOcpConfig | None = None):
         self.config = config or EntryOcpConfig()
-        if self.config.soft_path_penalty is not None:
-            raise ValueError("ReferenceGuess has no values for the soft path constraints' slack controls: "
-                             "use it with soft_path_penalty=None")  # fmt: skip
+        self.slacks = len(SLACK_NAMES) if self.config.soft_path_penalty is not None else 0
         self.reference = reference
 
     @property
@@ -322,7 +322,7 @@ class ReferenceGuess:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         x = self.state(t)
         u = np.atleast_2d(self.reference.control(t))[:, :2]
-        return np.hstack([u, extra_controls(self.config, x, u)])
+        return np.hstack([u, extra_controls(self.config, x, u), np.zeros((t.size, self.slacks))])
 
 
 __all__ = [

@@ -112,6 +112,18 @@ def replay_controls(
     )  # fmt: skip
 
 
+REPLAY_RTOL = 1e-11  # the records' open-loop replay tolerance (DOP853)
+
+
+def replay_record(reference, rhs: Rhs | None = None, rtol: float = REPLAY_RTOL, method: str = "DOP853") -> dict:
+    """A reference's controls replayed open loop through ``rhs`` (default: the NumPy entry
+    dynamics, :func:`entry_rhs_numpy`), as a benchmark record's entry: the tolerance, the method
+    and the position errors (m). Raises as :func:`replay_controls` does."""
+    res = replay_controls(entry_rhs_numpy() if rhs is None else rhs, reference, rtol=rtol, method=method)
+    return {"rtol": rtol, "method": method, "position_error_at_impact_m": res.position_error_at_impact_m,
+            "max_position_error_m": res.max_position_error_m, "altitude_at_tf_m": res.altitude_at_tf_m}  # fmt: skip
+
+
 def _end_state(f, a, b, x, method, rtol, atol):
     sol = solve_ivp(f, (a, b), x, method=method, rtol=rtol, atol=atol)
     return sol.y[:, -1]

@@ -72,6 +72,26 @@ def test_stages_change_the_config_from_their_step_on_each_on_top_of_the_last_and
         load_config(recipe)
 
 
+def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadata(tmp_path):
+    from rventry_agents.scratch import _source_stage
+
+    run = tmp_path / "run"
+    run.mkdir()
+    stages = [{"from_timesteps": 2 * CHUNK, "train": {"seed": 2}},
+              {"from_timesteps": 4 * CHUNK, "env": {"rung": "flight"}}]  # fmt: skip
+    (run / "config.json").write_text(json.dumps(load_config({"train": {"seed": 7}, "stages": stages}).to_dict()))
+    assert [_source_stage(run, n) for n in (0, 2 * CHUNK - 1, 2 * CHUNK, 4 * CHUNK)] == [
+        ("standard", 7), ("standard", 7), ("standard", 2), ("flight", 2)]
+    export = tmp_path / "export"
+    export.mkdir()
+    (export / "metadata.json").write_text(json.dumps({"rung": "wide", "seed": 4}))
+    assert _source_stage(export, 0) == ("wide", 4)
+    (export / "metadata.json").write_text(json.dumps({"seed": "four"}))
+    assert _source_stage(export, 0) == (None, None)
+    (export / "metadata.json").write_text("{not json")
+    assert _source_stage(export, 0) == (None, None) == _source_stage(tmp_path / "absent", 0)
+
+
 def _obs(alpha_deg, mu_deg, gamma_deg=0.0):
     obs = np.zeros((np.size(alpha_deg), 26))
     obs[:, feature_index("alpha")] = 2.0 * np.radians(alpha_deg) / TASK.problem.alpha_max - 1.0

@@ -132,8 +132,12 @@ def test_the_shipped_optimum_as_a_guess_obeys_each_formulations_dynamics(mode):
         np.testing.assert_allclose(u[:, 2:], physics[:, [2, 3, 7, 8]], rtol=1e-12, atol=1e-15)
     one = guess.control(ref.tf / 2)  # a single time: one row
     assert one.shape == (1, u.shape[1])
-    with pytest.raises(ValueError, match="slack controls"):
-        ReferenceGuess(ref, EntryOcpConfig(soft_path_penalty=10.0))
+    # soft path constraints: the same controls, and the slacks at zero (the path as the optimum flew it)
+    soft = EntryOcpConfig(norm_mode=mode, soft_path_penalty=10.0)
+    padded = ReferenceGuess(ref, soft).control(t)
+    assert padded.shape == (t.size, entry_ocp(soft).n_u) == (t.size, u.shape[1] + 2)
+    np.testing.assert_array_equal(padded[:, : u.shape[1]], u)
+    assert not padded[:, u.shape[1] :].any()
 
 
 def test_a_given_guess_replaces_the_generated_one(monkeypatch):
