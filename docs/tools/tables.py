@@ -1099,7 +1099,7 @@ def random_actions_table(doc: dict) -> str:
                       source(RANDOM_ACTIONS, command=ran)])  # fmt: skip
 
 
-SCAN_DEFAULTS = "docs/results/scan_mpc.json"  # its Table joins the registry with the record (studies/mpc_settings.py --scan)
+SCAN_DEFAULTS = "docs/results/scan_mpc.json"  # studies/mpc_settings.py --scan
 
 
 def scan_defaults_table(doc: dict) -> str:
@@ -1114,7 +1114,8 @@ def scan_defaults_table(doc: dict) -> str:
               "solves per episode", "failed solves", "solve time per episode (s)"]  # fmt: skip
     seeds = f"seeds {doc['seed']}-{doc['seed'] + doc['episodes'] - 1}"
     text = (f"{doc['episodes']} `{doc['dispersion']}` episodes ({seeds}) and the nominal flight per variant, "
-            f"{doc['wall_s']:.0f} s on {doc['workers']} workers{_load_text(doc)}: the times are this machine's.")
+            f"{doc['wall_s']:.0f} s on {doc['workers']} worker{'s' if doc['workers'] != 1 else ''}{_load_text(doc)}: "
+            "the times are this machine's.")
     command = doc.get("command") or (doc.get("provenance") or {}).get("command")
     return "\n".join([md(header, rows), "", text, "", source(SCAN_DEFAULTS, command=command)])
 
@@ -1553,6 +1554,7 @@ TABLES: tuple[Table, ...] = (
           ("docs/benchmarks/flight_grade.md",)),
     Table("seeds-ppo", ("docs/results/bench_seeds_ppo.json",), seeds_table, ("docs/benchmarks/learned_policies.md",)),
     Table("ppo-heldout", PPO_RECORDS, ppo_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("scan-defaults", (SCAN_DEFAULTS,), scan_defaults_table, ("docs/benchmarks/guidance.md",)),
     *(Table(f"scan-{name}", (f"docs/results/scan_mpc_{name}.json",), scan_table(f"docs/results/scan_mpc_{name}.json"),
             ("docs/benchmarks/guidance.md", *(("docs/guidance.md",) if name in EXPLAINED_SCANS else ())))
       for name in ("flight", "aero", "final", "estimator", "split", "dive", "track", "floor")),

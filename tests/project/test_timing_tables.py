@@ -275,3 +275,13 @@ def test_each_timing_table_reads_its_record_and_renders_it():
                      "rhs-throughput"}
     for table in t.TIMINGS:
         assert table.render(*(fixtures[p] for p in table.records)).startswith("|"), table.name
+
+
+def test_the_defaults_scan_shows_every_variant_the_defaults_first_and_its_workers():
+    t = tables()
+    doc = json.loads((ROOT / t.SCAN_DEFAULTS).read_text())
+    out = lines(t.scan_defaults_table(doc))
+    rows = [line for line in out if line.startswith("| ") and not line.startswith("| variant")]
+    assert len(rows) == len(doc["scan"]) and rows[0].startswith("| **defaults** | 1.00 | 0.00 | 0.845, 0.952 |")
+    assert "| budget 25 iterations | 1.00 | 0.00 | 0.976, 0.851 |" in rows[10] and rows[10].endswith("| 53 | 9.3 |")
+    assert " on 1 worker, " in "\n".join(out) and " on 2 workers, " in t.scan_defaults_table(dict(doc, workers=2))
