@@ -337,7 +337,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     point = None if start is None else read_start(start)
     steps = 0 if point is None else point.steps
     stages = cfg.stage_configs()
-    stage = cfg.stage_at(steps)
+    stage = _stage_now(cfg, steps, point.history if resume else [])
     trainer = Trainer(stages[stage][1], out, stages[stage][1].train.seed)
     if isinstance(point, PolicyStart):
         point.check(trainer.cfg)
@@ -347,6 +347,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     else:
         ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
         trainer.curriculum.window = point.window
+    first = _stage_records(history, stage) if resume else len(history)  # this stage's chunks, for what the next waits on
     ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
@@ -361,13 +362,14 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     best = _best(history, trainer.cfg.env.rung)
     compiles = True  # the next chunk includes the compilation of its program
     while steps < cfg.train.total_timesteps:
-        if stage + 1 < len(stages) and steps >= stages[stage + 1][0]:  # the next stage starts here
-            stage += 1
+        if stage < len(cfg.stages) and cfg.stages[stage].due(steps, history[first:], trainer.curriculum.complete):
+            stage, first = stage + 1, len(history)  # the next stage starts here
             trainer = _next_stage(trainer, stages[stage][1])
             ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)
             ts, changes = _on_rung(ts, trainer, stages[stage - 1][1].env.rung, changes)
             best = _best(history, trainer.cfg.env.rung)
-            progress(f"stage {stage} from {steps:,d} steps{changes}")
+            waited = cfg.stages[stage - 1].waits()
+            progress(f"stage {stage} from {steps:,d} steps{changes}" + (f" ({waited})" if waited else ""))
             compiles = True
         c0 = time.perf_counter()
         ts = trainer.chunk(ts)
@@ -439,7 +441,7 @@ def _starting(ts, trainer: Trainer, point, history: list[dict], source: Path | N
     is entered; otherwise as it was."""
     fresh = getattr(point, "other_vehicles", False)  # the checkpoint's vehicles could not be restored on this rung
     if source is not None:
-        before, seed_before = _source_stage(source, point.steps)
+        before, seed_before = _source_stage(source, point.steps, getattr(point, "history", []))
         for h in history:  # its records, ranked on the rung they flew
             h.setdefault("rung", before)
         ts, changes = _entered(ts, trainer.cfg, seed_before)
@@ -472,12 +474,27 @@ def _best(history: list[dict], rung: str) -> dict | None:
     return max(on_rung, key=_rank) if on_rung else None
 
 
-def _source_stage(run: Path, steps: int) -> tuple[str | None, int | None]:
-    """The rung and the seed the run (or the exported policy) in ``run`` trained under at ``steps``:
-    its stage's, from its ``config.json``, else its ``metadata.json``'s (None where neither says)."""
+def _stage_now(cfg: ScratchConfig, steps: int, history: list[dict]) -> int:
+    """The stage a run of ``cfg`` is in at ``steps``: as the steps say, or as its record of the chunks
+    flown (``history``) says where a stage that waits on the training's progress has started."""
+    return max(cfg.stage_at(steps), history[-1].get("stage", 0) if history else 0)
+
+
+def _stage_records(history: list[dict], stage: int) -> int:
+    """Where the chunks of ``stage`` begin at the end of ``history``."""
+    first = len(history)
+    while first and history[first - 1].get("stage", 0) == stage:
+        first -= 1
+    return first
+
+
+def _source_stage(run: Path, steps: int, history: list[dict] = ()) -> tuple[str | None, int | None]:
+    """The rung and the seed the run (or the exported policy) in ``run`` trained under at ``steps``
+    (its chunks' record up to there: ``history``): its stage's, from its ``config.json``, else its
+    ``metadata.json``'s (None where neither says)."""
     try:
         cfg = load_config(json.loads((run / "config.json").read_text()))
-        stage = cfg.stage_configs()[cfg.stage_at(steps)][1]
+        stage = cfg.stage_configs()[_stage_now(cfg, steps, list(history))][1]
         return stage.env.rung, stage.train.seed
     except (OSError, ValueError, KeyError, TypeError, IndexError):
         pass

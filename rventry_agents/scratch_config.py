@@ -170,20 +170,37 @@ STAGE_FIXED = {"env": ("actions", "num_envs", "dtype", "resets"),
 
 @dataclass(frozen=True, kw_only=True)
 class StageSection(Section):
-    """``[[stages]]``: from ``from_timesteps`` on (a whole number of chunks), the run goes on with
-    the stage's keys changed, on top of the stages before it. The keys are tables of the sections
-    above (``ppo = {learning_rate = 1e-4}``, ``curriculum = {growth = 1.06}``), checked as the
-    sections check them; what sizes the training state, the chunk, the budget and the selection
-    stay (:data:`STAGE_FIXED`). Entering a stage is what starting a new run from the checkpoint at
-    that step with ``init_from`` does: ``[ppo] restart_exploration`` sets the exploration noise
-    back to ``log_std_init``, and another ``[train] seed`` is folded into the random key; the
-    curriculum's window, the history and the selected policy go on."""
+    """``[[stages]]``: from where it starts, the run goes on with the stage's keys changed, on top of
+    the stages before it. A stage starts after the first chunk (of the stage before it) at which
+    everything it names holds:
 
-    from_timesteps: int = setting(ge=1)
+    - ``from_timesteps``: the run has trained this many steps (a whole number of chunks);
+    - ``when_stalled_chunks``: the curriculum's window has not moved back for this many chunks of the
+      stage before;
+    - ``when_window_complete``: the window holds the whole flight (the rung's own earliest start);
+    - ``when_select_success``: a chunk of the stage before has landed this share of the selection set.
+
+    A recipe written on steps alone replays one run's schedule; one written on the curriculum's
+    progress fits runs of other seeds, whose windows move back at other steps. The keys are tables
+    of the sections above (``ppo = {learning_rate = 1e-4}``, ``curriculum = {growth = 1.06}``),
+    checked as the sections check them; what sizes the training state, the chunk, the budget and the
+    selection stay (:data:`STAGE_FIXED`). Entering a stage is what starting a new run from the
+    checkpoint at that step with ``init_from`` does: ``[ppo] restart_exploration`` sets the
+    exploration noise back to ``log_std_init``, and another ``[train] seed`` is folded into the
+    random key; the curriculum's window, the history and the selected policy go on."""
+
+    from_timesteps: int | None = setting(None, ge=1)
+    when_stalled_chunks: int | None = setting(None, ge=1)
+    when_window_complete: bool | None = setting(None)
+    when_select_success: float | None = setting(None, gt=0.0, le=1.0)
     changes: dict = field(default_factory=dict)
 
     def __post_init__(self):
         super().__post_init__()
+        if self.when_window_complete is False:
+            raise ConfigError("when_window_complete = false names nothing to wait for: leave it out")
+        if all(getattr(self, k) is None for k in TRIGGERS):
+            raise ConfigError(f"a stage names where it starts: one or more of {', '.join(TRIGGERS)}")
         for name, table in self.changes.items():
             if name == "stages" or not isinstance(table, dict):
                 raise ConfigError(f"{name!r}: a stage changes keys of the sections (env, reward, curriculum, shaping, "
@@ -193,12 +210,54 @@ class StageSection(Section):
                     raise ConfigError(f"{name}.{key} cannot change in a stage: the run's training state, chunk, "
                                       "budget and selection stay as the config's first sections set them")  # fmt: skip
 
+    @property
+    def on_progress(self) -> bool:
+        """Whether the stage waits on the training's progress, not on its steps alone."""
+        return any(getattr(self, k) is not None for k in TRIGGERS[1:])
+
+    def waits(self) -> str:
+        """What the stage waited on, in words, where it waits on the training's progress ("" otherwise)."""
+        n = self.when_stalled_chunks
+        said = {"when_stalled_chunks": f"the window stood for {n} chunk{'s' if n != 1 else ''}",
+                "when_window_complete": "the window holds the whole flight",
+                "when_select_success": f"{self.when_select_success or 0:g} of the selection set landed"}  # fmt: skip
+        return ", ".join(v for k, v in said.items() if getattr(self, k) is not None)
+
+    def due(self, timesteps: int, records: list[dict], window_complete: bool) -> bool:
+        """Whether the stage starts at ``timesteps``, after the chunks ``records`` of the stage before
+        it (this run's, oldest first) and with the curriculum's window holding the whole flight or not."""
+        if self.from_timesteps is not None and timesteps < self.from_timesteps:
+            return False
+        if self.when_window_complete and not window_complete:
+            return False
+        if self.when_stalled_chunks is not None and stalled_chunks(records) < self.when_stalled_chunks:
+            return False
+        if self.when_select_success is not None:
+            return bool(records) and records[-1]["select"]["success_rate"] >= self.when_select_success
+        return True
+
     @classmethod
     def _pack(cls, data: dict) -> dict:
-        return {**({"from_timesteps": data.pop("from_timesteps")} if "from_timesteps" in data else {}), "changes": data}
+        return {**{k: data.pop(k) for k in TRIGGERS if k in data}, "changes": data}
 
     def _unpack(self, data: dict) -> dict:
-        return {"from_timesteps": data["from_timesteps"], **data.get("changes", {})}
+        return {**{k: data[k] for k in TRIGGERS if k in data}, **data.get("changes", {})}
+
+
+# what a stage may wait on, the steps first
+TRIGGERS = ("from_timesteps", "when_stalled_chunks", "when_window_complete", "when_select_success")
+
+
+def stalled_chunks(records: list[dict]) -> int:
+    """How many of the last chunks ``records`` (oldest first) ended with the curriculum's window where
+    it stood when they began: none moved it back."""
+    n = 0
+    for rec in reversed(records):
+        c = rec.get("curriculum")
+        if not c or c["next_window_s"] > c["window_s"]:
+            break
+        n += 1
+    return n
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -215,14 +274,18 @@ class ScratchConfig(Section):
 
     def __post_init__(self):
         super().__post_init__()
-        starts = [s.from_timesteps for s in self.stages]
+        starts = [s.from_timesteps for s in self.stages if s.from_timesteps is not None]
         if starts != sorted(set(starts)):
             raise ConfigError(f"[[stages]] from_timesteps must increase from one stage to the next, got {starts}")
         for i, s in enumerate(self.stages):
-            if s.from_timesteps % self.train.chunk_timesteps:
+            if s.from_timesteps is not None and s.from_timesteps % self.train.chunk_timesteps:
                 raise ConfigError(f"[stages][{i}] from_timesteps ({s.from_timesteps:,}) must be a whole number of "
                                   f"chunks ([train] chunk_timesteps = {self.train.chunk_timesteps:,})")  # fmt: skip
-        self.stage_configs()  # each stage's config is checked here, before anything runs
+        configs = self.stage_configs()  # each stage's config is checked here, before anything runs
+        for i, (s, (_, before)) in enumerate(zip(self.stages, configs)):
+            if (s.when_stalled_chunks or s.when_window_complete) and before.curriculum.kind != "reverse":
+                raise ConfigError(f"[stages][{i}] waits on the curriculum's window, and the stage before it has "
+                                  f"[curriculum] kind = {before.curriculum.kind!r} (only a reverse curriculum has one)")  # fmt: skip
         if self.train.chunk_timesteps < self.env.num_envs * self.ppo.num_steps:
             raise ConfigError(f"[train] chunk_timesteps ({self.train.chunk_timesteps:,}) is shorter than one rollout "
                               f"(num_envs x num_steps = {self.env.num_envs * self.ppo.num_steps:,})")  # fmt: skip
@@ -230,9 +293,9 @@ class ScratchConfig(Section):
             raise ConfigError(f"[ppo] num_minibatches ({self.ppo.num_minibatches}) must divide a rollout's "
                               f"{self.env.num_envs * self.ppo.num_steps:,} steps")  # fmt: skip
 
-    def stage_configs(self) -> tuple[tuple[int, ScratchConfig], ...]:
-        """(first step, config) of each stage, the config's own first sections from step 0; each
-        config without stages of its own."""
+    def stage_configs(self) -> tuple[tuple[int | None, ScratchConfig], ...]:
+        """(``from_timesteps``, config) of each stage, the config's own first sections from step 0;
+        each config without stages of its own."""
         plain = {k: v for k, v in self.to_dict().items() if k != "stages"}
         out = [(0, self if not self.stages else ScratchConfig.from_dict(plain))]
         for i, stage in enumerate(self.stages):
@@ -244,8 +307,15 @@ class ScratchConfig(Section):
         return tuple(out)
 
     def stage_at(self, timesteps: int) -> int:
-        """The stage the run is in at ``timesteps`` (0: the config's first sections)."""
-        return sum(s.from_timesteps <= timesteps for s in self.stages)
+        """The stage a run of this config is in at ``timesteps`` (0: the config's first sections) as
+        far as the steps say: the stages up to the first one that waits on the training's progress,
+        which only the run's record tells (:meth:`StageSection.due`)."""
+        n = 0
+        for s in self.stages:
+            if s.on_progress or s.from_timesteps > timesteps:
+                break
+            n += 1
+        return n
 
 
 def load_config(path: str | Path | dict | None = None) -> ScratchConfig:

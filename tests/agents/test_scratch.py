@@ -63,13 +63,55 @@ def test_stages_change_the_config_from_their_step_on_each_on_top_of_the_last_and
                {"from_timesteps": CHUNK, "ppo": {"learnin_rate": 1e-4}}],
            r"env.num_envs cannot change in a stage": [{"from_timesteps": CHUNK, "env": {"num_envs": 64}}],
            r"'lr': a stage changes keys of the sections": [{"from_timesteps": CHUNK, "lr": 1e-4}],
-           r"\[stages\]\[0\] missing key 'from_timesteps'": [{"ppo": {"learning_rate": 1e-4}}]}  # fmt: skip
+           r"\[stages\]\[0\] a stage names where it starts: one or more of from_timesteps, when_stalled_chunks": [
+               {"ppo": {"learning_rate": 1e-4}}],
+           r"\[stages\]\[0\] when_window_complete = false names nothing": [{"when_window_complete": False}],
+           r"\[stages\]\[0\] when_select_success must be a finite number > 0 and <= 1, got 1.5": [
+               {"when_select_success": 1.5}],
+           r"\[stages\]\[1\] waits on the curriculum's window, and the stage before it has \[curriculum\] kind = 'none'": [
+               {"when_select_success": 0.5, "curriculum": {"kind": "none"}}, {"when_stalled_chunks": 3}]}  # fmt: skip
     for message, stages in bad.items():
         with pytest.raises(ConfigError, match=message):
             load_config({"stages": stages})
     recipe.write_text("[[stages]]\nfrom_timesteps = 4_194_304\nppo = {clip_eps = 0}\n")
     with pytest.raises(ConfigError, match=r"recipe.toml: \[stages\]\[0\] \[ppo\] clip_eps"):
         load_config(recipe)
+
+
+def _chunk(steps: int, window: float, moved: bool = False, success: float = 0.0, stage: int = 0) -> dict:
+    """A chunk's record as the trainer writes it, as far as stages read it."""
+    return {"timesteps": steps, "stage": stage, "select": {"success_rate": success},
+            "curriculum": {"window_s": window, "next_window_s": window * (1.25 if moved else 1.0)}}  # fmt: skip
+
+
+def test_a_stage_on_the_curriculums_progress_starts_where_its_conditions_hold_and_steps_alone_do_not_reach_it():
+    from rventry_agents.scratch import _stage_now, _stage_records
+    from rventry_agents.scratch_config import stalled_chunks
+
+    stages = [{"when_stalled_chunks": 2, "ppo": {"learning_rate": 1e-4}},
+              {"from_timesteps": 8 * CHUNK, "when_window_complete": True, "train": {"seed": 2}},
+              {"when_select_success": 0.9, "ppo": {"learning_rate": 3e-5}}]  # fmt: skip
+    cfg = load_config({"stages": stages})
+    assert load_config(cfg.to_dict()) == cfg and [s.on_progress for s in cfg.stages] == [True, True, True]
+    assert [s.waits() for s in cfg.stages] == ["the window stood for 2 chunks", "the window holds the whole flight",
+                                               "0.9 of the selection set landed"]  # fmt: skip
+    assert cfg.stage_at(10**12) == 0  # the steps do not say when the window stood
+    assert load_config({"stages": [{"from_timesteps": CHUNK}, *stages]}).stage_at(10**12) == 1
+    # the window moved after the first chunk and stood after the next two: stalled for 2
+    chunks = [_chunk(CHUNK, 60.0, moved=True), _chunk(2 * CHUNK, 75.0), _chunk(3 * CHUNK, 75.0)]
+    assert [stalled_chunks(chunks[:n]) for n in range(4)] == [0, 0, 1, 2]
+    first, second, third = cfg.stages
+    assert [first.due(n * CHUNK, chunks[:n], False) for n in range(4)] == [False, False, False, True]
+    # the whole flight, and not before its step
+    assert not second.due(7 * CHUNK, chunks, True) and not second.due(8 * CHUNK, chunks, False)
+    assert second.due(8 * CHUNK, chunks, True)
+    # the selection set landed by the last chunk of the stage before
+    landed = [_chunk(CHUNK, 1033.0, success=0.95), _chunk(2 * CHUNK, 1033.0, success=0.5)]
+    assert not third.due(0, [], True) and third.due(CHUNK, landed[:1], True) and not third.due(2 * CHUNK, landed, True)
+    # a resumed run is in the stage its record says, and its stage's chunks are the last of its record
+    record = [_chunk(n * CHUNK, 60.0, stage=s) for n, s in enumerate((0, 0, 1, 1, 1), start=1)]
+    assert _stage_now(cfg, 5 * CHUNK, record) == 1 and _stage_now(cfg, 5 * CHUNK, []) == 0
+    assert _stage_records(record, 1) == 2 and _stage_records(record, 2) == 5 and _stage_records([], 0) == 0
 
 
 def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadata(tmp_path):
@@ -82,6 +124,11 @@ def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadat
     (run / "config.json").write_text(json.dumps(load_config({"train": {"seed": 7}, "stages": stages}).to_dict()))
     assert [_source_stage(run, n) for n in (0, 2 * CHUNK - 1, 2 * CHUNK, 4 * CHUNK)] == [
         ("standard", 7), ("standard", 7), ("standard", 2), ("flight", 2)]
+    # a stage that waited on the window: where the record says it started
+    stages[0] = {"when_stalled_chunks": 4, "train": {"seed": 2}}
+    (run / "config.json").write_text(json.dumps(load_config({"train": {"seed": 7}, "stages": stages}).to_dict()))
+    record = [_chunk(n * CHUNK, 60.0, stage=s) for n, s in enumerate((0, 0, 0, 0, 1), start=1)]
+    assert [_source_stage(run, n * CHUNK, record[:n]) for n in (4, 5)] == [("standard", 7), ("standard", 2)]
     export = tmp_path / "export"
     export.mkdir()
     (export / "metadata.json").write_text(json.dumps({"rung": "wide", "seed": 4}))
@@ -186,6 +233,34 @@ def test_a_stage_on_another_rung_starts_every_vehicle_afresh_and_selects_on_that
         assert [h["rung"] for h in hist] == ["late", "flight"], name
         # the late chunk's selection is not ranked against the flight chunk's: the flight one is selected
         assert meta["best_evaluation"]["timesteps"] == 2048, name
+
+
+@pytest.mark.slow
+def test_a_stage_that_waits_on_the_window_starts_where_it_stood_straight_through_or_resumed(tmp_path):
+    """A stage on the curriculum's progress starts after the chunk at which its condition first
+    holds, named in the progress line, and a run stopped there and resumed enters it the same."""
+    from rventry_agents.scratch import train_scratch
+    from rventry_agents.scratch_config import stalled_chunks
+
+    staged = json.loads(json.dumps(SMALL))
+    staged["stages"] = [{"when_stalled_chunks": 1, "ppo": {"learning_rate": 1e-3}}]
+    lines = []
+    train_scratch(staged, out=tmp_path / "straight", timesteps=3072, progress=lines.append)
+    record = json.loads((tmp_path / "straight" / "evaluations.json").read_text())
+    entered = next(n for n in range(1, 4) if stalled_chunks(record[:n]) >= 1)  # the chunks flown before the stage
+    assert [h["stage"] for h in record] == [0] * entered + [1] * (3 - entered)
+    assert f"stage 1 from {entered * 1024:,d} steps (the window stood for 1 chunk)" in lines
+    train_scratch(staged, out=tmp_path / "stopped", timesteps=entered * 1024, progress=lambda s: None)
+    lines = []
+    train_scratch(staged, out=tmp_path / "stopped", timesteps=3072, resume=True, progress=lines.append)
+    assert f"stage 1 from {entered * 1024:,d} steps (the window stood for 1 chunk)" in lines
+    def flown(run):  # the record without its clock
+        return [{k: v for k, v in h.items() if k not in ("wall_s", "chunk_s")}
+                for h in json.loads((tmp_path / run / "evaluations.json").read_text())]  # fmt: skip
+
+    assert flown("stopped") == flown("straight")
+    assert (tmp_path / "stopped" / "checkpoint" / "train_state.msgpack").read_bytes() == (
+        tmp_path / "straight" / "checkpoint" / "train_state.msgpack").read_bytes()
 
 
 @pytest.mark.slow
@@ -362,7 +437,7 @@ def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
         load_saved(str(tmp_path / "nothing_here"))
 
 
-SHIPPED_CONFIGS = ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml"]
+SHIPPED_CONFIGS = ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml", "ppo_scratch_progress.toml"]
 
 
 @pytest.mark.parametrize("name", SHIPPED_CONFIGS)
