@@ -136,7 +136,9 @@ def _jax(args) -> None:
         for folder, meta in zip(args.runs, metas):
             ev = evaluate_on_rung(str(folder), rung, args.episodes, args.workers)
             print(f"{folder}: {rung} success {ev['success']:.2f}", flush=True)
-            runs.append({"seed": meta["seed"], "timesteps": meta["timesteps"], "wall_s": meta["wall_s"],
+            # the seed the run was started with (a staged run folds its stages' own seeds into it)
+            seed = meta.get("config", {}).get("train", {}).get("seed", meta["seed"])
+            runs.append({"seed": seed, "timesteps": meta["timesteps"], "wall_s": meta["wall_s"],
                          "trained_on": meta["rung"], "folder": str(folder), "evaluation": ev,
                          "env_steps_per_s": meta.get("env_steps_per_s"), "device": meta.get("device"),
                          "curriculum_window_s": meta["window_s"]})  # fmt: skip
