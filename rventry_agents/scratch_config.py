@@ -177,6 +177,7 @@ class StageSection(Section):
     - ``from_timesteps``: the run has trained this many steps (a whole number of chunks);
     - ``when_stalled_chunks``: the curriculum's window has not moved back for this many chunks of the
       stage before;
+    - ``when_window_s``: the window has reached this far back (s before impact);
     - ``when_window_complete``: the window holds the whole flight (the rung's own earliest start);
     - ``when_select_success``: a chunk of the stage before has landed this share of the selection set.
 
@@ -191,6 +192,7 @@ class StageSection(Section):
 
     from_timesteps: int | None = setting(None, ge=1)
     when_stalled_chunks: int | None = setting(None, ge=1)
+    when_window_s: float | None = setting(None, gt=0.0)
     when_window_complete: bool | None = setting(None)
     when_select_success: float | None = setting(None, gt=0.0, le=1.0)
     changes: dict = field(default_factory=dict)
@@ -219,14 +221,18 @@ class StageSection(Section):
         """What the stage waited on, in words, where it waits on the training's progress ("" otherwise)."""
         n = self.when_stalled_chunks
         said = {"when_stalled_chunks": f"the window stood for {n} chunk{'s' if n != 1 else ''}",
+                "when_window_s": f"the window at {self.when_window_s or 0:.0f} s or further back",
                 "when_window_complete": "the window holds the whole flight",
                 "when_select_success": f"{self.when_select_success or 0:g} of the selection set landed"}  # fmt: skip
         return ", ".join(v for k, v in said.items() if getattr(self, k) is not None)
 
-    def due(self, timesteps: int, records: list[dict], window_complete: bool) -> bool:
+    def due(self, timesteps: int, records: list[dict], window_s: float, window_complete: bool) -> bool:
         """Whether the stage starts at ``timesteps``, after the chunks ``records`` of the stage before
-        it (this run's, oldest first) and with the curriculum's window holding the whole flight or not."""
+        it (this run's, oldest first), with the curriculum's window at ``window_s`` (holding the whole
+        flight or not)."""
         if self.from_timesteps is not None and timesteps < self.from_timesteps:
+            return False
+        if self.when_window_s is not None and window_s < self.when_window_s:
             return False
         if self.when_window_complete and not window_complete:
             return False
@@ -245,7 +251,7 @@ class StageSection(Section):
 
 
 # what a stage may wait on, the steps first
-TRIGGERS = ("from_timesteps", "when_stalled_chunks", "when_window_complete", "when_select_success")
+TRIGGERS = ("from_timesteps", "when_stalled_chunks", "when_window_s", "when_window_complete", "when_select_success")
 
 
 def stalled_chunks(records: list[dict]) -> int:
@@ -283,7 +289,7 @@ class ScratchConfig(Section):
                                   f"chunks ([train] chunk_timesteps = {self.train.chunk_timesteps:,})")  # fmt: skip
         configs = self.stage_configs()  # each stage's config is checked here, before anything runs
         for i, (s, (_, before)) in enumerate(zip(self.stages, configs)):
-            if (s.when_stalled_chunks or s.when_window_complete) and before.curriculum.kind != "reverse":
+            if (s.when_stalled_chunks or s.when_window_s or s.when_window_complete) and before.curriculum.kind != "reverse":
                 raise ConfigError(f"[stages][{i}] waits on the curriculum's window, and the stage before it has "
                                   f"[curriculum] kind = {before.curriculum.kind!r} (only a reverse curriculum has one)")  # fmt: skip
         if self.train.chunk_timesteps < self.env.num_envs * self.ppo.num_steps:

@@ -88,26 +88,28 @@ def test_a_stage_on_the_curriculums_progress_starts_where_its_conditions_hold_an
     from rventry_agents.scratch import _stage_now, _stage_records
     from rventry_agents.scratch_config import stalled_chunks
 
-    stages = [{"when_stalled_chunks": 2, "ppo": {"learning_rate": 1e-4}},
+    stages = [{"when_stalled_chunks": 2, "when_window_s": 70.0, "ppo": {"learning_rate": 1e-4}},
               {"from_timesteps": 8 * CHUNK, "when_window_complete": True, "train": {"seed": 2}},
               {"when_select_success": 0.9, "ppo": {"learning_rate": 3e-5}}]  # fmt: skip
     cfg = load_config({"stages": stages})
     assert load_config(cfg.to_dict()) == cfg and [s.on_progress for s in cfg.stages] == [True, True, True]
-    assert [s.waits() for s in cfg.stages] == ["the window stood for 2 chunks", "the window holds the whole flight",
-                                               "0.9 of the selection set landed"]  # fmt: skip
+    assert [s.waits() for s in cfg.stages] == ["the window stood for 2 chunks, the window at 70 s or further back",
+                                               "the window holds the whole flight", "0.9 of the selection set landed"]  # fmt: skip
     assert cfg.stage_at(10**12) == 0  # the steps do not say when the window stood
     assert load_config({"stages": [{"from_timesteps": CHUNK}, *stages]}).stage_at(10**12) == 1
     # the window moved after the first chunk and stood after the next two: stalled for 2
     chunks = [_chunk(CHUNK, 60.0, moved=True), _chunk(2 * CHUNK, 75.0), _chunk(3 * CHUNK, 75.0)]
     assert [stalled_chunks(chunks[:n]) for n in range(4)] == [0, 0, 1, 2]
     first, second, third = cfg.stages
-    assert [first.due(n * CHUNK, chunks[:n], False) for n in range(4)] == [False, False, False, True]
+    assert [first.due(n * CHUNK, chunks[:n], 75.0, False) for n in range(4)] == [False, False, False, True]
+    assert not first.due(3 * CHUNK, chunks, 60.0, False)  # stood, but not yet as far back as it waits for
     # the whole flight, and not before its step
-    assert not second.due(7 * CHUNK, chunks, True) and not second.due(8 * CHUNK, chunks, False)
-    assert second.due(8 * CHUNK, chunks, True)
+    assert not second.due(7 * CHUNK, chunks, 1033.0, True) and not second.due(8 * CHUNK, chunks, 1000.0, False)
+    assert second.due(8 * CHUNK, chunks, 1033.0, True)
     # the selection set landed by the last chunk of the stage before
     landed = [_chunk(CHUNK, 1033.0, success=0.95), _chunk(2 * CHUNK, 1033.0, success=0.5)]
-    assert not third.due(0, [], True) and third.due(CHUNK, landed[:1], True) and not third.due(2 * CHUNK, landed, True)
+    assert not third.due(0, [], 1033.0, True) and third.due(CHUNK, landed[:1], 1033.0, True)
+    assert not third.due(2 * CHUNK, landed, 1033.0, True)
     # a resumed run is in the stage its record says, and its stage's chunks are the last of its record
     record = [_chunk(n * CHUNK, 60.0, stage=s) for n, s in enumerate((0, 0, 1, 1, 1), start=1)]
     assert _stage_now(cfg, 5 * CHUNK, record) == 1 and _stage_now(cfg, 5 * CHUNK, []) == 0
