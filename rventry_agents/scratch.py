@@ -90,11 +90,6 @@ class Curriculum:
     def complete(self) -> bool:
         return self.window >= self.limit
 
-    @property
-    def reach(self) -> tuple[float, bool]:
-        """How far back the window reaches (s before impact), and whether that is the whole flight."""
-        return self.window, self.complete
-
     def starts(self, window: float | None = None, probability: float | None = None):
         """Start states of the window (or another ``window``): None without a curriculum."""
         from rventry_env.reference.starts import reference_starts
@@ -367,7 +362,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     best = _best(history, trainer.cfg.env.rung)
     compiles = True  # the next chunk includes the compilation of its program
     while steps < cfg.train.total_timesteps:
-        if stage < len(cfg.stages) and cfg.stages[stage].due(steps, history[first:], *trainer.curriculum.reach):
+        c = trainer.curriculum
+        if stage < len(cfg.stages) and cfg.stages[stage].due(steps, history[first:], c.window, c.complete):
             stage, first = stage + 1, len(history)  # the next stage starts here
             trainer = _next_stage(trainer, stages[stage][1])
             ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)

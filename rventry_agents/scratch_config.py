@@ -219,12 +219,16 @@ class StageSection(Section):
 
     def waits(self) -> str:
         """What the stage waited on, in words, where it waits on the training's progress ("" otherwise)."""
-        n = self.when_stalled_chunks
-        said = {"when_stalled_chunks": f"the window stood for {n} chunk{'s' if n != 1 else ''}",
-                "when_window_s": f"the window at {self.when_window_s or 0:.0f} s or further back",
-                "when_window_complete": "the window holds the whole flight",
-                "when_select_success": f"{self.when_select_success or 0:g} of the selection set landed"}  # fmt: skip
-        return ", ".join(v for k, v in said.items() if getattr(self, k) is not None)
+        said = []
+        if (n := self.when_stalled_chunks) is not None:
+            said.append(f"the window stood for {n} chunk{'s' if n != 1 else ''}")
+        if self.when_window_s is not None:
+            said.append(f"the window at {self.when_window_s:.0f} s or further back")
+        if self.when_window_complete:
+            said.append("the window holds the whole flight")
+        if self.when_select_success is not None:
+            said.append(f"{self.when_select_success:g} of the selection set landed")
+        return ", ".join(said)
 
     def due(self, timesteps: int, records: list[dict], window_s: float, window_complete: bool) -> bool:
         """Whether the stage starts at ``timesteps``, after the chunks ``records`` of the stage before

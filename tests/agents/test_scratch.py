@@ -116,6 +116,14 @@ def test_a_stage_on_the_curriculums_progress_starts_where_its_conditions_hold_an
     assert _stage_records(record, 1) == 2 and _stage_records(record, 2) == 5 and _stage_records([], 0) == 0
 
 
+def test_the_progress_recipe_is_the_shipped_recipe_with_its_stages_started_on_progress():
+    """Its sections and each stage's changes are the shipped config's: only where each stage starts differs."""
+    shipped, progress = load_config(), load_config(DEFAULT_CONFIG.parent / "ppo_scratch_progress.toml")
+    assert [c.to_dict() for _, c in progress.stage_configs()] == [c.to_dict() for _, c in shipped.stage_configs()]
+    assert [s.changes for s in progress.stages] == [s.changes for s in shipped.stages]
+    assert all(s.on_progress and s.from_timesteps is None for s in progress.stages)
+
+
 def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadata(tmp_path):
     from rventry_agents.scratch import _source_stage
 
