@@ -392,7 +392,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         c = rec.get("curriculum")
         if c and c["next_window_s"] > c["window_s"]:
             save_milestone(out, trainer, ts, rec)
-        progress(_line(rec))
+        progress(_line(rec, trainer.cfg.curriculum.advance_at))
         write_json(out / "evaluations.json", history)
         Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps, trainer.init_from)
         budget = cfg.train.max_wall_s
@@ -516,13 +516,32 @@ def _rank(rec: dict) -> tuple:
     return task_metric_key(rec["select"]["success_rate"], rec["select"]["miss_km_p50"])
 
 
-def _line(rec: dict) -> str:
+def _line(rec: dict, bar: float) -> str:
     s, c = rec["select"], rec.get("curriculum") or {}
-    front = f"  window {c['window_s']:5.0f} s frontier {c['frontier_success']:.2f}" if c else ""
+    front = f"  window {c['window_s']:5.0f} s frontier {c['frontier_success']:.2f}{_unmet(c, bar)}" if c else ""
     front += "  probes " + " ".join(f"{k}:{v:.2f}" for k, v in rec.get("probes", {}).items())
     return (f"{rec['timesteps']:>12,d} steps {rec['wall_s']:7.0f} s  success {s['success_rate']:.2f}  miss p50 "
             f"{s['miss_km_p50']:7.1f} km  vertical p50 {s['vertical_error_deg_p50']:5.1f} deg{front}"
             + ("  *best*" if rec.get("best") else ""))  # fmt: skip
+
+
+# the frontier's success conditions, as its evaluation records the share of episodes that met each
+FRONTIER_CONDITIONS = (("miss", "miss_within_rate"), ("vertical", "vertical_within_rate"),
+                       ("speed", "speed_within_rate"), ("bounds", "violation_rate"))  # fmt: skip
+
+
+def _unmet(c: dict, bar: float) -> str:
+    """What keeps the frontier from landing, for the progress line: the share of its episodes that
+    met each success condition (the impact point, the vertical, the impact speed, the path bounds
+    kept), where that share is under ``bar`` (the success at which the window moves back); nothing
+    where the frontier lands, where each share is over the bar (the conditions then fail on
+    different episodes), or where the record has no breakdown."""
+    f = c.get("frontier")
+    if not f or c["frontier_success"] >= bar:
+        return ""
+    met = {name: (1.0 - f[key] if name == "bounds" else f[key]) for name, key in FRONTIER_CONDITIONS if key in f}
+    short = [f"{name} {share:.2f}" for name, share in met.items() if share < bar]
+    return f" (met: {', '.join(short)})" if short else ""
 
 
 def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, rates: list, steps: int) -> dict:

@@ -116,6 +116,27 @@ def test_a_stage_on_the_curriculums_progress_starts_where_its_conditions_hold_an
     assert _stage_records(record, 1) == 2 and _stage_records(record, 2) == 5 and _stage_records([], 0) == 0
 
 
+def test_the_progress_line_names_the_success_conditions_that_keep_the_frontier_from_landing():
+    from rventry_agents.scratch import _line
+
+    def record(success, miss=1.0, vertical=1.0, speed=1.0, violation=0.0):
+        frontier = {"success_rate": success, "miss_within_rate": miss, "vertical_within_rate": vertical,
+                    "speed_within_rate": speed, "violation_rate": violation}  # fmt: skip
+        return {"timesteps": CHUNK, "wall_s": 60.0, "select": {"success_rate": 0.0, "miss_km_p50": 9.0,
+                "vertical_error_deg_p50": 3.0}, "curriculum": {"window_s": 146.0, "frontier_success": success,
+                "frontier": frontier, "next_window_s": 146.0}}  # fmt: skip
+
+    # impacts on the point and vertical, every one too slow: the speed is what stops the window
+    assert _line(record(0.0, vertical=0.96, speed=0.0), 0.5).endswith("frontier 0.00 (met: speed 0.00)  probes ")
+    assert "(met: miss 0.34, bounds 0.40)" in _line(record(0.2, miss=0.34, violation=0.6), 0.5)
+    assert "(met: miss 0.34)" not in _line(record(0.2, miss=0.34), 0.3)  # over that bar each condition holds
+    # a frontier that lands, or conditions each met by most but not together, or no breakdown: nothing more
+    assert "met:" not in _line(record(0.6, speed=0.4), 0.5) + _line(record(0.3, miss=0.6, speed=0.6), 0.5)
+    bare = record(0.0)
+    del bare["curriculum"]["frontier"]
+    assert "frontier 0.00  probes" in _line(bare, 0.5)
+
+
 def test_the_progress_recipe_is_the_shipped_recipe_with_its_stages_started_on_progress():
     """Its sections and each stage's changes are the shipped config's: only where each stage starts differs."""
     shipped, progress = load_config(), load_config(DEFAULT_CONFIG.parent / "ppo_scratch_progress.toml")
