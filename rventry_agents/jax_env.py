@@ -154,7 +154,8 @@ class TrainingEnv(_environment_base()):
 
 def summarize_outcomes(o: dict, ret, task) -> dict:
     """The task metrics of a batch of episodes' outcomes (arrays by :data:`OUTCOME_KEYS`): the
-    success rate, the median miss and vertical error, and how often each success condition held."""
+    success rate, the median miss, vertical error and impact-speed error (signed, the speed less the
+    task's final speed), and how often each success condition held."""
     from rventry_env.envs.propagation import IMPACT
 
     s = task.success
@@ -165,6 +166,7 @@ def summarize_outcomes(o: dict, ret, task) -> dict:
         "miss_within_rate": float(np.mean(miss <= s.miss_km)),
         "vertical_within_rate": float(np.mean(vertical <= s.vertical_error_deg)),
         "speed_within_rate": float(np.mean(np.abs(o["speed_error_mps"]) <= s.speed_error_mps)),
+        "speed_error_mps_p50": float(np.median(np.asarray(o["speed_error_mps"], float))),  # signed: < 0 too slow
         "violation_rate": float(np.mean(o["constraint_violation"])), "mean_return": float(np.mean(ret)),
         "episodes": int(miss.size),
     }  # fmt: skip

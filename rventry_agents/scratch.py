@@ -525,22 +525,29 @@ def _line(rec: dict, bar: float) -> str:
             + ("  *best*" if rec.get("best") else ""))  # fmt: skip
 
 
-# the frontier's success conditions, as its evaluation records the share of episodes that met each
-FRONTIER_CONDITIONS = (("miss", "miss_within_rate"), ("vertical", "vertical_within_rate"),
-                       ("speed", "speed_within_rate"), ("bounds", "violation_rate"))  # fmt: skip
+# the frontier's success conditions: the key of the share of episodes that met each in its
+# evaluation, and of the median error, with its unit, where one is recorded
+FRONTIER_CONDITIONS = (("miss", "miss_within_rate", "miss_km_p50", "km"),
+                       ("vertical", "vertical_within_rate", "vertical_error_deg_p50", "deg"),
+                       ("speed", "speed_within_rate", "speed_error_mps_p50", "m/s"),
+                       ("bounds", "violation_rate", None, ""))  # fmt: skip
 
 
 def _unmet(c: dict, bar: float) -> str:
     """What keeps the frontier from landing, for the progress line: the share of its episodes that
     met each success condition (the impact point, the vertical, the impact speed, the path bounds
-    kept), where that share is under ``bar`` (the success at which the window moves back); nothing
+    kept), where that share is under ``bar`` (the success at which the window moves back), with the
+    median error (the speed's signed: below zero, too slow) where the evaluation records it; nothing
     where the frontier lands, where each share is over the bar (the conditions then fail on
     different episodes), or where the record has no breakdown."""
     f = c.get("frontier")
     if not f or c["frontier_success"] >= bar:
         return ""
-    met = {name: (1.0 - f[key] if name == "bounds" else f[key]) for name, key in FRONTIER_CONDITIONS if key in f}
-    short = [f"{name} {share:.2f}" for name, share in met.items() if share < bar]
+    short = []
+    for name, key, median, unit in FRONTIER_CONDITIONS:
+        share = f.get(key)
+        if share is not None and (share := 1.0 - share if name == "bounds" else share) < bar:
+            short.append(f"{name} {share:.2f}" + (f" at {f[median]:.1f} {unit}" if median in f else ""))
     return f" (met: {', '.join(short)})" if short else ""
 
 

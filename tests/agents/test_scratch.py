@@ -119,9 +119,9 @@ def test_a_stage_on_the_curriculums_progress_starts_where_its_conditions_hold_an
 def test_the_progress_line_names_the_success_conditions_that_keep_the_frontier_from_landing():
     from rventry_agents.scratch import _line
 
-    def record(success, miss=1.0, vertical=1.0, speed=1.0, violation=0.0):
+    def record(success, miss=1.0, vertical=1.0, speed=1.0, violation=0.0, **medians):
         frontier = {"success_rate": success, "miss_within_rate": miss, "vertical_within_rate": vertical,
-                    "speed_within_rate": speed, "violation_rate": violation}  # fmt: skip
+                    "speed_within_rate": speed, "violation_rate": violation, **medians}  # fmt: skip
         return {"timesteps": CHUNK, "wall_s": 60.0, "select": {"success_rate": 0.0, "miss_km_p50": 9.0,
                 "vertical_error_deg_p50": 3.0}, "curriculum": {"window_s": 146.0, "frontier_success": success,
                 "frontier": frontier, "next_window_s": 146.0}}  # fmt: skip
@@ -130,11 +130,28 @@ def test_the_progress_line_names_the_success_conditions_that_keep_the_frontier_f
     assert _line(record(0.0, vertical=0.96, speed=0.0), 0.5).endswith("frontier 0.00 (met: speed 0.00)  probes ")
     assert "(met: miss 0.34, bounds 0.40)" in _line(record(0.2, miss=0.34, violation=0.6), 0.5)
     assert "(met: miss 0.34)" not in _line(record(0.2, miss=0.34), 0.3)  # over that bar each condition holds
+    # with the median errors the evaluation records: the speed's signed, too slow below zero
+    slow = record(0.0, speed=0.0, miss=0.2, miss_km_p50=6.04, speed_error_mps_p50=-294.06)
+    assert "(met: miss 0.20 at 6.0 km, speed 0.00 at -294.1 m/s)" in _line(slow, 0.5)
     # a frontier that lands, or conditions each met by most but not together, or no breakdown: nothing more
     assert "met:" not in _line(record(0.6, speed=0.4), 0.5) + _line(record(0.3, miss=0.6, speed=0.6), 0.5)
     bare = record(0.0)
     del bare["curriculum"]["frontier"]
     assert "frontier 0.00  probes" in _line(bare, 0.5)
+
+
+def test_an_evaluation_records_the_impact_speed_error_signed_and_the_share_within_the_bar():
+    from rventry_agents.jax_env import summarize_outcomes
+    from rventry_env.envs.propagation import IMPACT
+
+    task = EntryTask()
+    bar = task.success.speed_error_mps
+    o = {"is_success": np.zeros(3, bool), "miss_km": np.array([1.0, 2.0, 3.0]), "vertical_error_deg": np.ones(3),
+         "speed_error_mps": np.array([-3.0 * bar, -2.9 * bar, 0.1 * bar]), "constraint_violation": np.zeros(3, bool),
+         "status": np.full(3, IMPACT)}  # fmt: skip
+    s = summarize_outcomes(o, np.zeros(3), task)
+    assert s["speed_error_mps_p50"] == pytest.approx(-2.9 * bar)  # too slow, not the absolute error
+    assert s["speed_within_rate"] == pytest.approx(1 / 3) and s["miss_km_p50"] == 2.0
 
 
 def test_the_progress_recipe_is_the_shipped_recipe_with_its_stages_started_on_progress():
