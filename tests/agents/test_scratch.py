@@ -562,8 +562,10 @@ def test_the_shipped_policy_restored_flies_its_selection_set_as_recorded(tmp_pat
     ts = start.restore(_initial_state(trainer.algo, trainer.cfg, 0))[0]
     got, recorded = trainer.select(ts), start.meta["best_evaluation"]["select"]
     assert got["episodes"] == recorded["episodes"] and got["success_rate"] == recorded["success_rate"]
-    # the same episodes flown again; XLA's threading may round a sum differently from the training process's
-    assert got == pytest.approx(recorded, rel=1e-5, abs=1e-6)
+    # the same episodes flown again; XLA's threading may round a sum differently from the training process's.
+    # Each figure its record holds (an evaluation now records more than it did when the policy shipped)
+    assert set(recorded) <= set(got)
+    assert {k: got[k] for k in recorded} == pytest.approx(recorded, rel=1e-5, abs=1e-6)
 
 
 def test_the_shipped_from_scratch_policy_lands_the_whole_flight_and_says_what_it_is():
