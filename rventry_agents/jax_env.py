@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rventry_agents.commands import check_actions, command_rates
+from rventry_agents.commands import check_actions, output_bounds, policy_actions
 
 OUTCOME_KEYS = ("is_success", "miss_km", "vertical_error_deg", "speed_error_mps", "constraint_violation", "status")
 
@@ -73,9 +73,7 @@ class TrainingEnv(_environment_base()):
         """The environment's action for the policy's ``action`` taken on ``obs``."""
         import jax.numpy as jnp
 
-        if self.actions == "commands":
-            return command_rates(obs, action, self.base.task, jnp, self.command_time_s)
-        return jnp.clip(action, -1.0, 1.0)
+        return policy_actions(obs, action, self.actions, self.base.task, jnp, self.command_time_s)
 
     def reset_env(self, key, params):
         obs, state = self.base.reset_env(key, params)
@@ -90,7 +88,12 @@ class TrainingEnv(_environment_base()):
         return self.base.observation_space(params)
 
     def action_space(self, params=None):
-        return self.base.action_space(params)
+        """The policy's outputs: within the environment's bounds, or unbounded for circular
+        commands (a learner clips its samples to these before they are flown)."""
+        import jax.numpy as jnp
+        from gymnax.environments import spaces
+
+        return spaces.Box(*output_bounds(self.actions), (2,), jnp.float32)
 
     @property
     def name(self) -> str:
@@ -108,7 +111,7 @@ class TrainingEnv(_environment_base()):
 
         z = algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
         mean = algo.actor.apply(ts.actor_ts.params, z[None], method=lambda m, o: m.action_mean(m.features(o)))
-        return jnp.clip(mean[0], -1.0, 1.0)
+        return jnp.clip(mean[0], *output_bounds(self.actions))
 
     def evaluator(self, algo, episodes: int):
         """A compiled ``evaluate(ts, params, key) -> dict``: ``episodes`` episodes (one each, no

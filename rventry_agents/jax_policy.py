@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rventry_agents.commands import ACTIONS, check_actions, command_rates
+from rventry_agents.commands import ACTIONS, check_actions, output_bounds, policy_actions
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 
@@ -93,10 +93,8 @@ class JaxPolicy(Law):
         z = (obs - self.obs_mean) / self.obs_scale
         for kernel, bias in self.layers:
             z = self.act(z @ kernel + bias)
-        out = np.clip(z @ self.head[0] + self.head[1], -1.0, 1.0)
-        if self.outputs == "commands":
-            out = command_rates(obs, out, self.task, np, self.command_time_s)
-        return out.astype(np.float32)
+        out = np.clip(z @ self.head[0] + self.head[1], *output_bounds(self.outputs))
+        return policy_actions(obs, out, self.outputs, self.task, np, self.command_time_s).astype(np.float32)
 
     def __call__(self, m: Measurement) -> np.ndarray:
         return self.actions(m.observation)

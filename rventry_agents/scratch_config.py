@@ -38,7 +38,8 @@ class EnvSection(Section):
     :param rung: the ladder rung trained and selected on (:mod:`rventry_env.evaluation.rungs`);
         the JAX learner flies the fixed target, so not ``footprint``.
     :param actions: ``"rates"``: the environment's own action; ``"commands"``: attitude commands
-        flown by a tracker with time constant ``command_time_s`` (:mod:`rventry_agents.commands`).
+        flown by a tracker with time constant ``command_time_s`` (:mod:`rventry_agents.commands`);
+        ``"circular-commands"``: the same with the bank command read on the circle, not clipped.
     :param time_limit_is_failure: charge a time-limit cut like a failure (training only).
     :param resets: fresh starts drawn per step for the episodes that end (an optimistic autoreset,
         :func:`~rventry_env.envs.functional.step_batch`); 0: gymnax's autoreset, a full reset per
@@ -46,7 +47,7 @@ class EnvSection(Section):
     """
 
     rung: str = setting("standard", check=_rung)
-    actions: Literal["rates", "commands"] = "commands"
+    actions: Literal["rates", "commands", "circular-commands"] = "commands"
     command_time_s: float = setting(1.0, gt=0, le=60)
     num_envs: int = setting(512, ge=1)
     max_episode_steps: int = setting(2000, ge=1)

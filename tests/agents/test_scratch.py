@@ -9,7 +9,7 @@ import shutil
 import numpy as np
 import pytest
 
-from rventry_agents.commands import command_rates
+from rventry_agents.commands import command_rates, output_bounds
 from rventry_agents.config import ConfigError
 from rventry_agents.scratch import Curriculum
 from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config
@@ -218,15 +218,74 @@ def test_attitude_commands_fly_the_asked_attitude_within_the_rate_limits():
     assert np.allclose(slow, small / 5.0)
 
 
-def test_numpy_and_jax_fly_the_same_commands():
+@pytest.mark.parametrize("circular", [False, True])
+def test_numpy_and_jax_fly_the_same_commands(circular):
     jnp = pytest.importorskip("jax.numpy")
     rng = np.random.default_rng(0)
     obs = _obs(rng.uniform(0, 25, 50), rng.uniform(-180, 180, 50), rng.uniform(-80, 80, 50))
-    cmd = rng.uniform(-1.2, 1.2, (50, 2))
-    a = command_rates(obs, cmd, TASK, np)
-    b = np.asarray(command_rates(jnp.asarray(obs), jnp.asarray(cmd), TASK, jnp))
+    cmd = rng.uniform(-3.2, 3.2, (50, 2))
+    a = command_rates(obs, cmd, TASK, np, circular=circular)
+    b = np.asarray(command_rates(jnp.asarray(obs), jnp.asarray(cmd), TASK, jnp, circular=circular))
     assert np.allclose(a, b, atol=1e-6)
     assert np.all(np.abs(a) <= 1.0)
+
+
+def test_a_circular_bank_command_is_an_angle_where_a_clipped_one_stands_at_lift_down():
+    """Past 1 a clipped bank command is lift down whatever it is (no gradient for a policy there);
+    a circular one is the angle c1 pi: 1.25 is -135 deg, -0.75 as well. The angle of attack is
+    clipped in both."""
+    rng = np.random.default_rng(1)
+    obs = _obs(rng.uniform(0, 25, 40), rng.uniform(-180, 180, 40))
+    c0 = rng.uniform(-1, 1, 40)
+    past = np.stack([c0, np.full(40, 1.25)], axis=1)
+    clipped = command_rates(obs, past, TASK, np)
+    np.testing.assert_allclose(clipped, command_rates(obs, np.stack([c0, np.full(40, 1.0)], axis=1), TASK, np))
+    np.testing.assert_allclose(command_rates(obs, past + [0, 0.1], TASK, np), clipped)  # no gradient past 1
+    on_circle = command_rates(obs, past, TASK, np, circular=True)
+    np.testing.assert_allclose(on_circle, command_rates(obs, np.stack([c0, np.full(40, -0.75)], axis=1), TASK, np),
+                               atol=1e-12)  # fmt: skip
+    assert np.any(np.abs(on_circle[:, 1] - clipped[:, 1]) > 0.1)
+    whole_turns = command_rates(obs, np.stack([c0, np.full(40, 0.3 + 4.0)], axis=1), TASK, np, circular=True)
+    np.testing.assert_allclose(whole_turns, command_rates(obs, np.stack([c0, np.full(40, 0.3)], axis=1), TASK, np),
+                               atol=1e-9)  # fmt: skip
+    high_alpha = np.stack([np.full(40, 1.7), np.full(40, 0.3)], axis=1)
+    np.testing.assert_allclose(command_rates(obs, high_alpha, TASK, np, circular=True),
+                               command_rates(obs, np.minimum(high_alpha, 1.0), TASK, np))  # fmt: skip
+
+
+def test_a_policy_of_circular_commands_samples_its_bank_unclipped_and_flies_it_as_exported(tmp_path):
+    """The learner clips its samples to the action space before they are flown: for circular commands
+    the space leaves them whole. An actor exported with them flies, in NumPy, what the training
+    environment flies for its mean output; with clipped commands a bank mean past 1 is lift down."""
+    pytest.importorskip("gymnax")
+    import jax.numpy as jnp
+
+    from rventry_agents.jax_env import TrainingEnv
+    from rventry_agents.jax_policy import JaxPolicy, export_actor
+    from rventry_env.envs.functional import RvEntryFunctional
+
+    base = RvEntryFunctional(task=TASK)
+    space = TrainingEnv(base, "circular-commands").action_space()
+    assert space.shape == (2,) and np.isinf(space.low) and np.isinf(space.high)
+    assert float(TrainingEnv(base, "commands").action_space().high) == 1.0
+    rng = np.random.default_rng(3)
+    obs = _obs(rng.uniform(0, 25, 16), rng.uniform(-180, 180, 16))
+    n = obs.shape[1]
+    kernel, head = rng.normal(0, 0.1, (n, 4)), np.zeros((4, 2))
+    params = {"params": {"features": {"Dense_0": {"kernel": kernel, "bias": np.zeros(4)}},
+                         "action_mean": {"kernel": head, "bias": np.array([0.2, 1.4])},
+                         "action_log_std": np.full(2, -1.0)}}  # fmt: skip
+    flown = {}
+    for actions in ("commands", "circular-commands"):
+        path = export_actor(tmp_path / f"{actions}.npz", params, np.zeros(n), np.ones(n), "tanh", actions, 1.0)
+        flown[actions] = JaxPolicy(path, TASK).actions(obs)
+        train = TrainingEnv(base, actions, 1.0)
+        mean = np.clip(np.tile([0.2, 1.4], (16, 1)), *output_bounds(actions))  # the deterministic policy's output
+        np.testing.assert_allclose(flown[actions], np.asarray(train.env_action(jnp.asarray(obs), jnp.asarray(mean))),
+                                   atol=1e-5)  # fmt: skip
+    np.testing.assert_allclose(flown["commands"], command_rates(obs, np.tile([0.2, 1.0], (16, 1)), TASK, np), atol=1e-5)
+    np.testing.assert_allclose(flown["circular-commands"], command_rates(obs, np.tile([0.2, -0.6], (16, 1)), TASK, np),
+                               atol=1e-5)  # fmt: skip
 
 
 SMALL = {"env": {"rung": "late", "num_envs": 32}, "ppo": {"num_steps": 32, "num_minibatches": 4, "hidden_layer_sizes": [16, 16]},
