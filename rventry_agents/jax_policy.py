@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rventry_agents.commands import ACTIONS, check_actions, output_bounds, policy_actions
+from rventry_agents.commands import ACTIONS, check_actions, policy_actions
 from rventry_env.guidance.law import Law, Measurement
 from rventry_env.task import EntryTask
 
@@ -93,7 +93,7 @@ class JaxPolicy(Law):
         z = (obs - self.obs_mean) / self.obs_scale
         for kernel, bias in self.layers:
             z = self.act(z @ kernel + bias)
-        out = np.clip(z @ self.head[0] + self.head[1], *output_bounds(self.outputs))
+        out = z @ self.head[0] + self.head[1]  # clipped where the map clips it (policy_actions)
         return policy_actions(obs, out, self.outputs, self.task, np, self.command_time_s).astype(np.float32)
 
     def __call__(self, m: Measurement) -> np.ndarray:
