@@ -63,12 +63,19 @@ def output_bounds(actions: str) -> tuple[float, float]:
     return (-math.inf, math.inf) if check_actions(actions) == "circular-commands" else (-1.0, 1.0)
 
 
+def clipped_outputs(actions: str) -> tuple[bool, bool]:
+    """Which of a policy's two outputs its action map clips to [-1, 1]: the angle of attack (or its
+    rate) always; the bank (or its rate) unless circular commands read it on the circle."""
+    return True, check_actions(actions) != "circular-commands"
+
+
 def policy_actions(observation, output, actions: str, task: EntryTask, xp, tau: float | None = None):
     """The environment's actions for a policy's ``output`` (..., 2) on ``observation``: the output
-    itself (clipped) for ``"rates"``, else the attitude commands it asks, flown by :func:`command_rates`."""
+    itself (clipped) for ``"rates"``, else the attitude commands it asks, flown by :func:`command_rates`
+    (each output clipped as :func:`clipped_outputs` says)."""
     if actions == "rates":
         return xp.clip(output, -1.0, 1.0)
-    return command_rates(observation, output, task, xp, tau, circular=actions == "circular-commands")
+    return command_rates(observation, output, task, xp, tau, circular=not clipped_outputs(actions)[1])
 
 
 def check_actions(actions: str) -> str:
@@ -77,4 +84,4 @@ def check_actions(actions: str) -> str:
     return actions
 
 
-__all__ = ["ACTIONS", "check_actions", "command_rates", "output_bounds", "policy_actions"]
+__all__ = ["ACTIONS", "check_actions", "clipped_outputs", "command_rates", "output_bounds", "policy_actions"]

@@ -104,14 +104,17 @@ class TrainingEnv(_environment_base()):
         return 2
 
     # ------------------------------------------------------------------ evaluation and export
+    def raw_action(self, algo, ts, obs):
+        """The actor's mean for one observation, normalized as in training, before any clip."""
+        z = algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
+        return algo.actor.apply(ts.actor_ts.params, z[None], method=lambda m, o: m.action_mean(m.features(o)))[0]
+
     def mean_action(self, algo, ts, obs):
-        """The deterministic policy's action for one observation: the actor's mean, on the
-        observation normalized as in training."""
+        """The deterministic policy's action for one observation: :meth:`raw_action`, clipped where
+        the action map's outputs are bounded."""
         import jax.numpy as jnp
 
-        z = algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
-        mean = algo.actor.apply(ts.actor_ts.params, z[None], method=lambda m, o: m.action_mean(m.features(o)))
-        return jnp.clip(mean[0], *output_bounds(self.actions))
+        return jnp.clip(self.raw_action(algo, ts, obs), *output_bounds(self.actions))
 
     def evaluator(self, algo, episodes: int):
         """A compiled ``evaluate(ts, params, key) -> dict``: ``episodes`` episodes (one each, no
@@ -175,4 +178,4 @@ def summarize_outcomes(o: dict, ret, task) -> dict:
     }  # fmt: skip
 
 
-__all__ = ["TrainingEnv", "make_training_env", "summarize_outcomes", "OUTCOME_KEYS"]
+__all__ = ["OUTCOME_KEYS", "TrainingEnv", "make_training_env", "summarize_outcomes"]

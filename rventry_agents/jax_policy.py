@@ -155,4 +155,4 @@ def _read_json(path: Path) -> dict:
     return value
 
 
-__all__ = ["JaxPolicy", "export_actor", "load_saved", "load_shipped", "SHIPPED"]
+__all__ = ["SHIPPED", "JaxPolicy", "export_actor", "load_saved", "load_shipped"]

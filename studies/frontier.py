@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_agents.commands import clipped_outputs
 from rventry_env.util.provenance import start_run
 
 PERCENTILES = (10, 50, 90)
@@ -46,12 +47,6 @@ def restore(run: Path):
     return trainer, ts, point.steps
 
 
-def clipped_outputs(actions: str) -> np.ndarray:
-    """Which of the policy's two outputs its action map clips to [-1, 1]: the angle of attack always;
-    the bank unless it is read on the circle."""
-    return np.array([True, actions != "circular-commands"])
-
-
 def fly(trainer, ts, lo: float, hi: float, episodes: int, seed: int = 0) -> dict:
     """Per-episode outcomes, raw output means and clipped-step shares, and the last observation,
     of the deterministic policy from the reference ``lo``-``hi`` s before impact."""
@@ -64,17 +59,13 @@ def fly(trainer, ts, lo: float, hi: float, episodes: int, seed: int = 0) -> dict
     params = trainer.params._replace(starts=env.base.start_params(trainer.curriculum.starts_between(lo, hi)))
     clipped = jnp.asarray(clipped_outputs(env.actions))
 
-    def raw_mean(obs):
-        z = algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
-        return algo.actor.apply(ts.actor_ts.params, z[None], method=lambda m, o: m.action_mean(m.features(o)))[0]
-
     def one(k):
         obs, state = env.reset(k, params)
         _, _, _, _, info0 = env.step_env(k, state, jnp.zeros(2), params)  # the info's structure
 
         def step(c):
             obs, state, _, info, n, total, past = c
-            out = raw_mean(obs)
+            out = env.raw_action(algo, ts, obs)
             obs, state, _, done, info = env.step_env(k, state, out, params)
             return obs, state, done, info, n + 1, total + out, past + (clipped & (jnp.abs(out) > 1.0))
 

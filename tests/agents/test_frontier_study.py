@@ -56,10 +56,3 @@ def test_the_frontier_study_flies_what_the_runs_probe_flies_and_splits_the_miss_
     assert np.all(np.asarray(o["steps"]) > 0) and np.all(np.isfinite(np.asarray(o["output_mean"])))
     text = study.report(r)
     assert "bank output" in text and "read on the circle: not clipped" in text and "steps past its clip" in text
-
-
-def test_the_frontier_study_names_which_outputs_its_action_map_clips():
-    study = load_script("studies/frontier")
-    assert study.clipped_outputs("commands").tolist() == [True, True]
-    assert study.clipped_outputs("rates").tolist() == [True, True]
-    assert study.clipped_outputs("circular-commands").tolist() == [True, False]

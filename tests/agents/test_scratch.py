@@ -9,7 +9,7 @@ import shutil
 import numpy as np
 import pytest
 
-from rventry_agents.commands import command_rates, output_bounds
+from rventry_agents.commands import ACTIONS, clipped_outputs, command_rates, output_bounds, policy_actions
 from rventry_agents.config import ConfigError
 from rventry_agents.scratch import Curriculum
 from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config
@@ -216,6 +216,20 @@ def test_attitude_commands_fly_the_asked_attitude_within_the_rate_limits():
     slow = command_rates(_obs([10.0], [0.0]), np.array([[2 * np.radians(12.0) / p.alpha_max - 1, 10 / 180]]), TASK,
                          np, tau=5.0)  # fmt: skip
     assert np.allclose(slow, small / 5.0)
+
+
+@pytest.mark.parametrize("actions", ACTIONS)
+def test_clipped_outputs_say_which_outputs_the_action_map_clips(actions):
+    """An output said to be clipped flies the same at 1.7 as at its bound 1; one said not to be flies
+    otherwise (alpha 24.4 deg and bank 153 deg, so that neither change is lost to the rate limits)."""
+    obs = _obs([24.4], [153.0])
+    for i, clipped in enumerate(clipped_outputs(actions)):
+        past, bound = np.array([[0.5, 0.5]]), np.array([[0.5, 0.5]])
+        past[0, i], bound[0, i] = 1.7, 1.0
+        same = np.allclose(policy_actions(obs, past, actions, TASK, np), policy_actions(obs, bound, actions, TASK, np))
+        assert same == clipped, (actions, i)
+    with pytest.raises(ValueError, match="actions must be one of"):
+        clipped_outputs("angles")
 
 
 @pytest.mark.parametrize("circular", [False, True])
