@@ -367,7 +367,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
             stage, first = stage + 1, len(history)  # the next stage starts here
             trainer = _next_stage(trainer, stages[stage][1])
             ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)
-            ts, changes = _on_rung(ts, trainer, stages[stage - 1][1].env.rung, changes)
+            before = stages[stage - 1][1]
+            ts, changes = _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping)
             best = _best(history, trainer.cfg.env.rung)
             waited = cfg.stages[stage - 1].waits()
             progress(f"stage {stage} from {steps:,d} steps{changes}" + (f" ({waited})" if waited else ""))
@@ -442,30 +443,44 @@ def _starting(ts, trainer: Trainer, point, history: list[dict], source: Path | N
     is entered; otherwise as it was."""
     fresh = getattr(point, "other_vehicles", False)  # the checkpoint's vehicles could not be restored on this rung
     if source is not None:
-        before, seed_before = _source_stage(source, point.steps, getattr(point, "history", []))
+        history_before = getattr(point, "history", [])
+        before, seed_before = _source_stage(source, point.steps, history_before)
         for h in history:  # its records, ranked on the rung they flew
             h.setdefault("rung", before)
         ts, changes = _entered(ts, trainer.cfg, seed_before)
-        return _on_rung(ts, trainer, before, changes, fresh)
+        # the stage its last chunk flew (one step before a stage that starts on the checkpoint's
+        # step): the one its vehicles in flight were drawn and paid under
+        src = _source_config(source, point.steps - 1, history_before)
+        return _vehicles_afresh(ts, trainer, before, changes, fresh, None if src is None else src.shaping)
     if stage is not None and history and (last := history[-1].get("stage", 0)) < stage:
         ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
-        return _on_rung(ts, trainer, stages[last][1].env.rung, changes, fresh)
+        return _vehicles_afresh(ts, trainer, stages[last][1].env.rung, changes, fresh, stages[last][1].shaping)
     return ts, ""
 
 
-def _on_rung(ts, trainer: Trainer, rung_before: str | None, changes: str, fresh: bool = False):
+def _vehicles_afresh(ts, trainer: Trainer, rung_before: str | None, changes: str, fresh: bool = False, shaping_before=None):
     """The training state as a stage (or a run from another's checkpoint) on ``trainer``'s rung
-    starts from one on ``rung_before``: where the rung changed, every vehicle starts afresh from
-    the new rung's draws (:func:`~rventry_agents.scratch_state.fresh_vehicles`; ``fresh``: the
-    checkpoint's restore has done so already), and what that changed, for the progress line."""
+    and shaping starts from one on ``rung_before`` under ``shaping_before`` (None: not known, taken
+    as unchanged): where either changed, every vehicle starts afresh from the new rung's draws
+    (:func:`~rventry_agents.scratch_state.fresh_vehicles`; ``fresh``: the checkpoint's restore has
+    done so already), and what that changed, for the progress line. A vehicle in flight carries
+    its state's potential, which another shaping would pay against its own: the step after would
+    pay gamma Phi'(s') - Phi(s), not a difference of one potential (and a potential that is on in
+    one and off in the other is a state of another form)."""
     from rventry_agents.scratch_state import fresh_vehicles
 
-    rung = trainer.cfg.env.rung
+    rung, shaping = trainer.cfg.env.rung, trainer.cfg.shaping
+    new_rung = rung_before is not None and rung_before != rung
+    new_shaping = shaping_before is not None and shaping_before != shaping
+    if not (fresh or new_rung or new_shaping):
+        return ts, changes
     if not fresh:
-        if rung_before is None or rung_before == rung:
-            return ts, changes
         ts = fresh_vehicles(ts, _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
-    return ts, changes + f", every vehicle started afresh on the {rung} rung"
+    said = [f"on the {rung} rung"] if new_rung or (fresh and not new_shaping) else []
+    if new_shaping:
+        said.append("without shaping" if shaping.potential == "none"
+                    else f"under the {shaping.potential} potential ({shaping.weight:g} per km)")  # fmt: skip
+    return ts, changes + ", every vehicle started afresh " + " ".join(said)
 
 
 def _best(history: list[dict], rung: str) -> dict | None:
@@ -489,16 +504,22 @@ def _stage_records(history: list[dict], stage: int) -> int:
     return first
 
 
+def _source_config(run: Path, steps: int, history: list[dict] = ()) -> ScratchConfig | None:
+    """The config of the stage the run in ``run`` trained under at ``steps`` (its chunks' record up
+    to there: ``history``), from its ``config.json`` (None where it has none that loads)."""
+    try:
+        cfg = load_config(json.loads((run / "config.json").read_text()))
+        return cfg.stage_configs()[_stage_now(cfg, steps, list(history))][1]
+    except (OSError, ValueError, KeyError, TypeError, IndexError):
+        return None
+
+
 def _source_stage(run: Path, steps: int, history: list[dict] = ()) -> tuple[str | None, int | None]:
     """The rung and the seed the run (or the exported policy) in ``run`` trained under at ``steps``
     (its chunks' record up to there: ``history``): its stage's, from its ``config.json``, else its
     ``metadata.json``'s (None where neither says)."""
-    try:
-        cfg = load_config(json.loads((run / "config.json").read_text()))
-        stage = cfg.stage_configs()[_stage_now(cfg, steps, list(history))][1]
+    if (stage := _source_config(run, steps, history)) is not None:
         return stage.env.rung, stage.train.seed
-    except (OSError, ValueError, KeyError, TypeError, IndexError):
-        pass
     try:
         meta = json.loads((run / "metadata.json").read_text())
     except (OSError, ValueError):

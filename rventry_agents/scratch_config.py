@@ -189,7 +189,9 @@ class StageSection(Section):
     selection stay (:data:`STAGE_FIXED`). Entering a stage is what starting a new run from the
     checkpoint at that step with ``init_from`` does: ``[ppo] restart_exploration`` sets the
     exploration noise back to ``log_std_init``, and another ``[train] seed`` is folded into the
-    random key; the curriculum's window, the history and the selected policy go on."""
+    random key; the curriculum's window, the history and the selected policy go on. Where a stage
+    changes the rung or the shaping, every vehicle in flight starts afresh (its state's form, its
+    draws or its potential are the stage before's)."""
 
     from_timesteps: int | None = setting(None, ge=1)
     when_stalled_chunks: int | None = setting(None, ge=1)

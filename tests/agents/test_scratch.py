@@ -308,12 +308,13 @@ SMALL = {"env": {"rung": "late", "num_envs": 32}, "ppo": {"num_steps": 32, "num_
          "train": {"total_timesteps": 2048, "chunk_timesteps": 1024, "select_episodes": 8}}  # fmt: skip
 
 
-def _errors_of(tree):
-    """The saved environment state's flight-grade errors (None where its vehicles have none)."""
+def _saved_field(tree, name: str):
+    """A field of the saved environment state, at whatever depth (None where its vehicles have none):
+    the flight-grade ``errors``, the shaping's ``potential``."""
     if isinstance(tree, dict):
-        if "errors" in tree:
-            return tree["errors"]
-        return next((e for e in map(_errors_of, tree.values()) if e is not None), None)
+        if tree.get(name) is not None:
+            return tree[name]
+        return next((e for e in (_saved_field(t, name) for t in tree.values()) if e is not None), None)
     return None
 
 
@@ -346,7 +347,7 @@ def test_a_stage_on_another_rung_starts_every_vehicle_afresh_and_selects_on_that
     assert lines[0].endswith("every vehicle started afresh on the flight rung")
     # the vehicles now in flight are the flight-grade rung's, with their errors
     saved = serialization.msgpack_restore((tmp_path / "other" / "checkpoint" / "train_state.msgpack").read_bytes())
-    assert _errors_of(saved["env_state"]) is not None
+    assert _saved_field(saved["env_state"], "errors") is not None
     states = {name: (tmp_path / name / "checkpoint" / "train_state.msgpack").read_bytes() for name in runs}
     assert states["straight"] == states["stopped"] == states["other"]
     for name, meta in runs.items():
@@ -354,6 +355,41 @@ def test_a_stage_on_another_rung_starts_every_vehicle_afresh_and_selects_on_that
         assert [h["rung"] for h in hist] == ["late", "flight"], name
         # the late chunk's selection is not ranked against the flight chunk's: the flight one is selected
         assert meta["best_evaluation"]["timesteps"] == 2048, name
+
+
+@pytest.mark.slow
+def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its_potential(tmp_path):
+    """A vehicle in flight carries its state's potential; under another shaping the next step would
+    pay one potential's value against another's (and a potential off before is a state without
+    one). A stage that turns the energy potential on starts every vehicle afresh, straight through,
+    stopped on the stage's first step and resumed, or as a new run from the first stage's
+    checkpoint, and the three train the same state to the byte, each vehicle now carrying a potential."""
+    pytest.importorskip("rejax")
+    from flax import serialization
+
+    from rventry_agents.scratch import train_scratch
+
+    plain = json.loads(json.dumps(SMALL))
+    plain["shaping"] = {"potential": "none"}
+    staged = {**plain, "stages": [{"from_timesteps": 1024, "shaping": {"potential": "energy", "weight": 0.5}}]}
+    said = "every vehicle started afresh under the energy potential (0.5 per km)"
+    lines = {}
+    for name, steps in (("straight", 2048), ("stopped", 1024)):
+        lines[name] = []
+        train_scratch(staged, out=tmp_path / name, timesteps=steps, progress=lines[name].append)
+    assert f"stage 1 from 1,024 steps, {said}" in lines["straight"]
+    shutil.copytree(tmp_path / "stopped", tmp_path / "first")  # the first stage's run, its vehicles without a potential
+    lines["stopped"] = []
+    train_scratch(staged, out=tmp_path / "stopped", timesteps=2048, resume=True, progress=lines["stopped"].append)
+    assert f"stage 1 from 1,024 steps, {said}" in lines["stopped"]
+    shaped = {**plain, "shaping": {"potential": "energy", "weight": 0.5}}
+    lines["other"] = []
+    train_scratch(shaped, out=tmp_path / "other", timesteps=2048, init_from=tmp_path / "first", progress=lines["other"].append)
+    assert lines["other"][0].endswith(said)
+    states = {name: (tmp_path / name / "checkpoint" / "train_state.msgpack").read_bytes() for name in lines}
+    assert states["straight"] == states["stopped"] == states["other"]
+    potential = np.asarray(_saved_field(serialization.msgpack_restore(states["straight"])["env_state"], "potential"))
+    assert potential.shape == (SMALL["env"]["num_envs"],) and np.all(np.isfinite(potential)) and np.all(potential <= 0)
 
 
 @pytest.mark.slow
