@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rventry_agents.config import ConfigError
 from rventry_agents.scratch_config import ScratchConfig, load_config
 from rventry_env.util.files import output_set, write_json
 
@@ -55,16 +56,22 @@ def make_task(cfg: ScratchConfig):
 
 def make_shaping(cfg: ScratchConfig):
     """The shaping the config asks for (None: none)."""
-    if cfg.shaping.potential == "none":
+    sh = cfg.shaping
+    if sh.potential == "none":
         return None
     from rventry_env.envs.shaping import PotentialShaping
+    from rventry_env.reference.shaping import energy_range_profile, fade_energies
 
-    if cfg.shaping.potential == "range":
-        return PotentialShaping("range", cfg.ppo.gamma, cfg.shaping.weight)
-    from rventry_env.reference.shaping import energy_range_profile
-
+    fade = None
+    if sh.fade_s:
+        try:
+            fade = fade_energies(sh.fade_s)
+        except ValueError as exc:
+            raise ConfigError(f"[shaping] fade_s: {exc}") from None
+    if sh.potential == "range":
+        return PotentialShaping("range", cfg.ppo.gamma, sh.weight, fade_energies=fade)
     energies, ranges = energy_range_profile()
-    return PotentialShaping("energy", cfg.ppo.gamma, cfg.shaping.weight, energies=energies, ranges=ranges)
+    return PotentialShaping("energy", cfg.ppo.gamma, sh.weight, energies=energies, ranges=ranges, fade_energies=fade)
 
 
 class Curriculum:
@@ -479,7 +486,8 @@ def _vehicles_afresh(ts, trainer: Trainer, rung_before: str | None, changes: str
     said = [f"on the {rung} rung"] if new_rung or (fresh and not new_shaping) else []
     if new_shaping:
         said.append("without shaping" if shaping.potential == "none"
-                    else f"under the {shaping.potential} potential ({shaping.weight:g} per km)")  # fmt: skip
+                    else f"under the {shaping.potential} potential ({shaping.weight:g} per km"
+                    + (f", fading over the reference's last {shaping.fade_s:g} s)" if shaping.fade_s else ")"))  # fmt: skip
     return ts, changes + ", every vehicle started afresh " + " ".join(said)
 
 

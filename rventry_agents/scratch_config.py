@@ -118,10 +118,18 @@ class CurriculumSection(Section):
 @dataclass(frozen=True, kw_only=True)
 class ShapingSection(Section):
     """``[shaping]``: potential-based shaping (:mod:`rventry_env.envs.shaping`), ``"none"`` to leave the
-    reward as it is; ``weight`` is the reward per km of the potential."""
+    reward as it is; ``weight`` is the reward per km of the potential. ``fade_s``: the potential fades
+    out linearly in specific energy over the shipped reference's last ``fade_s`` seconds, from its
+    whole weight at the reference's energy then to none at its impact energy (0: no fade)."""
 
     potential: Literal["none", "range", "energy"] = "none"
     weight: float = setting(0.2, gt=0)
+    fade_s: float = setting(0.0, ge=0)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.fade_s and self.potential == "none":
+            raise ConfigError(f"[shaping] fade_s ({self.fade_s:g}) fades a potential, and potential = 'none' has none")
 
 
 @dataclass(frozen=True, kw_only=True)

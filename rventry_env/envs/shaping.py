@@ -26,6 +26,15 @@ signal; a guidance law never sees it) and written once for floats, NumPy and JAX
   prediction of the miss: at a given energy, the range the vehicle can still cover is about the
   profile's, so a vehicle short of energy for its range (a plunge) or with energy to spare
   loses potential, and one that keeps range and energy in step keeps it.
+
+Either potential may fade out at the end of the flight (``fade_energies = (e_full, e_zero)``):
+its weight is w above the specific energy e_full, none below e_zero, and linear in energy between,
+so Phi = -w f(e) d with f = clip((e - e_zero) / (e_full - e_zero), 0, 1). It is still a function of
+the state alone, so still policy-invariant. It leaves the end of the flight, the pull-down and the
+dive that the task's terminal terms judge (miss, speed, angle from vertical), to those terms
+alone: on the shipped reference the last minute runs the profile from 90 km to none while the
+energy falls by two thirds. :func:`rventry_env.reference.shaping.fade_energies` gives the energies
+of the reference's last seconds.
 """
 
 from __future__ import annotations
@@ -49,6 +58,8 @@ class PotentialShaping:
     :param weight: reward per km of the potential's range (default 0.2, the reward's miss weight).
     :param energies: ``"energy"``: the profile's specific energies (J/kg), increasing.
     :param ranges: ``"energy"``: the range to go (m) at each of them.
+    :param fade_energies: ``(e_full, e_zero)``, J/kg with e_full > e_zero >= 0: the potential fades
+        linearly in specific energy from its whole weight at e_full to none at e_zero (None: no fade).
     """
 
     potential: str
@@ -56,6 +67,7 @@ class PotentialShaping:
     weight: float = 0.2
     energies: np.ndarray | None = None
     ranges: np.ndarray | None = None
+    fade_energies: tuple[float, float] | None = None
 
     def __post_init__(self):
         if self.potential not in POTENTIALS:
@@ -76,17 +88,32 @@ class PotentialShaping:
             r.setflags(write=False)
             object.__setattr__(self, "energies", e)
             object.__setattr__(self, "ranges", r)
+        if self.fade_energies is not None:
+            fade = self.fade_energies
+            try:
+                full, zero = (float(v) for v in fade)
+            except (TypeError, ValueError):
+                raise ValueError(f"shaping fade_energies must be two numbers (e_full, e_zero) in J/kg, got {fade!r}") from None
+            if not (math.isfinite(full) and math.isfinite(zero) and full > zero >= 0):
+                raise ValueError(f"shaping fade_energies (e_full, e_zero) must be finite with e_full > e_zero >= 0 J/kg, "
+                                 f"got {fade!r}")  # fmt: skip
+            object.__setattr__(self, "fade_energies", (full, zero))
         object.__setattr__(self, "gamma", float(g))
         object.__setattr__(self, "weight", float(w))
 
     def phi(self, x, c_ae, target_e, mu: float, radius: float, ns):
         """The potential of states ``x`` (components; C_AE at them ``c_ae``) flying to ``target_e``."""
         range_to_go_m = radius * surface_angle(target_in_a(c_ae, target_e), ns)
+        e = specific_energy(x, mu, radius) if self.potential == "energy" or self.fade_energies else None
         if self.potential == "range":
-            return -self.weight * range_to_go_m / 1000.0
-        e = specific_energy(x, mu, radius)
-        profile = ns.interp(e, self.energies, self.ranges)
-        return -self.weight * ns.fabs(range_to_go_m - profile) / 1000.0
+            off_m = range_to_go_m
+        else:
+            off_m = ns.fabs(range_to_go_m - ns.interp(e, self.energies, self.ranges))
+        phi = -self.weight * off_m / 1000.0
+        if self.fade_energies is None:
+            return phi
+        full, zero = self.fade_energies
+        return phi * ns.fmin(ns.fmax((e - zero) / (full - zero), 0.0), 1.0)
 
     def reward(self, phi_before, phi_after, terminal, ns):
         """F = gamma Phi(s') - Phi(s), with Phi(s') = 0 where the step ended the episode for good."""
@@ -95,7 +122,7 @@ class PotentialShaping:
     def key(self) -> tuple:
         """The shaping's value, arrays included: equal shapings pay equal rewards (an unpickled copy too)."""
         arrays = tuple(None if a is None else (a.shape, a.tobytes()) for a in (self.energies, self.ranges))
-        return (self.potential, self.gamma, self.weight, *arrays)
+        return (self.potential, self.gamma, self.weight, self.fade_energies, *arrays)
 
     def __eq__(self, other):
         return isinstance(other, PotentialShaping) and self.key() == other.key()
@@ -107,6 +134,8 @@ class PotentialShaping:
         out = {"potential": self.potential, "gamma": self.gamma, "weight_per_km": self.weight}
         if self.energies is not None:
             out["profile_points"] = int(self.energies.size)
+        if self.fade_energies is not None:
+            out["fade_energies_j_per_kg"] = list(self.fade_energies)
         return out
 
 

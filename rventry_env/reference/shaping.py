@@ -36,4 +36,19 @@ def energy_range_profile(reference: Reference | None = None, model: EntryModel |
     return e, np.maximum(r, 0.0)
 
 
-__all__ = ["energy_range_profile"]
+def fade_energies(seconds: float, reference: Reference | None = None,
+                  model: EntryModel | None = None) -> tuple[float, float]:  # fmt: skip
+    """(e_full, e_zero): the reference's specific energy ``seconds`` before its end and at its end,
+    for a potential that fades out over the reference's last ``seconds``
+    (:class:`~rventry_env.envs.shaping.PotentialShaping`'s ``fade_energies``)."""
+    ref = load_reference() if reference is None else reference
+    planet = (EntryModel() if model is None else model).planet
+    duration = ref.tf - ref.t0
+    if not (isinstance(seconds, (int, float)) and not isinstance(seconds, bool) and 0 < seconds < duration):
+        raise ValueError(f"a fade must last more than 0 s and less than the reference's {duration:.1f} s, got {seconds!r}")
+    x = tuple(ref.state(np.array([ref.tf - seconds, ref.tf])).T)
+    full, zero = (float(v) for v in specific_energy(x, planet.mu, planet.radius))
+    return full, zero
+
+
+__all__ = ["energy_range_profile", "fade_energies"]

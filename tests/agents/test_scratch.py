@@ -11,7 +11,7 @@ import pytest
 
 from rventry_agents.commands import ACTIONS, clipped_outputs, command_rates, output_bounds, policy_actions
 from rventry_agents.config import ConfigError
-from rventry_agents.scratch import Curriculum
+from rventry_agents.scratch import Curriculum, make_shaping
 from rventry_agents.scratch_config import DEFAULT_CONFIG, load_config
 from rventry_env.envs.observation import feature_index
 from rventry_env.task import EntryTask
@@ -39,6 +39,15 @@ def test_the_shipped_config_loads_and_a_misspelled_key_is_refused_by_name(tmp_pa
         load_config({"curriculum": {"step_weighted": True, "far_weight": 1.0}})
     with pytest.raises(ConfigError, match="latest_s must exceed the start table's 1 s step"):
         load_config({"curriculum": {"step_weighted": True, "latest_s": 1.0}})
+    with pytest.raises(ConfigError, match=r"^config: \[shaping\] fade_s \(30\) fades a potential, and potential = 'none'"):
+        load_config({"shaping": {"fade_s": 30.0}})
+    with pytest.raises(ConfigError, match=r"\[shaping\] fade_s: a fade must last .* less than the reference's 1033.9 s"):
+        make_shaping(load_config({"shaping": {"potential": "energy", "fade_s": 1500.0}}))
+    from rventry_env.reference.shaping import fade_energies
+
+    fading = make_shaping(load_config({"shaping": {"potential": "range", "fade_s": 60.0}}))
+    assert fading.potential == "range" and fading.fade_energies == fade_energies(60.0)
+    assert make_shaping(load_config({"shaping": {"potential": "range"}})).fade_energies is None
     starts = Curriculum(load_config({"curriculum": {"step_weighted": True}})).starts(600.0)
     assert starts.step_weighted and starts.before_end_s == (19.0, 599.0)
 

@@ -9,21 +9,23 @@ from rventry_env.envs.rv_entry import RvEntryEnv
 from rventry_env.envs.shaping import PotentialShaping
 from rventry_env.envs.vector import RvEntryVectorEnv
 from rventry_env.evaluation.rungs import rung_starts
-from rventry_env.reference.shaping import energy_range_profile
+from rventry_env.reference.shaping import energy_range_profile, fade_energies
 
 GAMMA = 0.99
 
 
 def _shapings():
     e, r = energy_range_profile()
-    return [PotentialShaping("range", GAMMA), PotentialShaping("energy", GAMMA, 0.5, energies=e, ranges=r)]
+    fade = fade_energies(60.0)
+    return [PotentialShaping("range", GAMMA), PotentialShaping("energy", GAMMA, 0.5, energies=e, ranges=r),
+            PotentialShaping("energy", GAMMA, 0.5, energies=e, ranges=r, fade_energies=fade)]
 
 
 def _discounted(rewards, gamma=GAMMA):
     return float(sum(gamma**k * r for k, r in enumerate(rewards)))
 
 
-@pytest.mark.parametrize("shaping", _shapings(), ids=lambda s: s.potential)
+@pytest.mark.parametrize("shaping", _shapings(), ids=lambda s: s.potential + ("-fading" if s.fade_energies else ""))
 def test_the_shaped_return_is_the_return_less_the_starting_potential(shaping):
     """Any actions, any start: sum_k gamma^k (r_k + F_k) - sum_k gamma^k r_k = -Phi(s_0) on an episode that
     terminates, so every policy's return moves by the same constant and no decision changes."""
@@ -77,9 +79,9 @@ def test_the_functional_env_shapes_as_the_numpy_env_does_and_charges_a_cut_as_a_
     jax = pytest.importorskip("jax")
     import jax.numpy as jnp
 
+    from rventry_env.core.backend import NUMPY
     from rventry_env.envs.functional import RvEntryFunctional
     from rventry_env.envs.outcome import TerminalMetrics, time_limit_penalty
-    from rventry_env.core.backend import NUMPY
 
     shaping = _shapings()[1]
     starts = rung_starts("late")
@@ -92,8 +94,8 @@ def test_the_functional_env_shapes_as_the_numpy_env_does_and_charges_a_cut_as_a_
     phi0 = float(sa.potential)
     ra, rb = [], []
     for k in range(12):
-        _, sa, r1, d1, info = shaped.step_env(key, sa, jnp.zeros(2), shaped.default_params)
-        _, sb, r2, d2, _ = plain.step_env(key, sb, jnp.zeros(2), plain.default_params)
+        _, sa, r1, _, info = shaped.step_env(key, sa, jnp.zeros(2), shaped.default_params)
+        _, sb, r2, _, _ = plain.step_env(key, sb, jnp.zeros(2), plain.default_params)
         ra.append(float(r1))
         rb.append(float(r2))
     assert bool(info["truncated"]) and not bool(info["terminated"])
@@ -103,6 +105,39 @@ def test_the_functional_env_shapes_as_the_numpy_env_does_and_charges_a_cut_as_a_
     # the cut is final there (Phi = 0) and charged: the difference telescopes to -Phi(s_0) - gamma^(T-1) charge
     diff = _discounted(ra) - _discounted(rb)
     assert diff == pytest.approx(-phi0 - GAMMA**11 * charged, rel=1e-9)
+
+
+def test_a_fading_potential_is_whole_above_the_fade_none_below_it_and_linear_in_energy_between():
+    """Phi_fade(s) = f(e(s)) Phi(s), f from 1 at e_full to 0 at e_zero, on states off the reference's
+    profile (its states 5% fast) before, across and after the fade; e_full and e_zero are the
+    reference's energies 60 s before its end and at it."""
+    from rventry_env.core.backend import NUMPY
+    from rventry_env.core.euler_parameters import dcm
+    from rventry_env.core.targeting import specific_energy
+    from rventry_env.physics.model import EntryModel
+    from rventry_env.reference import load_reference
+    from rventry_env.task import EntryProblem
+
+    whole, fading = _shapings()[1:]
+    full, zero = fading.fade_energies
+    ref, planet = load_reference(), EntryModel().planet
+    target = tuple(float(c) for c in EntryProblem().target_unit_vector())
+    on = tuple(ref.state(ref.tf - np.array([300.0, 60.0, 40.0, 20.0, 5.0, 0.0])).T)
+    e_on = specific_energy(on, planet.mu, planet.radius)
+    assert e_on[1] == pytest.approx(full, rel=1e-12) and e_on[-1] == pytest.approx(zero, rel=1e-12)
+
+    def phis(speed_factor):
+        x = tuple(v * (speed_factor if k == 5 else 1.0) for k, v in enumerate(on))
+        args = (x, dcm(*x[1:5]), target, planet.mu, planet.radius, NUMPY)
+        return specific_energy(x, planet.mu, planet.radius), whole.phi(*args), fading.phi(*args)
+
+    e, a, b = phis(1.05)
+    f = np.clip((e - zero) / (full - zero), 0.0, 1.0)
+    assert np.all(a < 0)  # 5% fast is off the profile everywhere
+    assert np.sum((f > 0) & (f < 1)) >= 3 and f[0] == 1.0  # the states sample the fade and above it
+    assert b == pytest.approx(f * a, rel=1e-12)
+    e, a, b = phis(0.5)
+    assert e[4] < zero and a[4] < 0 and b[4] == 0.0  # none below the impact energy (5 s out, half the speed)
 
 
 def test_bad_shaping_settings_are_refused_with_their_name():
@@ -116,6 +151,12 @@ def test_bad_shaping_settings_are_refused_with_their_name():
         PotentialShaping("energy", 0.99)
     with pytest.raises(ValueError, match="increase strictly"):
         PotentialShaping("energy", 0.99, energies=[2.0, 1.0], ranges=[0.0, 1.0])
+    with pytest.raises(ValueError, match="fade_energies .* must be finite with e_full > e_zero"):
+        PotentialShaping("range", 0.99, fade_energies=(1e6, 2e6))
+    with pytest.raises(ValueError, match="fade_energies must be two numbers"):
+        PotentialShaping("range", 0.99, fade_energies=1e6)
+    with pytest.raises(ValueError, match="less than the reference's 1033.9 s"):
+        fade_energies(2000.0)
     with pytest.raises(TypeError, match="PotentialShaping"):
         RvEntryEnv(shaping="range")
 
