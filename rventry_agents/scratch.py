@@ -450,15 +450,14 @@ def _starting(ts, trainer: Trainer, point, history: list[dict], source: Path | N
     is entered; otherwise as it was."""
     fresh = getattr(point, "other_vehicles", False)  # the checkpoint's vehicles could not be restored on this rung
     if source is not None:
-        history_before = getattr(point, "history", [])
-        before, seed_before = _source_stage(source, point.steps, history_before)
+        # the stage its last chunk flew (one step before a stage that starts on the checkpoint's
+        # step: the checkpoint was written before that stage was entered): the one its random key
+        # was folded with and its vehicles in flight were drawn and paid under
+        before, seed_before, shaping_before = _source_stage(source, point.steps - 1, getattr(point, "history", []))
         for h in history:  # its records, ranked on the rung they flew
             h.setdefault("rung", before)
         ts, changes = _entered(ts, trainer.cfg, seed_before)
-        # the stage its last chunk flew (one step before a stage that starts on the checkpoint's
-        # step): the one its vehicles in flight were drawn and paid under
-        src = _source_config(source, point.steps - 1, history_before)
-        return _vehicles_afresh(ts, trainer, before, changes, fresh, None if src is None else src.shaping)
+        return _vehicles_afresh(ts, trainer, before, changes, fresh, shaping_before)
     if stage is not None and history and (last := history[-1].get("stage", 0)) < stage:
         ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
         return _vehicles_afresh(ts, trainer, stages[last][1].env.rung, changes, fresh, stages[last][1].shaping)
@@ -512,30 +511,26 @@ def _stage_records(history: list[dict], stage: int) -> int:
     return first
 
 
-def _source_config(run: Path, steps: int, history: list[dict] = ()) -> ScratchConfig | None:
-    """The config of the stage the run in ``run`` trained under at ``steps`` (its chunks' record up
-    to there: ``history``), from its ``config.json`` (None where it has none that loads)."""
+def _source_stage(run: Path, steps: int, history: list[dict] = ()) -> tuple:
+    """(rung, seed, shaping) the run (or the exported policy) in ``run`` trained under at ``steps``
+    (its chunks' record up to there: ``history``): its stage's, from its ``config.json``, else the
+    rung and the seed its ``metadata.json`` gives (None where neither says; the shaping None, not
+    known, from a metadata file)."""
     try:
         cfg = load_config(json.loads((run / "config.json").read_text()))
-        return cfg.stage_configs()[_stage_now(cfg, steps, list(history))][1]
+        stage = cfg.stage_configs()[_stage_now(cfg, steps, list(history))][1]
+        return stage.env.rung, stage.train.seed, stage.shaping
     except (OSError, ValueError, KeyError, TypeError, IndexError):
-        return None
-
-
-def _source_stage(run: Path, steps: int, history: list[dict] = ()) -> tuple[str | None, int | None]:
-    """The rung and the seed the run (or the exported policy) in ``run`` trained under at ``steps``
-    (its chunks' record up to there: ``history``): its stage's, from its ``config.json``, else its
-    ``metadata.json``'s (None where neither says)."""
-    if (stage := _source_config(run, steps, history)) is not None:
-        return stage.env.rung, stage.train.seed
+        pass
     try:
         meta = json.loads((run / "metadata.json").read_text())
     except (OSError, ValueError):
-        return None, None
+        return None, None, None
     if not isinstance(meta, dict):
-        return None, None
+        return None, None, None
     rung, seed = meta.get("rung"), meta.get("seed")
-    return (None if rung is None else str(rung)), (seed if isinstance(seed, int) and not isinstance(seed, bool) else None)
+    seed = seed if isinstance(seed, int) and not isinstance(seed, bool) else None
+    return (None if rung is None else str(rung)), seed, None
 
 
 def _rank(rec: dict) -> tuple:

@@ -172,7 +172,10 @@ def test_the_progress_recipe_is_the_shipped_recipe_with_its_stages_started_on_pr
 
 
 def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadata(tmp_path):
-    from rventry_agents.scratch import _source_stage
+    from rventry_agents.scratch import _source_stage as source_stage
+
+    def _source_stage(*args):  # rung and seed; the shaping below
+        return source_stage(*args)[:2]
 
     run = tmp_path / "run"
     run.mkdir()
@@ -181,6 +184,10 @@ def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadat
     (run / "config.json").write_text(json.dumps(load_config({"train": {"seed": 7}, "stages": stages}).to_dict()))
     assert [_source_stage(run, n) for n in (0, 2 * CHUNK - 1, 2 * CHUNK, 4 * CHUNK)] == [
         ("standard", 7), ("standard", 7), ("standard", 2), ("flight", 2)]
+    stages[1]["shaping"] = {"potential": "energy", "fade_s": 60.0}
+    (run / "config.json").write_text(json.dumps(load_config({"train": {"seed": 7}, "stages": stages}).to_dict()))
+    assert [source_stage(run, n)[2].potential for n in (4 * CHUNK - 1, 4 * CHUNK)] == ["none", "energy"]
+    assert source_stage(run, 4 * CHUNK)[2].fade_s == 60.0
     # a stage that waited on the window: where the record says it started
     stages[0] = {"when_stalled_chunks": 4, "train": {"seed": 2}}
     (run / "config.json").write_text(json.dumps(load_config({"train": {"seed": 7}, "stages": stages}).to_dict()))
@@ -189,7 +196,7 @@ def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadat
     export = tmp_path / "export"
     export.mkdir()
     (export / "metadata.json").write_text(json.dumps({"rung": "wide", "seed": 4}))
-    assert _source_stage(export, 0) == ("wide", 4)
+    assert source_stage(export, 0) == ("wide", 4, None)
     (export / "metadata.json").write_text(json.dumps({"seed": "four"}))
     assert _source_stage(export, 0) == (None, None)
     (export / "metadata.json").write_text("{not json")
@@ -380,8 +387,9 @@ def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its
 
     plain = json.loads(json.dumps(SMALL))
     plain["shaping"] = {"potential": "none"}
-    staged = {**plain, "stages": [{"from_timesteps": 1024, "shaping": {"potential": "energy", "weight": 0.5}}]}
-    said = "every vehicle started afresh under the energy potential (0.5 per km)"
+    staged = {**plain, "stages": [{"from_timesteps": 1024, "shaping": {"potential": "energy", "weight": 0.5},
+                                   "train": {"seed": 3}}]}  # fmt: skip
+    said = "seed 3 folded into its random key, every vehicle started afresh under the energy potential (0.5 per km)"
     lines = {}
     for name, steps in (("straight", 2048), ("stopped", 1024)):
         lines[name] = []
@@ -391,7 +399,9 @@ def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its
     lines["stopped"] = []
     train_scratch(staged, out=tmp_path / "stopped", timesteps=2048, resume=True, progress=lines["stopped"].append)
     assert f"stage 1 from 1,024 steps, {said}" in lines["stopped"]
-    shaped = {**plain, "shaping": {"potential": "energy", "weight": 0.5}}
+    # a run from the checkpoint the first stage wrote on the second's first step: its key and its
+    # vehicles are the first stage's, and are entered into the second's as a straight run enters it
+    shaped = {**plain, "shaping": {"potential": "energy", "weight": 0.5}, "train": {**plain["train"], "seed": 3}}
     lines["other"] = []
     train_scratch(shaped, out=tmp_path / "other", timesteps=2048, init_from=tmp_path / "first", progress=lines["other"].append)
     assert lines["other"][0].endswith(said)
