@@ -115,6 +115,12 @@ def test_a_stage_on_the_curriculums_progress_starts_where_its_conditions_hold_an
     # the whole flight, and not before its step
     assert not second.due(7 * CHUNK, chunks, 1033.0, True) and not second.due(8 * CHUNK, chunks, 1000.0, False)
     assert second.due(8 * CHUNK, chunks, 1033.0, True)
+    # a stage that waits for chunks flown at the whole flight: the chunk that moved the window there
+    # is not one of them, and each after it is (the window cannot move further back)
+    settled = load_config({"stages": [{"when_window_complete": True, "when_stalled_chunks": 3}]}).stages[0]
+    flown = [_chunk(CHUNK, 873.0, moved=True), *(_chunk(n * CHUNK, 1033.0) for n in (2, 3, 4))]
+    assert [settled.due(n * CHUNK, flown[:n], 1033.0, True) for n in (1, 2, 3, 4)] == [False, False, False, True]
+    assert settled.waits() == "the window stood for 3 chunks, the window holds the whole flight"
     # the selection set landed by the last chunk of the stage before
     landed = [_chunk(CHUNK, 1033.0, success=0.95), _chunk(2 * CHUNK, 1033.0, success=0.5)]
     assert not third.due(0, [], 1033.0, True) and third.due(CHUNK, landed[:1], 1033.0, True)
