@@ -352,8 +352,11 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         ts = _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed)
         history, wall_before = [], 0.0
     else:
-        ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
+        # the window first: vehicles drawn afresh (a stage entered on the checkpoint's step, another
+        # rung or shaping) start where the run stands, as a stage entered straight through starts them
         trainer.curriculum.window = point.window
+        trainer.with_window()
+        ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
     first = _stage_records(history, stage) if resume else len(history)  # this stage's chunks, for what the next waits on
     ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
     # a resumed run keeps its own start; a run from another's checkpoint starts there

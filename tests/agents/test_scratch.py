@@ -380,16 +380,26 @@ def test_a_stage_on_another_rung_starts_every_vehicle_afresh_and_selects_on_that
 
 
 @pytest.mark.slow
-def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its_potential(tmp_path):
+def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its_potential(tmp_path, monkeypatch):
     """A vehicle in flight carries its state's potential; under another shaping the next step would
     pay one potential's value against another's (and a potential off before is a state without
-    one). A stage that turns the energy potential on starts every vehicle afresh, straight through,
-    stopped on the stage's first step and resumed, or as a new run from the first stage's
-    checkpoint, and the three train the same state to the byte, each vehicle now carrying a potential."""
+    one). A stage that turns the energy potential on starts every vehicle afresh in the window the
+    run has reached (moved back here after every chunk: the entry is under test, not the learning),
+    straight through, stopped on the stage's first step and resumed, or as a new run from the first
+    stage's checkpoint, and the three train the same state to the byte, each vehicle now carrying a
+    potential."""
     pytest.importorskip("rejax")
     from flax import serialization
 
     from rventry_agents.scratch import train_scratch
+
+    def moved(self, frontier_success):
+        if self.complete:
+            return False
+        self.window = min(self.window * self.c.growth, self.limit)
+        return True
+
+    monkeypatch.setattr(Curriculum, "advance", moved)
 
     plain = json.loads(json.dumps(SMALL))
     plain["shaping"] = {"potential": "none"}
@@ -411,6 +421,8 @@ def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its
     lines["other"] = []
     train_scratch(shaped, out=tmp_path / "other", timesteps=2048, init_from=tmp_path / "first", progress=lines["other"].append)
     assert lines["other"][0].endswith(said)
+    windows = [h["curriculum"]["window_s"] for h in json.loads((tmp_path / "straight" / "evaluations.json").read_text())]
+    assert windows[1] > windows[0]  # the stage started with the window moved back
     states = {name: (tmp_path / name / "checkpoint" / "train_state.msgpack").read_bytes() for name in lines}
     assert states["straight"] == states["stopped"] == states["other"]
     potential = np.asarray(_saved_field(serialization.msgpack_restore(states["straight"])["env_state"], "potential"))
