@@ -400,29 +400,25 @@ def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its
         return True
 
     monkeypatch.setattr(Curriculum, "advance", moved)
-
     plain = json.loads(json.dumps(SMALL))
     plain["shaping"] = {"potential": "none"}
-    staged = {**plain, "stages": [{"from_timesteps": 1024, "shaping": {"potential": "energy", "weight": 0.5},
-                                   "train": {"seed": 3}}]}  # fmt: skip
-    said = "seed 3 folded into its random key, every vehicle started afresh under the energy potential (0.5 per km)"
-    lines = {}
-    for name, steps in (("straight", 2048), ("stopped", 1024)):
-        lines[name] = []
-        train_scratch(staged, out=tmp_path / name, timesteps=steps, progress=lines[name].append)
-    assert f"stage 1 from 1,024 steps, {said}" in lines["straight"]
+    change = {"shaping": {"potential": "energy", "weight": 0.5}, "curriculum": {"probability": 0.5}}
+    staged = {**plain, "stages": [{"from_timesteps": 2048, **change}]}
+    said = "every vehicle started afresh under the energy potential (0.5 per km)"
+    lines = {name: [] for name in ("straight", "stopped", "other")}
+    train_scratch(staged, out=tmp_path / "straight", timesteps=3072, progress=lines["straight"].append)
+    assert f"stage 1 from 2,048 steps, {said}" in lines["straight"]
+    train_scratch(staged, out=tmp_path / "stopped", timesteps=2048, progress=lambda s: None)
     shutil.copytree(tmp_path / "stopped", tmp_path / "first")  # the first stage's run, its vehicles without a potential
-    lines["stopped"] = []
-    train_scratch(staged, out=tmp_path / "stopped", timesteps=2048, resume=True, progress=lines["stopped"].append)
-    assert f"stage 1 from 1,024 steps, {said}" in lines["stopped"]
-    # a run from the checkpoint the first stage wrote on the second's first step: its key and its
-    # vehicles are the first stage's, and are entered into the second's as a straight run enters it
-    shaped = {**plain, "shaping": {"potential": "energy", "weight": 0.5}, "train": {**plain["train"], "seed": 3}}
-    lines["other"] = []
-    train_scratch(shaped, out=tmp_path / "other", timesteps=2048, init_from=tmp_path / "first", progress=lines["other"].append)
+    train_scratch(staged, out=tmp_path / "stopped", timesteps=3072, resume=True, progress=lines["stopped"].append)
+    assert f"stage 1 from 2,048 steps, {said}" in lines["stopped"]
+    # a run from the checkpoint the first stage wrote on the second's first step: its vehicles are the
+    # first stage's, and are entered into the second's as a straight run enters it
+    shaped = {**plain, "shaping": change["shaping"], "curriculum": {**plain["curriculum"], **change["curriculum"]}}
+    train_scratch(shaped, out=tmp_path / "other", timesteps=3072, init_from=tmp_path / "first", progress=lines["other"].append)
     assert lines["other"][0].endswith(said)
     windows = [h["curriculum"]["window_s"] for h in json.loads((tmp_path / "straight" / "evaluations.json").read_text())]
-    assert windows[1] > windows[0]  # the stage started with the window moved back
+    assert windows[2] > windows[0]  # the stage started with the window moved back
     states = {name: (tmp_path / name / "checkpoint" / "train_state.msgpack").read_bytes() for name in lines}
     assert states["straight"] == states["stopped"] == states["other"]
     potential = np.asarray(_saved_field(serialization.msgpack_restore(states["straight"])["env_state"], "potential"))
