@@ -352,11 +352,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         ts = _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed)
         history, wall_before = [], 0.0
     else:
-        # the window first: vehicles drawn afresh (a stage entered on the checkpoint's step, another
-        # rung or shaping) start where the run stands, as a stage entered straight through starts them
-        trainer.curriculum.window = point.window
-        trainer.with_window()
-        ts, history, wall_before, steps = point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
+        ts, history, wall_before, steps = _restored(point, trainer)
     first = _stage_records(history, stage) if resume else len(history)  # this stage's chunks, for what the next waits on
     ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
@@ -413,6 +409,15 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     write_json(out / "metadata.json", meta)
     plot_learning_curve(history, out / "learning_curve.png", f"PPO from scratch (rejax) on the {cfg.env.rung} rung")
     return meta
+
+
+def _restored(point, trainer: Trainer):
+    """The run's state from its checkpoint (or exported policy), with the run's window set first: vehicles
+    drawn afresh (a stage entered on the checkpoint's step, another rung or shaping) start where the run
+    stands, as a stage entered straight through starts them."""
+    trainer.curriculum.window = point.window
+    trainer.with_window()
+    return point.restore(_initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
 
 
 def save_milestone(out: Path, trainer: Trainer, ts, rec: dict) -> Path:

@@ -387,7 +387,7 @@ def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its
     run has reached (moved back here after every chunk: the entry is under test, not the learning),
     straight through, stopped on the stage's first step and resumed, or as a new run from the first
     stage's checkpoint, and the three train the same state to the byte, each vehicle now carrying a
-    potential."""
+    potential. The stage's seed is folded into the random key on each path."""
     pytest.importorskip("rejax")
     from flax import serialization
 
@@ -402,9 +402,9 @@ def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its
     monkeypatch.setattr(Curriculum, "advance", moved)
     plain = json.loads(json.dumps(SMALL))
     plain["shaping"] = {"potential": "none"}
-    change = {"shaping": {"potential": "energy", "weight": 0.5}, "curriculum": {"probability": 0.5}}
+    change = {"shaping": {"potential": "energy", "weight": 0.5}, "curriculum": {"probability": 0.5}, "train": {"seed": 3}}
     staged = {**plain, "stages": [{"from_timesteps": 2048, **change}]}
-    said = "every vehicle started afresh under the energy potential (0.5 per km)"
+    said = "seed 3 folded into its random key, every vehicle started afresh under the energy potential (0.5 per km)"
     lines = {name: [] for name in ("straight", "stopped", "other")}
     train_scratch(staged, out=tmp_path / "straight", timesteps=3072, progress=lines["straight"].append)
     assert f"stage 1 from 2,048 steps, {said}" in lines["straight"]
@@ -414,7 +414,8 @@ def test_a_stage_that_turns_the_shaping_on_starts_every_vehicle_afresh_under_its
     assert f"stage 1 from 2,048 steps, {said}" in lines["stopped"]
     # a run from the checkpoint the first stage wrote on the second's first step: its vehicles are the
     # first stage's, and are entered into the second's as a straight run enters it
-    shaped = {**plain, "shaping": change["shaping"], "curriculum": {**plain["curriculum"], **change["curriculum"]}}
+    shaped = {**plain, "shaping": change["shaping"], "curriculum": {**plain["curriculum"], **change["curriculum"]},
+              "train": {**plain["train"], **change["train"]}}
     train_scratch(shaped, out=tmp_path / "other", timesteps=3072, init_from=tmp_path / "first", progress=lines["other"].append)
     assert lines["other"][0].endswith(said)
     windows = [h["curriculum"]["window_s"] for h in json.loads((tmp_path / "straight" / "evaluations.json").read_text())]
