@@ -108,6 +108,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     ship.set_defaults(func=_ship)
 
 
+def _rate(meta: dict) -> str:
+    """The training speed a run measured, or why it has none: the first chunk of a process includes the
+    compilation of its program, so a process that trained one chunk timed none."""
+    rate = meta["env_steps_per_s"]
+    return "no chunk timed after the one that compiled" if rate is None else f"{rate:,.0f} env-steps/s"
+
+
 def _run_scratch(args) -> int:
     try:
         from rventry_agents.scratch import train_scratch
@@ -117,9 +124,10 @@ def _run_scratch(args) -> int:
     meta = train_scratch(args.config, args.out, seed=args.seed, timesteps=args.timesteps, max_wall_s=args.max_wall_s,
                          resume=args.resume, init_from=args.init_from)  # fmt: skip
     best = meta["best_evaluation"]["select"] if meta["best_evaluation"] else {}
-    print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s ({meta['env_steps_per_s'] or float('nan'):,.0f} "
-          f"env-steps/s); selected policy: success {best.get('success_rate', float('nan')):.2f} on the selection set; "
-          f"written to {args.out}")  # fmt: skip
+    selected = (f"success {best['success_rate']:.2f} on the selection set" if "success_rate" in best
+                else "none (no chunk was evaluated)")
+    print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s ({_rate(meta)}); selected policy: {selected}; "
+          f"written to {args.out}")
     return 0
 
 
@@ -131,7 +139,7 @@ def _run_jax_ppo(args) -> int:
         return 2
     meta = train_jax_ppo(args.config, args.timesteps, args.seed, args.out, max_wall_s=args.max_wall_s)
     print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s (compilation {meta['compile_s']:.0f} s, "
-          f"then {meta['env_steps_per_s'] or float('nan'):,.0f} env-steps/s); written to {args.out}")
+          f"then {_rate(meta)}); written to {args.out}")
     return 0
 
 

@@ -480,6 +480,24 @@ def test_the_train_commands_refuse_a_file_as_out_and_a_config_of_another_mode(tm
     assert "bad.toml: [ppo] unknown key 'bogus_key'" in capsys.readouterr().err and not (tmp_path / "b").exists()
 
 
+def test_the_scratch_command_says_why_a_run_of_one_chunk_has_no_speed(tmp_path, capsys, monkeypatch):
+    """The first chunk a process trains includes its compilation and is not timed: a process that
+    trained one chunk (a resume for one chunk) measured no speed, and says so rather than printing
+    nan; a process with a timed chunk prints its median rate."""
+    pytest.importorskip("jax")
+    from rventry_agents import scratch
+    from rventry_env.cli import main
+
+    select = {"success_rate": 0.25}
+    for rate, said in ((None, "no chunk timed after the one that compiled"), (123456.7, "123,457 env-steps/s")):
+        meta = {"timesteps": 4096, "wall_s": 12.0, "env_steps_per_s": rate, "best_evaluation": {"select": select}}
+        monkeypatch.setattr(scratch, "train_scratch", lambda *a, meta=meta, **k: meta)
+        assert main(["train", "ppo-scratch", "--out", str(tmp_path / "run")]) == 0
+        out = capsys.readouterr().out
+        assert f"4,096 steps in 12 s ({said}); selected policy: success 0.25 on the selection set" in out
+        assert "nan" not in out
+
+
 def test_each_train_command_says_what_it_trains():
     from rventry_env.cli import build_parser
 
