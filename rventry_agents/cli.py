@@ -117,13 +117,13 @@ def _rate(meta: dict) -> str:
 
 def _run_scratch(args) -> int:
     try:
-        from rventry_agents.scratch import train_scratch
+        from rventry_agents.scratch import selected_evaluation, train_scratch
     except ImportError as exc:
         print(f"rventry train ppo-scratch needs the [jax] extra (pip install -e '.[jax]'): {exc}", file=sys.stderr)
         return 2
     meta = train_scratch(args.config, args.out, seed=args.seed, timesteps=args.timesteps, max_wall_s=args.max_wall_s,
                          resume=args.resume, init_from=args.init_from)  # fmt: skip
-    best = meta["best_evaluation"]["select"] if meta["best_evaluation"] else {}
+    best = selected_evaluation(meta["best_evaluation"]) if meta["best_evaluation"] else {}
     selected = (f"success {best['success_rate']:.2f} on the selection set" if "success_rate" in best
                 else "none (no chunk was evaluated)")
     print(f"{meta['timesteps']:,d} steps in {meta['wall_s']:.0f} s ({_rate(meta)}); selected policy: {selected}; "

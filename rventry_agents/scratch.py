@@ -228,6 +228,37 @@ def _next_stage(trainer: Trainer, cfg: ScratchConfig) -> Trainer:
     return nxt
 
 
+def _resumed_average(point, ts, history: list[dict], stage: int):
+    """A resumed run's averaged actor (``[train] policy_average``): its checkpoint's, unless the run
+    enters its stage now (it stopped on the stage's first step), where the average starts afresh."""
+    entering = bool(history) and history[-1].get("stage", 0) < stage
+    return None if entering else point.average(ts.actor_ts.params)
+
+
+def _average_flown(trainer: Trainer, ts, rec: dict, average):
+    """After a chunk, under ``[train] policy_average``: the averaged actor brought up to the chunk's,
+    its flight of the selection set recorded in ``rec`` (``average``); None without an average."""
+    b = trainer.cfg.train.policy_average
+    if not b:
+        return None
+    average = _averaged(average, ts.actor_ts.params, b)
+    rec["average"] = {"select": trainer.select(with_actor(ts, average))}
+    return average
+
+
+def _averaged(average, params, b: float):
+    """The exponential average of the actor's parameters after a chunk whose actor has ``params``:
+    ``b`` times ``average`` (None: none yet, so the chunk's own) plus 1 - ``b`` times ``params``."""
+    import jax
+
+    return params if average is None else jax.tree_util.tree_map(lambda a, p: b * a + (1 - b) * p, average, params)
+
+
+def with_actor(ts, params):
+    """The training state with the actor's parameters ``params`` (all else as it was)."""
+    return ts.replace(actor_ts=ts.actor_ts.replace(params=params))
+
+
 def with_log_std(ts, log_std: float):
     """The training state with the exploration noise's log standard deviation set to ``log_std``
     in every action dimension (the rest of the state, the optimizer's included, as it was)."""
@@ -332,13 +363,7 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
 
 
 def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path | None = None) -> dict:
-    from rventry_agents.scratch_state import (
-        Checkpoint,
-        PolicyStart,
-        plot_learning_curve,
-        read_start,
-        record_chunk,
-    )
+    from rventry_agents.scratch_state import Checkpoint, PolicyStart, plot_learning_curve, read_start, record_chunk
 
     start = out if resume else source  # the checkpoint (or the exported policy) this run goes on from, if any
     point = None if start is None else read_start(start)
@@ -354,6 +379,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     else:
         ts, history, wall_before, steps = _restored(point, trainer)
     first = _stage_records(history, stage) if resume else len(history)  # this stage's chunks, for what the next waits on
+    average = _resumed_average(point, ts, history, stage) if resume else None  # afresh from another's checkpoint
     ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
@@ -376,6 +402,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
             before = stages[stage - 1][1]
             ts, changes = _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping)
             best = _best(history, trainer.cfg.env.rung)
+            average = None  # a stage averages its own chunks' actors
             waited = cfg.stages[stage - 1].waits()
             progress(f"stage {stage} from {steps:,d} steps{changes}" + (f" ({waited})" if waited else ""))
             compiles = True
@@ -391,17 +418,18 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         if cfg.stages:
             rec["stage"] = stage
         rec["rung"] = trainer.cfg.env.rung
+        average = _average_flown(trainer, ts, rec, average)
         history.append(rec)
-        if best is None or _rank(rec) > _rank(best):
+        if best is None or chunk_rank(rec) > chunk_rank(best):
             best = rec
             rec["best"] = True
-            trainer.env.export(out / "policy.npz", trainer.algo, ts)
+            trainer.env.export(out / "policy.npz", trainer.algo, with_actor(ts, average) if _by_average(rec) else ts)
         c = rec.get("curriculum")
         if c and c["next_window_s"] > c["window_s"]:
             save_milestone(out, trainer, ts, rec)
         progress(_line(rec, trainer.cfg.curriculum.advance_at))
         write_json(out / "evaluations.json", history)
-        Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps, trainer.init_from)
+        Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps, trainer.init_from, average)
         budget = cfg.train.max_wall_s
         if budget is not None and rec["wall_s"] >= budget:
             break
@@ -502,7 +530,7 @@ def _best(history: list[dict], rung: str) -> dict | None:
     """The best of the chunks evaluated on ``rung``'s selection set (a chunk recorded without its
     rung is one of a run that never changed it)."""
     on_rung = [h for h in history if h.get("rung", rung) == rung]
-    return max(on_rung, key=_rank) if on_rung else None
+    return max(on_rung, key=chunk_rank) if on_rung else None
 
 
 def _stage_now(cfg: ScratchConfig, steps: int, history: list[dict]) -> int:
@@ -541,17 +569,38 @@ def _source_stage(run: Path, steps: int, history: list[dict] = ()) -> tuple:
     return (None if rung is None else str(rung)), seed, None
 
 
-def _rank(rec: dict) -> tuple:
+def _key(selection: dict) -> tuple:
     """How a selection evaluation ranks: success rate, then a smaller median miss."""
     from rventry_env.evaluation.summary import task_metric_key
 
-    return task_metric_key(rec["select"]["success_rate"], rec["select"]["miss_km_p50"])
+    return task_metric_key(selection["success_rate"], selection["miss_km_p50"])
+
+
+def _by_average(rec: dict) -> bool:
+    """Whether a chunk's averaged actor ranks above its own (``[train] policy_average``; a tie goes
+    to the chunk's own)."""
+    average = rec.get("average", {}).get("select")
+    return average is not None and _key(average) > _key(rec["select"])
+
+
+def selected_evaluation(rec: dict) -> dict:
+    """The selection evaluation of the policy a chunk's record offers: the chunk's own actor's, or
+    its averaged actor's where that ranks better (what the run exports when the chunk is its best)."""
+    return rec["average"]["select"] if _by_average(rec) else rec["select"]
+
+
+def chunk_rank(rec: dict) -> tuple:
+    """How a chunk ranks: by the better of its policies on the selection set (:func:`selected_evaluation`)."""
+    return _key(selected_evaluation(rec))
 
 
 def _line(rec: dict, bar: float) -> str:
     s, c = rec["select"], rec.get("curriculum") or {}
     front = f"  window {c['window_s']:5.0f} s frontier {c['frontier_success']:.2f}{_unmet(c, bar)}" if c else ""
     front += "  probes " + " ".join(f"{k}:{v:.2f}" for k, v in rec.get("probes", {}).items())
+    if "average" in rec:
+        a = rec["average"]["select"]
+        front += f"  average: success {a['success_rate']:.2f} miss p50 {a['miss_km_p50']:.1f} km"
     return (f"{rec['timesteps']:>12,d} steps {rec['wall_s']:7.0f} s  success {s['success_rate']:.2f}  miss p50 "
             f"{s['miss_km_p50']:7.1f} km  vertical p50 {s['vertical_error_deg_p50']:5.1f} deg{front}"
             + ("  *best*" if rec.get("best") else ""))  # fmt: skip
@@ -594,9 +643,11 @@ def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, r
         "actions": cfg.env.actions, "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": steps,
         "wall_s": history[-1]["wall_s"] if history else 0.0, "env_steps_per_s": rate, "device": str(jax.devices()[0]),
         "train_compilations": len(trainer.traces), "package_version": __version__,
-        "provenance": _provenance(trainer, steps, selected_at_timesteps=best["timesteps"] if best else None),
+        "provenance": _provenance(trainer, steps, selected_at_timesteps=best["timesteps"] if best else None,
+                                  **({"selected_policy": "the average of the chunks' actors"} if best and _by_average(best) else {})),
         "best_evaluation": best, "final_window_s": trainer.curriculum.window,
     }  # fmt: skip
 
 
-__all__ = ["Curriculum", "Trainer", "make_shaping", "save_milestone", "train_scratch"]
+__all__ = ["Curriculum", "Trainer", "chunk_rank", "make_shaping", "save_milestone", "selected_evaluation", "train_scratch",
+           "with_actor"]  # fmt: skip

@@ -160,7 +160,15 @@ class TrainSection(Section):
     own episodes (keys from ``select_seed``, never the evaluation's seeds) and the best by the task
     metric (success rate, then median miss) is kept. A run started from another run's checkpoint
     (``init_from``) under another ``seed`` folds it into the checkpoint's random key; under the
-    same seed it draws what the other run would have drawn next."""
+    same seed it draws what the other run would have drawn next.
+
+    ``policy_average`` b > 0: the run also keeps the exponential average of the actor's parameters
+    over its chunks (after each chunk, b times the average before plus 1 - b times the chunk's
+    actor), flies that average on the selection set too, and keeps whichever of the two policies
+    ranks better (weight averaging: where the chunks' policies swing about a landing, their average
+    may land steadier than any one of them). Training goes on from the chunk's own networks. The
+    average starts afresh at each stage and at a run started from another's checkpoint; a resumed
+    run goes on with its own. Not given: no average."""
 
     total_timesteps: int = setting(200_000_000, ge=1)
     chunk_timesteps: int = setting(4_194_304, ge=1)
@@ -168,6 +176,7 @@ class TrainSection(Section):
     select_episodes: int = setting(256, ge=1)
     select_seed: int = setting(100_000, ge=0)
     max_wall_s: float | None = setting(None, gt=0)
+    policy_average: float | None = setting(None, gt=0, lt=1)
 
 
 # what a stage may not change: what sizes the training state (the network, the environments, the

@@ -81,9 +81,13 @@ def record_chunk(trainer, ts, steps: int, wall_s: float, chunk_s: float) -> dict
     return rec
 
 
+AVERAGE = "average.msgpack"  # in the checkpoint: the actor's parameters averaged over chunks ([train] policy_average)
+
+
 class Checkpoint:
     """``checkpoint/``: the training state (flax's msgpack), the curriculum's window and the history,
-    written whole after each chunk (a new folder renamed over the old)."""
+    and the average of the actor's parameters where the run keeps one, written whole after each
+    chunk (a new folder renamed over the old)."""
 
     def __init__(self, out: Path, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None):
         self.out, self.window, self.history, self.wall_s, self.steps = out, window, history, wall_s, steps
@@ -96,13 +100,16 @@ class Checkpoint:
         return out if self.init_from is None else {**out, "init_from": self.init_from}
 
     @staticmethod
-    def write(out: Path, ts, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None) -> None:
+    def write(out: Path, ts, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None,
+              average=None) -> None:  # fmt: skip
         from flax import serialization
 
         tmp, final, old = out / f"{CHECKPOINT}.tmp", out / CHECKPOINT, out / f"{CHECKPOINT}.old"
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
         atomic_write(tmp / "train_state.msgpack", serialization.to_bytes(ts))
+        if average is not None:
+            atomic_write(tmp / AVERAGE, serialization.to_bytes(average))
         state = {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history}
         write_json(tmp / "state.json", state if init_from is None else {**state, "init_from": init_from})
         shutil.rmtree(old, ignore_errors=True)
@@ -151,6 +158,27 @@ class Checkpoint:
                                   "match)")  # fmt: skip
         return ts, self.history, self.wall_s, self.steps
 
+    def average(self, template):
+        """The average of the actor's parameters the checkpoint holds (None where it holds none);
+        ``template`` the actor's parameters, for their structure."""
+        from flax import serialization
+
+        path = self.out / CHECKPOINT / AVERAGE
+        if not path.is_file():
+            return None
+        try:
+            average = serialization.from_bytes(template, path.read_bytes())
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ConfigError(f"cannot start from {self.out}: {path} is not an average of this config's actor "
+                              f"({type(exc).__name__}: {exc})") from None  # fmt: skip
+        import jax
+
+        for (where, want), have in zip(jax.tree_util.tree_flatten_with_path(template)[0], jax.tree_util.tree_leaves(average)):
+            if np.shape(want) != np.shape(have):
+                raise ConfigError(f"cannot start from {self.out}: its averaged actor's {jax.tree_util.keystr(where)} has "
+                                  f"shape {np.shape(have)} and this config's {np.shape(want)}")  # fmt: skip
+        return average
+
 
 class PolicyStart:
     """An exported policy (``policy.npz`` and its ``metadata.json``: a run's selected policy, or a
@@ -196,6 +224,10 @@ class PolicyStart:
         if "selected_at_timesteps" in p:
             out["selected_at_timesteps"] = int(p["selected_at_timesteps"])
         return out if self.init_from is None else {**out, "init_from": self.init_from}
+
+    def average(self, template) -> None:
+        """An export holds no average of the actor's parameters."""
+        return None
 
     def check(self, cfg) -> None:
         """Refuse a config the policy cannot go on under: other actions, activation or command time."""
@@ -311,6 +343,9 @@ def plot_learning_curve(history: list[dict], path: Path, title: str) -> Path | N
     ax[0].plot(steps, [s["success_rate"] for s in sel], "o-", ms=3, label="success")
     ax[0].plot(steps, [s["miss_within_rate"] for s in sel], "-", lw=1, label="miss <= 5 km")
     ax[0].plot(steps, [s["vertical_within_rate"] for s in sel], "-", lw=1, label="vertical <= 5 deg")
+    if any("average" in h for h in history):  # [train] policy_average: the averaged actor's flight as well
+        ax[0].plot(steps, [h["average"]["select"]["success_rate"] if "average" in h else np.nan for h in history],
+                   "s--", ms=3, lw=1, label="success, averaged actor")  # fmt: skip
     ax[0].set(xlabel="environment steps (M)", ylabel="share of selection episodes", ylim=(-0.02, 1.02))
     ax[0].legend(fontsize=7, loc="upper left")
     ax[1].semilogy(steps, [max(s["miss_km_p50"], 1e-2) for s in sel], "o-", ms=3)
