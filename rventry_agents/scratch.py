@@ -228,11 +228,13 @@ def _next_stage(trainer: Trainer, cfg: ScratchConfig) -> Trainer:
     return nxt
 
 
-def _resumed_average(point, ts, history: list[dict], stage: int):
-    """A resumed run's averaged actor (``[train] policy_average``): its checkpoint's, unless the run
-    enters its stage now (it stopped on the stage's first step), where the average starts afresh."""
-    entering = bool(history) and history[-1].get("stage", 0) < stage
-    return None if entering else point.average(ts.actor_ts.params)
+def _restored_average(point, ts, history: list[dict], rung: str):
+    """The averaged actor (``[train] policy_average``) a run goes on with from ``point`` (its own
+    checkpoint or another run's, with its chunks' records ``history``): the checkpoint's, unless its
+    last chunk flew another rung than ``rung``, where the average starts afresh (None)."""
+    if point is None or not history or history[-1].get("rung", rung) != rung:
+        return None
+    return point.average(ts.actor_ts.params)
 
 
 def _average_flown(trainer: Trainer, ts, rec: dict, average):
@@ -379,7 +381,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     else:
         ts, history, wall_before, steps = _restored(point, trainer)
     first = _stage_records(history, stage) if resume else len(history)  # this stage's chunks, for what the next waits on
-    average = _resumed_average(point, ts, history, stage) if resume else None  # afresh from another's checkpoint
+    average = _restored_average(point, ts, history, trainer.cfg.env.rung)
     ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
@@ -402,7 +404,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
             before = stages[stage - 1][1]
             ts, changes = _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping)
             best = _best(history, trainer.cfg.env.rung)
-            average = None  # a stage averages its own chunks' actors
+            average = average if trainer.cfg.env.rung == before.env.rung else None  # a rung's own chunks averaged
             waited = cfg.stages[stage - 1].waits()
             progress(f"stage {stage} from {steps:,d} steps{changes}" + (f" ({waited})" if waited else ""))
             compiles = True

@@ -167,8 +167,9 @@ class TrainSection(Section):
     actor), flies that average on the selection set too, and keeps whichever of the two policies
     ranks better (weight averaging: where the chunks' policies swing about a landing, their average
     may land steadier than any one of them). Training goes on from the chunk's own networks. The
-    average starts afresh at each stage and at a run started from another's checkpoint; a resumed
-    run goes on with its own. Not given: no average."""
+    average goes on through the stages, a resume and a run started from another's checkpoint, and
+    starts afresh where the rung changes (another selection set) or a stage turns it on. Not given:
+    no average."""
 
     total_timesteps: int = setting(200_000_000, ge=1)
     chunk_timesteps: int = setting(4_194_304, ge=1)

@@ -623,7 +623,8 @@ def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
         load_saved(str(tmp_path / "nothing_here"))
 
 
-SHIPPED_CONFIGS = ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_late.toml", "ppo_scratch_progress.toml"]
+SHIPPED_CONFIGS = ["ppo_scratch.toml", "ppo_scratch_gpu.toml", "ppo_scratch_landing.toml", "ppo_scratch_late.toml",
+                   "ppo_scratch_progress.toml"]
 
 
 @pytest.mark.parametrize("name", SHIPPED_CONFIGS)

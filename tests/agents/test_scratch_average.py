@@ -50,7 +50,7 @@ def test_a_chunk_ranks_by_the_better_of_its_own_actor_and_its_average_and_a_tie_
 
 def test_the_checkpoint_keeps_the_average_and_gives_it_back_or_none_or_refuses_another_shape(tmp_path):
     pytest.importorskip("flax")
-    from rventry_agents.scratch import _resumed_average
+    from rventry_agents.scratch import _restored_average
     from rventry_agents.scratch_state import AVERAGE, CHECKPOINT, Checkpoint
 
     actor = {"params": {"Dense_0": {"kernel": np.arange(6.0).reshape(2, 3), "bias": np.zeros(3)}}}
@@ -66,8 +66,10 @@ def test_the_checkpoint_keeps_the_average_and_gives_it_back_or_none_or_refuses_a
         class actor_ts:
             params = zeros
 
-    assert _resumed_average(point, TS, point.history, 1)["params"]["Dense_0"]["kernel"][1, 2] == 5.0
-    assert _resumed_average(point, TS, point.history, 2) is None  # resumed on its next stage's first step: afresh
+    assert _restored_average(point, TS, point.history, "standard")["params"]["Dense_0"]["kernel"][1, 2] == 5.0
+    # its last chunk flew another rung (another selection set) than the run goes on with: afresh
+    assert _restored_average(point, TS, [{"timesteps": 7, "rung": "standard"}], "wide") is None
+    assert _restored_average(None, TS, [], "standard") is None
     wider = {"params": {"Dense_0": {"kernel": np.zeros((2, 4)), "bias": np.zeros(4)}}}
     with pytest.raises(ConfigError, match=r"averaged actor's .*bias.* has shape \(3,\) and this config's \(4,\)"):
         point.average(wider)
