@@ -15,6 +15,13 @@ NUMPY_CASES = [name for name, case in CASES.items() if case[0] == "numpy"]
 JAX_CASES = [name for name, case in CASES.items() if case[0] == "jax"]
 
 
+# the Earth-fixed position and the navigation state go through numpy's vectorised trigonometric
+# functions, whose last bits depend on the processor's SIMD instructions (the fixture's processor
+# and an AVX-512 one differ there by 2-72 units in the last place, under 2e-15 of each value): those
+# two are held to 1e-13 of what was recorded, every other array to the bit
+PROCESSOR_DEPENDENT = ("r_ecef_m", "navigation_state")
+
+
 def _assert_recorded(name: str) -> None:
     recorded = np.load(FIXTURE)
     flown = rollout(*CASES[name])
@@ -22,6 +29,9 @@ def _assert_recorded(name: str) -> None:
     for k, v in flown.items():
         want = recorded[f"{name}/{k}"]
         assert v.dtype == want.dtype and v.shape == want.shape, (k, v.dtype, want.dtype, v.shape, want.shape)
+        if k in PROCESSOR_DEPENDENT:
+            np.testing.assert_allclose(v, want, rtol=1e-13, atol=0, equal_nan=True, err_msg=f"{name} {k}")
+            continue
         same = np.array_equal(v, want) if v.dtype.kind in "bUiu" else np.array_equal(v, want, equal_nan=True)
         assert same, (name, k, np.argwhere(v != want)[:5])
 
