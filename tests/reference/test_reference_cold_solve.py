@@ -6,9 +6,11 @@ from rventry_env.reference import load_reference
 
 
 @pytest.mark.slow
+# not strict: which optimum the cold first mesh lands on turns on the 14th digit of the guess, so on
+# the processors where it lands on the shipped one (an AVX-512 machine) the test passes
 @pytest.mark.xfail(
-    strict=True,
-    reason="fragile first pass: from the best simulated flight as this platform rounds it (14th digit), the cold "
+    strict=False,
+    reason="fragile first pass: from the best simulated flight as some platforms round it (14th digit), the cold "
     "first mesh lands on a local optimum (J = 2.375 after 164 iterations) that refines to a converged J = 2.380528, "
     "tf = 814.4 s; the shipped optimum came from the same code under other rounding",
 )
