@@ -131,7 +131,6 @@ class Checkpoint:
     def restore(self, template):
         """(training state, history, wall time, steps) from the checkpoint; ``template`` a fresh
         training state of the config that goes on (its structure and every array's shape)."""
-        import jax
         from flax import serialization
 
         path = self.out / CHECKPOINT / "train_state.msgpack"
@@ -149,13 +148,11 @@ class Checkpoint:
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ConfigError(f"cannot start from {self.out}: {path} does not hold this config's training state "
                               f"({type(exc).__name__}: {exc})") from None  # fmt: skip
-        got = jax.tree_util.tree_flatten_with_path(ts)[0]
-        for (where, want), (_, have) in zip(jax.tree_util.tree_flatten_with_path(template)[0], got):
-            if np.shape(want) != np.shape(have):
-                raise ConfigError(f"cannot start from {self.out}: its training state does not fit this config: "
-                                  f"{jax.tree_util.keystr(where)} has shape {np.shape(have)} there and "
-                                  f"{np.shape(want)} here (the network, num_envs and the algorithm's sizes must "
-                                  "match)")  # fmt: skip
+        if misfit := _misfit(template, ts):
+            where, have, want = misfit
+            raise ConfigError(f"cannot start from {self.out}: its training state does not fit this config: "
+                              f"{where} has shape {have} there and {want} here (the network, num_envs and the "
+                              "algorithm's sizes must match)")  # fmt: skip
         return ts, self.history, self.wall_s, self.steps
 
     def average(self, template):
@@ -171,13 +168,22 @@ class Checkpoint:
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ConfigError(f"cannot start from {self.out}: {path} is not an average of this config's actor "
                               f"({type(exc).__name__}: {exc})") from None  # fmt: skip
-        import jax
-
-        for (where, want), have in zip(jax.tree_util.tree_flatten_with_path(template)[0], jax.tree_util.tree_leaves(average)):
-            if np.shape(want) != np.shape(have):
-                raise ConfigError(f"cannot start from {self.out}: its averaged actor's {jax.tree_util.keystr(where)} has "
-                                  f"shape {np.shape(have)} and this config's {np.shape(want)}")  # fmt: skip
+        if misfit := _misfit(template, average):
+            where, have, want = misfit
+            raise ConfigError(f"cannot start from {self.out}: its averaged actor's {where} has shape {have} and this "
+                              f"config's {want}")  # fmt: skip
         return average
+
+
+def _misfit(template, tree):
+    """The first array of ``tree`` whose shape is not its place's in ``template``, as (where, its shape,
+    the template's); None where every shape fits."""
+    import jax
+
+    for (where, want), have in zip(jax.tree_util.tree_flatten_with_path(template)[0], jax.tree_util.tree_leaves(tree)):
+        if np.shape(want) != np.shape(have):
+            return jax.tree_util.keystr(where), np.shape(have), np.shape(want)
+    return None
 
 
 class PolicyStart:

@@ -186,7 +186,7 @@ def history(folder: Path) -> dict:
     reached = {}
     for w, steps in windows:
         reached.setdefault(f"{w:.0f}", steps)
-    best = max(hist, key=chunk_rank)  # as training selects
+    best = selected_evaluation(max(hist, key=chunk_rank))  # as training selects
     load_config(config)  # checked: a run of this trainer
     state = folder / "checkpoint" / "state.json"  # a run started from another's checkpoint names it there
     start = json.loads(state.read_text()).get("init_from") if state.is_file() else None
@@ -194,8 +194,8 @@ def history(folder: Path) -> dict:
             "timesteps": last["timesteps"], "wall_s": last["wall_s"],
             "window_s": windows[-1][0] if windows else None, "window_reached_at": reached,
             "frontier_success": last["curriculum"]["frontier_success"] if last.get("curriculum") else None,
-            "probes": last.get("probes", {}), "select_success": selected_evaluation(best)["success_rate"],
-            "select_miss_km_p50": selected_evaluation(best)["miss_km_p50"],
+            "probes": last.get("probes", {}), "select_success": best["success_rate"],
+            "select_miss_km_p50": best["miss_km_p50"],
             "exploration_std": last.get("exploration_std")}  # fmt: skip
 
 
