@@ -83,7 +83,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     sc.add_argument("--resume", action="store_true", help="go on with the interrupted run in --out from its checkpoint")
     sc.add_argument("--init-from", metavar="RUN",
                     help="start from another run's checkpoint (its training state, window and history) under this "
-                         "config, in a new --out: a changed curriculum or learning rate from where that run stood; "
+                         "config, in a new --out: a changed curriculum or learning rate from where that run stood "
+                         "(RUN/selected: from its selected chunk); "
                          "or from an exported policy (a folder with policy.npz and metadata.json, a shipped one "
                          "included): its actor and observation statistics, with a new critic")
     sc.set_defaults(func=_run_scratch)

@@ -21,7 +21,11 @@ data, so every chunk runs the first one's program. After each chunk the run:
   ``milestones/window_<W>s/`` (later chunks may forget the late flight while they learn further back);
 * writes ``checkpoint/`` whole (the training state, the curriculum, the history), from which
   ``resume=True`` goes on after an interruption, and from which another run may start under a
-  changed config (``init_from``: a new curriculum or learning rate from where this run stood).
+  changed config (``init_from``: a new curriculum or learning rate from where this run stood);
+* where the chunk is the best so far, copies that checkpoint to ``selected/`` with the run's
+  config: a later stage (another rung, a smaller step) starts from the selected policy with its
+  own critic, optimizer moments and reward statistics (``init_from=RUN/selected``), which an
+  export alone does not carry.
 
 A run writes into its output directory ``policy.npz`` (the selected actor,
 :class:`~rventry_agents.jax_policy.JaxPolicy` flies it), ``evaluations.json``,
@@ -432,6 +436,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         progress(_line(rec, trainer.cfg.curriculum.advance_at))
         write_json(out / "evaluations.json", history)
         Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps, trainer.init_from, average)
+        if rec.get("best"):
+            Checkpoint.keep_selected(out)
         budget = cfg.train.max_wall_s
         if budget is not None and rec["wall_s"] >= budget:
             break

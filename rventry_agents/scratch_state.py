@@ -12,6 +12,10 @@ from rventry_agents.config import ConfigError
 from rventry_env.util.files import atomic_write, save_figure, write_json
 
 CHECKPOINT = "checkpoint"
+# the run's state at its selected chunk (the one its policy.npz was exported from): a checkpoint and
+# the run's config, so that ``--init-from RUN/selected`` goes on from the selected policy with its own
+# critic, optimizer moments and reward statistics
+SELECTED = "selected"
 # windows (s before impact) whose success is recorded after each chunk: where along the flight the policy lands from
 PROBES = ((30.0, 60.0), (150.0, 200.0), (450.0, 550.0))
 
@@ -112,11 +116,19 @@ class Checkpoint:
             atomic_write(tmp / AVERAGE, serialization.to_bytes(average))
         state = {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history}
         write_json(tmp / "state.json", state if init_from is None else {**state, "init_from": init_from})
-        shutil.rmtree(old, ignore_errors=True)
-        if final.exists():
-            final.rename(old)
-        tmp.rename(final)
-        shutil.rmtree(old, ignore_errors=True)
+        _swap_in(tmp, final, old)
+
+    @staticmethod
+    def keep_selected(out: Path) -> Path:
+        """Copy the checkpoint just written, with the run's ``config.json``, to ``out/selected/`` (a
+        new folder renamed over the old): the state of the chunk whose policy the run has just
+        exported. Returns the folder."""
+        tmp, final, old = out / f"{SELECTED}.tmp", out / SELECTED, out / f"{SELECTED}.old"
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.copytree(out / CHECKPOINT, tmp / CHECKPOINT)
+        shutil.copy2(out / "config.json", tmp / "config.json")
+        _swap_in(tmp, final, old)
+        return final
 
     @classmethod
     def read(cls, out: Path) -> Checkpoint:
@@ -173,6 +185,16 @@ class Checkpoint:
             raise ConfigError(f"cannot start from {self.out}: its averaged actor's {where} has shape {have} and this "
                               f"config's {want}")  # fmt: skip
         return average
+
+
+def _swap_in(tmp: Path, final: Path, old: Path) -> None:
+    """Put the folder written whole at ``tmp`` in place of ``final`` (the one before kept aside at
+    ``old`` until the new one is in)."""
+    shutil.rmtree(old, ignore_errors=True)
+    if final.exists():
+        final.rename(old)
+    tmp.rename(final)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 def _misfit(template, tree):

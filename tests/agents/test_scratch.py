@@ -466,7 +466,7 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     assert jax.config.jax_enable_x64
 
     from rventry_agents.jax_policy import JaxPolicy
-    from rventry_agents.scratch import Trainer, _initial_state, save_milestone, train_scratch
+    from rventry_agents.scratch import Trainer, _initial_state, chunk_rank, save_milestone, train_scratch
     from rventry_env.evaluation.agents import load_agent
     from rventry_env.evaluation.rollout import rollout
     from rventry_env.evaluation.rungs import rung_starts
@@ -478,10 +478,17 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     for name in ("policy.npz", "evaluations.json", "config.json", "metadata.json", "learning_curve.png"):
         assert (out / name).is_file(), name
     assert meta["provenance"]["start"] == "scratch" and meta["task"] == TASK.record()
+    # the first chunk is the best so far: its checkpoint is kept as the selected state, with the config
+    kept_dir = out / "selected"
+    assert (kept_dir / "checkpoint" / "train_state.msgpack").read_bytes() == (
+        out / "checkpoint" / "train_state.msgpack").read_bytes()
+    assert (kept_dir / "config.json").read_text() == (out / "config.json").read_text()
     # resume to the full budget: the history goes on from the first chunk
     meta = train_scratch(half, out=out, timesteps=2048, resume=True, progress=lambda s: None)
     hist = json.loads((out / "evaluations.json").read_text())
     assert [h["timesteps"] for h in hist] == [1024, 2048] and meta["timesteps"] == 2048
+    kept_at = json.loads((kept_dir / "checkpoint" / "state.json").read_text())["timesteps"]
+    assert kept_at == meta["provenance"]["selected_at_timesteps"] == max(hist, key=chunk_rank)["timesteps"]
     with pytest.raises(ValueError, match="already holds a run"):
         train_scratch(SMALL, out=out, progress=lambda s: None)
     changed = json.loads(json.dumps(SMALL))
@@ -549,6 +556,11 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     wider["ppo"]["hidden_layer_sizes"] = [24, 16]
     with pytest.raises(ConfigError, match=r"cannot start from .*run: .*training state"):
         train_scratch(wider, out=tmp_path / "wider", init_from=out, progress=lambda s: None)
+    # a run from the selected state starts at the selected chunk's step
+    meta = train_scratch(SMALL, out=tmp_path / "from_selected", timesteps=kept_at + 1024, init_from=kept_dir,
+                         progress=lambda s: None)  # fmt: skip
+    assert meta["provenance"]["init_from"]["run"] == str(kept_dir)
+    assert meta["provenance"]["init_from"]["timesteps"] == kept_at and meta["timesteps"] == kept_at + 1024
     with pytest.raises(ValueError, match="is the new run's own --out"):
         train_scratch(SMALL, out=out, init_from=out, progress=lambda s: None)
     with pytest.raises(ValueError, match="holds no checkpoint/ .* and no policy.npz"):
@@ -607,6 +619,29 @@ def _as_before_the_rename(path):
 
     path.write_bytes(serialization.msgpack_serialize(back(serialization.msgpack_restore(path.read_bytes()))))
     assert renamed  # the state held the field
+
+
+def test_the_selected_state_is_the_checkpoint_it_was_copied_from_and_a_run_starts_from_it(tmp_path):
+    """``selected/`` replaces the one before whole, and reads as a start at its own step and stage."""
+    from rventry_agents.scratch import _source_stage
+    from rventry_agents.scratch_state import Checkpoint, read_start
+
+    run = tmp_path / "run"
+    staged = {**SMALL, "stages": [{"from_timesteps": 2048, "env": {"rung": "standard"}}]}
+    run.mkdir()
+    (run / "config.json").write_text(json.dumps(load_config(staged).to_dict()))
+    for steps, rung in ((1024, "late"), (3072, "standard")):
+        history = [{"timesteps": s, "rung": rung} for s in range(1024, steps + 1, 1024)]
+        Checkpoint.write(run, {"step": np.arange(steps)}, 40.0, history, 1.5 * steps, steps)
+        kept = Checkpoint.keep_selected(run)
+        point = read_start(kept)
+        assert isinstance(point, Checkpoint) and point.steps == steps and point.history == history
+        assert point.origin() == {"run": str(kept), "timesteps": steps, "window_s": 40.0}
+        assert (kept / "checkpoint" / "train_state.msgpack").read_bytes() == (
+            run / "checkpoint" / "train_state.msgpack").read_bytes()
+        # what a run from it enters as the stage before: the selected chunk's own
+        assert _source_stage(kept, steps - 1, history)[0] == rung
+    assert sorted(p.name for p in run.iterdir()) == ["checkpoint", "config.json", "selected"]
 
 
 def test_an_exported_policy_that_is_not_one_is_refused(tmp_path):
