@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -108,27 +109,23 @@ class Checkpoint:
               average=None) -> None:  # fmt: skip
         from flax import serialization
 
-        tmp, final, old = out / f"{CHECKPOINT}.tmp", out / CHECKPOINT, out / f"{CHECKPOINT}.old"
-        shutil.rmtree(tmp, ignore_errors=True)
-        tmp.mkdir(parents=True)
-        atomic_write(tmp / "train_state.msgpack", serialization.to_bytes(ts))
-        if average is not None:
-            atomic_write(tmp / AVERAGE, serialization.to_bytes(average))
-        state = {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history}
-        write_json(tmp / "state.json", state if init_from is None else {**state, "init_from": init_from})
-        _swap_in(tmp, final, old)
+        with _written_whole(out / CHECKPOINT) as tmp:
+            tmp.mkdir(parents=True)
+            atomic_write(tmp / "train_state.msgpack", serialization.to_bytes(ts))
+            if average is not None:
+                atomic_write(tmp / AVERAGE, serialization.to_bytes(average))
+            state = {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history}
+            write_json(tmp / "state.json", state if init_from is None else {**state, "init_from": init_from})
 
     @staticmethod
     def keep_selected(out: Path) -> Path:
         """Copy the checkpoint just written, with the run's ``config.json``, to ``out/selected/`` (a
         new folder renamed over the old): the state of the chunk whose policy the run has just
         exported. Returns the folder."""
-        tmp, final, old = out / f"{SELECTED}.tmp", out / SELECTED, out / f"{SELECTED}.old"
-        shutil.rmtree(tmp, ignore_errors=True)
-        shutil.copytree(out / CHECKPOINT, tmp / CHECKPOINT)
-        shutil.copy2(out / "config.json", tmp / "config.json")
-        _swap_in(tmp, final, old)
-        return final
+        with _written_whole(out / SELECTED) as tmp:
+            shutil.copytree(out / CHECKPOINT, tmp / CHECKPOINT)
+            shutil.copy2(out / "config.json", tmp / "config.json")
+        return out / SELECTED
 
     @classmethod
     def read(cls, out: Path) -> Checkpoint:
@@ -187,9 +184,14 @@ class Checkpoint:
         return average
 
 
-def _swap_in(tmp: Path, final: Path, old: Path) -> None:
-    """Put the folder written whole at ``tmp`` in place of ``final`` (the one before kept aside at
-    ``old`` until the new one is in)."""
+@contextmanager
+def _written_whole(final: Path):
+    """A folder written whole: the block writes it at the path this yields (``final`` with ``.tmp``),
+    which then takes ``final``'s place (the one before kept aside as ``.old`` until the new one is in);
+    a block that raises leaves ``final`` as it was."""
+    tmp, old = final.with_name(f"{final.name}.tmp"), final.with_name(f"{final.name}.old")
+    shutil.rmtree(tmp, ignore_errors=True)
+    yield tmp
     shutil.rmtree(old, ignore_errors=True)
     if final.exists():
         final.rename(old)
