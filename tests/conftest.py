@@ -1,4 +1,5 @@
-"""Shared test set-up: one BLAS thread, a deterministic hypothesis profile and a headless matplotlib."""
+"""Shared test set-up: one BLAS thread, a shared cache of compiled XLA programs, a deterministic hypothesis
+profile and a headless matplotlib."""
 
 import os
 import sys
@@ -8,6 +9,16 @@ import sys
 NUMPY_LOADED_BEFORE_CONFTEST = "numpy" in sys.modules
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", os.environ["OMP_NUM_THREADS"])
+
+# XLA's compiled programs kept on disk and shared by every test process (both tiers, their xdist workers
+# and the CLI's subprocesses): the training tests build the same programs in run after run, and a
+# cached one loads in well under a second where compiling it takes tens. JAX keys each entry on the
+# program, its compile options and flags, and the jax/jaxlib versions, so a changed program compiles
+# afresh. A developer's own JAX_COMPILATION_CACHE_DIR is kept.
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                                                ".pytest_cache", "jax-compilation"))  # fmt: skip
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
+os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(2 * 1024**3))  # least recently used entries go first
 
 # the JAX envs' CPU runtime, asked for as the `rventry` command asks for it, before anything loads JAX
 from rventry_env.core.backend import prefer_fused_cpu_runtime  # noqa: E402
