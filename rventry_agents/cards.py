@@ -17,6 +17,8 @@ CARDS = (
               "DAgger of mpc", 20),
     AgentCard("ppo-scratch", "it is PPO learned from scratch with a reverse curriculum, no teacher: it lands the whole "
               "flight on the standard set, not yet the wide and flight-grade sets"),
+    AgentCard("ppo-scratch-wide", "it is ppo-scratch trained further on the wide set, still without a teacher: the "
+              "from-scratch policy that lands the most of the wide and flight-grade sets"),
     AgentCard("ppo-plain", "it is what off-the-shelf RL learns from scratch on the raw reward: a baseline, not a law "
               "to fly", "plain PPO", 30),
 )  # fmt: skip

@@ -100,11 +100,14 @@ class JaxPolicy(Law):
         return self.actions(m.observation)
 
 
-SHIPPED = {"ppo-scratch": Path(__file__).resolve().parent / "data" / "ppo_scratch"}  # agent name -> shipped run
+_DATA = Path(__file__).resolve().parent / "data"
+# agent name -> shipped run: the staged recipe on `standard` (ppo_scratch.toml), and the same run with
+# one stage more on `wide` (ppo_scratch_wide.toml)
+SHIPPED = {"ppo-scratch": _DATA / "ppo_scratch", "ppo-scratch-wide": _DATA / "ppo_scratch_wide"}
 
 
 def load_shipped(name: str = "ppo-scratch", task: EntryTask | None = None) -> JaxPolicy:
-    """A policy trained in JAX and shipped with this package (entry point ``ppo-scratch``)."""
+    """A policy trained in JAX and shipped with this package (entry points ``ppo-scratch``, ``ppo-scratch-wide``)."""
     if name not in SHIPPED:
         raise ValueError(f"no shipped JAX-trained policy named {name!r}; shipped: {', '.join(SHIPPED)}")
     if not (SHIPPED[name] / "policy.npz").is_file():
