@@ -11,6 +11,8 @@ interval. Steps and wall time are each run's own, on the machine named in the re
     # runs of `rventry train ppo-scratch` (rejax), or their milestones (RUN/milestones/window_<W>s),
     # each evaluated on the rungs named
     python studies/ladder.py jax RUN [RUN ...] --learner "rejax PPO, reverse curriculum" --rungs late half nominal
+    # one policy (an agent name or a saved policy's folder) on rungs, held out, to its own record
+    python studies/ladder.py agent RUN --rungs nominal standard wide flight --episodes 200 --json PATH
     # what runs of `rventry train ppo-scratch` reached as they trained (their windows, probes)
     python studies/ladder.py histories RUN [RUN ...] --json docs/results/scratch_runs.json
 
@@ -210,6 +212,19 @@ def _histories(args) -> None:
                                       "config's first sections (its stages left out), and where each stood when it stopped", "runs": runs})
 
 
+def _agent(args) -> None:
+    """One policy on each rung named, held out, written to its own record (not the ladder's)."""
+    from rventry_env.util.provenance import write_record
+
+    results = {}
+    for r in args.rungs:
+        t0 = time.perf_counter()
+        results[r] = {**evaluate_on_rung(args.agent, r, args.episodes, args.workers), "eval_s": time.perf_counter() - t0}
+        lo, hi = results[r]["success_ci"]
+        print(f"{args.agent} on {r}: success {results[r]['success']:.3f} [{lo:.3f}, {hi:.3f}]", flush=True)
+    write_record(args.json, {"agent": args.agent, "eval_seed": EVAL_SEED, "results": results})
+
+
 def _summary(path: Path) -> None:
     doc = json.loads(Path(path).read_text())
     for e in doc["entries"]:
@@ -236,12 +251,18 @@ def main() -> None:
         p.add_argument("--episodes", type=int, default=100, help="held-out evaluation episodes (default 100)")
         p.add_argument("--workers", type=int, default=1)
         p.add_argument("--json", default=str(RECORD), help=f"the record (default {RECORD.relative_to(ROOT)})")
+    a = sub.add_parser("agent", help="evaluate one policy on rungs, held out, to its own record")
+    a.add_argument("agent", help="an agent name or a saved policy's folder")
+    a.add_argument("--rungs", nargs="+", required=True)
+    a.add_argument("--episodes", type=int, default=200, help="held-out evaluation episodes (default 200)")
+    a.add_argument("--workers", type=int, default=1)
+    a.add_argument("--json", required=True, help="the record to write")
     h = sub.add_parser("histories", help="summarize runs of rventry train ppo-scratch as they trained")
     h.add_argument("runs", nargs="+")
     h.add_argument("--json", default=str(RECORD.parent / "scratch_runs.json"))
     args = ap.parse_args()
-    if args.what == "histories":
-        return _histories(args)
+    if args.what in ("histories", "agent"):
+        return (_histories if args.what == "histories" else _agent)(args)
     (_sb3 if args.what == "sb3" else _jax)(args)
     _summary(Path(args.json))
 
