@@ -261,8 +261,9 @@ def main() -> None:
     h.add_argument("runs", nargs="+")
     h.add_argument("--json", default=str(RECORD.parent / "scratch_runs.json"))
     args = ap.parse_args()
-    if args.what in ("histories", "agent"):
-        return (_histories if args.what == "histories" else _agent)(args)
+    own_record = {"histories": _histories, "agent": _agent}  # each writes its own record, not the ladder's
+    if args.what in own_record:
+        return own_record[args.what](args)
     (_sb3 if args.what == "sb3" else _jax)(args)
     _summary(Path(args.json))
 
