@@ -140,7 +140,9 @@ def _jax(args) -> None:
             print(f"{folder}: {rung} success {ev['success']:.2f}", flush=True)
             # the seed the run was started with (a staged run folds its stages' own seeds into it)
             seed = meta.get("config", {}).get("train", {}).get("seed", meta["seed"])
-            runs.append({"seed": seed, "timesteps": meta["timesteps"], "wall_s": meta["wall_s"],
+            # and the seed in force at its end, where a stage reseeded it (the seed that tells two runs apart)
+            runs.append({"seed": seed, "last_stage_seed": meta["seed"], "timesteps": meta["timesteps"],
+                         "wall_s": meta["wall_s"],
                          "trained_on": meta["rung"], "folder": str(folder), "evaluation": ev,
                          "env_steps_per_s": meta.get("env_steps_per_s"), "device": meta.get("device"),
                          "curriculum_window_s": meta["window_s"]})  # fmt: skip

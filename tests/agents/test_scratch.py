@@ -785,22 +785,25 @@ def test_the_shipped_from_scratch_policy_lands_the_whole_flight_and_says_what_it
     assert np.mean(batch.is_success) >= 0.75
 
 
-def test_the_wide_policy_lands_the_wide_set_better_than_the_standard_one_on_the_same_episodes():
+def test_the_wide_policy_lands_the_wide_and_flight_sets_better_than_the_standard_one_on_the_same_episodes():
     """``ppo-scratch-wide`` is ``ppo-scratch``'s recipe with one stage more on `wide`, from scratch,
-    trained and selected on `wide`'s draws: on the same 100 held-out `wide` episodes it lands more
-    than ``ppo-scratch`` (0.92 against 0.86; 0.935 on 200, docs/results/wide_stage/)."""
+    trained and selected on `wide`'s draws: on the same 100 held-out episodes of each set it lands
+    more than ``ppo-scratch`` (`wide` 0.98 against 0.86, `flight` 0.81 against 0.64; 0.985 and 0.795
+    on 200, docs/results/wide_stage/long/heldout.json), `flight` without a `flight` draw in training."""
     from rventry_env.evaluation.agents import agent_cards, load_agent
     from rventry_env.evaluation.rollout import rollout
     from rventry_env.evaluation.rungs import rung
 
-    wide = rung("wide")
     law = load_agent("ppo-scratch-wide")
     prov = law.metadata["provenance"]
     assert (prov["start"], prov["rung"], prov["init_from"]["timesteps"]) == ("scratch", "wide", 662_700_032)
     assert "wide" in agent_cards()["ppo-scratch-wide"].why
-    rates = [np.mean(rollout(policy, 100, seed=1000, dispersion=wide.dispersion, starts=wide.starts()).is_success)
-             for policy in (law, load_agent("ppo-scratch"))]  # fmt: skip
-    assert rates[0] >= 0.88 and rates[0] >= rates[1] + 0.04
+    standard_policy = load_agent("ppo-scratch")
+    for name, least, margin in (("wide", 0.95, 0.08), ("flight", 0.75, 0.1)):
+        r = rung(name)
+        rates = [np.mean(rollout(policy, 100, seed=1000, dispersion=r.dispersion, starts=r.starts()).is_success)
+                 for policy in (law, standard_policy)]  # fmt: skip
+        assert rates[0] >= least and rates[0] >= rates[1] + margin, (name, rates)
 
 
 def test_the_shipped_config_is_the_shipped_policys_recipe():
