@@ -138,12 +138,13 @@ def _jax(args) -> None:
         for folder, meta in zip(args.runs, metas):
             ev = evaluate_on_rung(str(folder), rung, args.episodes, args.workers)
             print(f"{folder}: {rung} success {ev['success']:.2f}", flush=True)
-            # the seed the run was started with (a staged run folds its stages' own seeds into it)
+            # the seed the run was started with (a staged run folds its stages' own seeds into it), and
+            # the rung and seed of the stage in force at its end (its provenance), where a stage changed them
             seed = meta.get("config", {}).get("train", {}).get("seed", meta["seed"])
-            # and the seed in force at its end, where a stage reseeded it (the seed that tells two runs apart)
-            runs.append({"seed": seed, "last_stage_seed": meta["seed"], "timesteps": meta["timesteps"],
-                         "wall_s": meta["wall_s"],
-                         "trained_on": meta["rung"], "folder": str(folder), "evaluation": ev,
+            last = meta.get("provenance", {})
+            runs.append({"seed": seed, "last_stage_seed": last.get("seed", meta["seed"]), "timesteps": meta["timesteps"],
+                         "wall_s": meta["wall_s"], "trained_on": last.get("rung", meta["rung"]),
+                         "folder": str(folder), "evaluation": ev,
                          "env_steps_per_s": meta.get("env_steps_per_s"), "device": meta.get("device"),
                          "curriculum_window_s": meta["window_s"]})  # fmt: skip
         c = metas[0]["config"]
