@@ -747,23 +747,33 @@ def test_a_run_starts_from_an_exported_policy_with_its_actor_its_statistics_and_
 
 
 @pytest.mark.slow
-def test_the_shipped_policy_restored_flies_its_selection_set_as_recorded(tmp_path):
+def test_the_shipped_policy_restored_flies_its_selection_set_as_recorded(tmp_path, monkeypatch):
     """Started again from its export, the shipped policy flies the selection set as its run recorded
-    when it was selected: every episode landed, the same median miss (to rounding)."""
+    when it was selected: every episode landed, the same rates, return and medians (to rounding)."""
     pytest.importorskip("rejax")
+    import rventry_agents.jax_env as jax_env
     from rventry_agents.scratch import _initial_state
 
+    flown, summarize = {}, jax_env.summarize_outcomes
+    monkeypatch.setattr(jax_env, "summarize_outcomes", lambda o, ret, task: flown.update(o) or summarize(o, ret, task))
     trainer, start = _shipped_policy_trainer(tmp_path)
     ts = start.restore(_initial_state(trainer.algo, trainer.cfg, 0))[0]
     got, recorded = trainer.select(ts), start.meta["best_evaluation"]["select"]
     assert got["episodes"] == recorded["episodes"] and got["success_rate"] == recorded["success_rate"]
-    # the same episodes flown again. Each figure its record holds (an evaluation now records more than it
-    # did when the policy shipped), to the rounding of float32 over about 1,000 closed-loop steps: XLA's
+    # the same episodes flown again, to the rounding of float32 over about 1,000 closed-loop steps: XLA's
     # threading may round a sum differently from the training process's, and another processor's vector
-    # instructions round differently again (on an AVX-512 machine the medians moved by up to 0.5 %:
-    # miss 1.3e-4, vertical error 5.1e-3, mean return 5.0e-3, every episode still landed)
+    # instructions round differently again. The rates and the mean return to 1 %; each median to where
+    # it ranks among the episodes flown again, for a median moves by whole gaps between neighbouring
+    # episodes when rounding swaps two of them (0.015 deg apart at the vertical error's median: on an
+    # AVX-512 Xeon that median moved by 1.1 %, the recorded one ranking 129th of 256 flown again)
     assert set(recorded) <= set(got)
-    assert {k: got[k] for k in recorded} == pytest.approx(recorded, rel=1e-2, abs=1e-6)
+    medians = {"miss_km_p50": "miss_km", "vertical_error_deg_p50": "vertical_error_deg"}
+    rest = {k: v for k, v in recorded.items() if k not in medians}
+    assert {k: got[k] for k in rest} == pytest.approx(rest, rel=1e-2, abs=1e-6)
+    n = recorded["episodes"]
+    for median, outcome in medians.items():
+        rank = int(np.searchsorted(np.sort(np.asarray(flown[outcome], float)), recorded[median]))
+        assert abs(rank - n / 2) <= 0.02 * n, (median, recorded[median], got[median], rank)
 
 
 def test_the_shipped_from_scratch_policy_lands_the_whole_flight_and_says_what_it_is():
