@@ -24,17 +24,33 @@ def make_training_env(cfg, task, starts, shaping):
     from rventry_env.envs.functional import RvEntryFunctional
 
     base = RvEntryFunctional(
-        task=task, dispersion=_rung_dispersion(cfg.env.rung), max_episode_steps=cfg.env.max_episode_steps,
+        task=task, dispersion=structure_dispersion(cfg.env), max_episode_steps=cfg.env.max_episode_steps,
         dtype=cfg.env.dtype, reward=cfg.reward, starts=starts, shaping=shaping,
         time_limit_is_failure=cfg.env.time_limit_is_failure,
     )  # fmt: skip
     return TrainingEnv(base, cfg.env.actions, cfg.env.command_time_s)
 
 
-def _rung_dispersion(name: str) -> str:
+def training_draws(env):
+    """The vehicle draws of an ``[env]`` section's training episodes: its ``draws``, else its rung's."""
     from rventry_env.evaluation.rungs import rung
 
-    return rung(name).dispersion
+    return rung(env.rung).dispersion if env.draws is None else env.draws
+
+
+def structure_dispersion(env):
+    """The dispersion the training environment is compiled for: the rung's, unless only the
+    training draws carry flight-grade errors (profiles, sensors, navigation), which are compiled
+    structure; a flight-grade environment flies plain draws with those errors off."""
+    from rventry_env.evaluation.rungs import rung
+    from rventry_env.task import Dispersion
+
+    def flight_grade(d) -> bool:
+        errors = Dispersion.parse(d).flight
+        return errors is not None and not errors.is_zero
+
+    own = rung(env.rung).dispersion
+    return env.draws if env.draws is not None and flight_grade(env.draws) and not flight_grade(own) else own
 
 
 def _environment_base():

@@ -50,6 +50,7 @@ from rventry_agents.scratch_config import ScratchConfig, load_config
 from rventry_env.util.files import output_set, write_json
 
 FRONTIER_DEPTH = 0.85  # the frontier: starts between this share of the window and all of it
+UNKNOWN = object()  # a source's training draws where its record does not say them
 
 
 def make_task(cfg: ScratchConfig):
@@ -282,14 +283,14 @@ class Trainer:
     def __init__(self, cfg: ScratchConfig, out: Path, seed: int):
         import jax
 
-        from rventry_agents.jax_env import make_training_env
+        from rventry_agents.jax_env import make_training_env, training_draws
 
         self.cfg, self.out, self.seed = cfg, out, seed
         self.task = make_task(cfg)
         self.curriculum = Curriculum(cfg)
         self.env = make_training_env(cfg, self.task, self.curriculum.starts(), make_shaping(cfg))
         base = self.env.base
-        self.params = base.make_params(dispersion=self.curriculum.rung.dispersion, seed=seed)
+        self.params = base.make_params(dispersion=training_draws(cfg.env), seed=seed)
         chunk = cfg.train.chunk_timesteps
         self.algo = _agent(cfg, self.env, self.params, chunk)
         self.traces = []
@@ -406,7 +407,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
             trainer = _next_stage(trainer, stages[stage][1])
             ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)
             before = stages[stage - 1][1]
-            ts, changes = _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping)
+            ts, changes = _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping,
+                                           draws_before=before.env.draws)  # fmt: skip
             best = _best(history, trainer.cfg.env.rung)
             average = average if trainer.cfg.env.rung == before.env.rung else None  # a rung's own chunks averaged
             waited = cfg.stages[stage - 1].waits()
@@ -482,9 +484,10 @@ def _provenance(trainer: Trainer, steps: int, **extra) -> dict:
     and seed, and the run whose checkpoint it started from, if any."""
     cfg = trainer.cfg
     start = {} if trainer.init_from is None else {"init_from": trainer.init_from}
+    draws = {} if cfg.env.draws is None else {"training_draws": cfg.env.draws}
     return {"algorithm": "PPO (rejax), from scratch", "start": "scratch", "curriculum": cfg.curriculum.kind,
-            "shaping": cfg.shaping.potential, "actions": cfg.env.actions, "rung": cfg.env.rung, "timesteps": steps,
-            **extra, "seed": cfg.train.seed, **start}  # fmt: skip
+            "shaping": cfg.shaping.potential, "actions": cfg.env.actions, "rung": cfg.env.rung, **draws,
+            "timesteps": steps, **extra, "seed": cfg.train.seed, **start}  # fmt: skip
 
 
 def _starting(ts, trainer: Trainer, point, history: list[dict], source: Path | None, stages: list, stage: int | None):
@@ -497,21 +500,25 @@ def _starting(ts, trainer: Trainer, point, history: list[dict], source: Path | N
         # the stage its last chunk flew (one step before a stage that starts on the checkpoint's
         # step: the checkpoint was written before that stage was entered): the one its random key
         # was folded with and its vehicles in flight were drawn and paid under
-        before, seed_before, shaping_before = _source_stage(source, point.steps - 1, getattr(point, "history", []))
+        before, seed_before, shaping_before, draws_before = _source_stage(source, point.steps - 1,
+                                                                          getattr(point, "history", []))  # fmt: skip
         for h in history:  # its records, ranked on the rung they flew
             h.setdefault("rung", before)
         ts, changes = _entered(ts, trainer.cfg, seed_before)
-        return _vehicles_afresh(ts, trainer, before, changes, fresh, shaping_before)
+        return _vehicles_afresh(ts, trainer, before, changes, fresh, shaping_before, draws_before)
     if stage is not None and history and (last := history[-1].get("stage", 0)) < stage:
         ts, changes = _entered(ts, trainer.cfg, stages[last][1].train.seed)
-        return _vehicles_afresh(ts, trainer, stages[last][1].env.rung, changes, fresh, stages[last][1].shaping)
+        env_before = stages[last][1].env
+        return _vehicles_afresh(ts, trainer, env_before.rung, changes, fresh, stages[last][1].shaping, env_before.draws)
     return ts, ""
 
 
-def _vehicles_afresh(ts, trainer: Trainer, rung_before: str | None, changes: str, fresh: bool = False, shaping_before=None):
-    """The training state as a stage (or a run from another's checkpoint) on ``trainer``'s rung
-    and shaping starts from one on ``rung_before`` under ``shaping_before`` (None: not known, taken
-    as unchanged): where either changed, every vehicle starts afresh from the new rung's draws
+def _vehicles_afresh(ts, trainer: Trainer, rung_before: str | None, changes: str, fresh: bool = False, shaping_before=None,
+                     draws_before=UNKNOWN):  # fmt: skip
+    """The training state as a stage (or a run from another's checkpoint) on ``trainer``'s rung,
+    draws and shaping starts from one on ``rung_before`` with ``draws_before`` under
+    ``shaping_before`` (None, and UNKNOWN for the draws: not known, taken as unchanged): where
+    any changed, every vehicle starts afresh from the new draws
     (:func:`~rventry_agents.scratch_state.fresh_vehicles`; ``fresh``: the checkpoint's restore has
     done so already), and what that changed, for the progress line. A vehicle in flight carries
     its state's potential, which another shaping would pay against its own: the step after would
@@ -519,19 +526,27 @@ def _vehicles_afresh(ts, trainer: Trainer, rung_before: str | None, changes: str
     one and off in the other is a state of another form)."""
     from rventry_agents.scratch_state import fresh_vehicles
 
-    rung, shaping = trainer.cfg.env.rung, trainer.cfg.shaping
+    rung, shaping, draws = trainer.cfg.env.rung, trainer.cfg.shaping, trainer.cfg.env.draws
     new_rung = rung_before is not None and rung_before != rung
     new_shaping = shaping_before is not None and shaping_before != shaping
-    if not (fresh or new_rung or new_shaping):
+    new_draws = draws_before is not UNKNOWN and draws_before != draws
+    if not (fresh or new_rung or new_shaping or new_draws):
         return ts, changes
     if not fresh:
         ts = fresh_vehicles(ts, _initial_state(trainer.algo, trainer.cfg, trainer.cfg.train.seed))
-    said = [f"on the {rung} rung"] if new_rung or (fresh and not new_shaping) else []
+    said = [f"on the {rung} rung"] if new_rung or new_draws or (fresh and not new_shaping) else []
+    if draws is not None and (new_rung or new_draws or fresh):
+        said.append(f"with training draws {_described(draws)}")
     if new_shaping:
         said.append("without shaping" if shaping.potential == "none"
                     else f"under the {shaping.potential} potential ({shaping.weight:g} per km"
                     + (f", fading over the reference's last {shaping.fade_s:g} s)" if shaping.fade_s else ")"))  # fmt: skip
     return ts, changes + ", every vehicle started afresh " + " ".join(said)
+
+
+def _described(draws) -> str:
+    """Training draws as a progress line says them: a set's name, or its fields."""
+    return draws if isinstance(draws, str) else "{" + ", ".join(f"{k} = {v}" for k, v in draws.items()) + "}"
 
 
 def _best(history: list[dict], rung: str) -> dict | None:
@@ -556,25 +571,25 @@ def _stage_records(history: list[dict], stage: int) -> int:
 
 
 def _source_stage(run: Path, steps: int, history: list[dict] = ()) -> tuple:
-    """(rung, seed, shaping) the run (or the exported policy) in ``run`` trained under at ``steps``
-    (its chunks' record up to there: ``history``): its stage's, from its ``config.json``, else the
-    rung and the seed its ``metadata.json`` gives (None where neither says; the shaping None, not
-    known, from a metadata file)."""
+    """(rung, seed, shaping, training draws) the run (or the exported policy) in ``run`` trained
+    under at ``steps`` (its chunks' record up to there: ``history``): its stage's, from its
+    ``config.json``, else the rung and the seed its ``metadata.json`` gives (None where neither
+    says; from a metadata file the shaping None and the draws UNKNOWN: not known)."""
     try:
         cfg = load_config(json.loads((run / "config.json").read_text()))
         stage = cfg.stage_configs()[_stage_now(cfg, steps, list(history))][1]
-        return stage.env.rung, stage.train.seed, stage.shaping
+        return stage.env.rung, stage.train.seed, stage.shaping, stage.env.draws
     except (OSError, ValueError, KeyError, TypeError, IndexError):
         pass
     try:
         meta = json.loads((run / "metadata.json").read_text())
     except (OSError, ValueError):
-        return None, None, None
+        return None, None, None, UNKNOWN
     if not isinstance(meta, dict):
-        return None, None, None
+        return None, None, None, UNKNOWN
     rung, seed = meta.get("rung"), meta.get("seed")
     seed = seed if isinstance(seed, int) and not isinstance(seed, bool) else None
-    return (None if rung is None else str(rung)), seed, None
+    return (None if rung is None else str(rung)), seed, None, UNKNOWN
 
 
 def _key(selection: dict) -> tuple:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from rventry_agents.config import ConfigError, Section, merge_tables, setting, widths
+from rventry_agents.config import ConfigError, Section, dispersion, merge_tables, setting, widths
 from rventry_agents.jax_ppo_config import RejaxPPOSection
 from rventry_env.envs.reward import RewardWeights
 from rventry_env.reference.starts import STEP_S
@@ -41,6 +41,9 @@ class EnvSection(Section):
         flown by a tracker with time constant ``command_time_s`` (:mod:`rventry_agents.commands`);
         ``"circular-commands"``: the same with the bank command read on the circle, not clipped.
     :param time_limit_is_failure: charge a time-limit cut like a failure (training only).
+    :param draws: the vehicle draws of the training episodes, where they differ from the rung's: a
+        named set or a table of :class:`~rventry_env.task.Dispersion` fields (e.g. the rung's
+        entry state with wider aerodynamic draws). Selection always flies the rung's own draws.
     :param resets: fresh starts drawn per step for the episodes that end (an optimistic autoreset,
         :func:`~rventry_env.envs.functional.step_batch`); 0: gymnax's autoreset, a full reset per
         episode per step.
@@ -53,6 +56,7 @@ class EnvSection(Section):
     max_episode_steps: int = setting(2000, ge=1)
     dtype: Literal["float32", "float64"] = "float32"
     time_limit_is_failure: bool = True
+    draws: str | dict | None = dispersion(None)
     resets: int = setting(32, ge=0)
 
     def __post_init__(self):

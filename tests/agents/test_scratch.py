@@ -223,7 +223,7 @@ def test_a_source_run_is_read_at_its_stage_in_force_and_an_export_by_its_metadat
     export = tmp_path / "export"
     export.mkdir()
     (export / "metadata.json").write_text(json.dumps({"rung": "wide", "seed": 4}))
-    assert source_stage(export, 0) == ("wide", 4, None)
+    assert source_stage(export, 0)[:3] == ("wide", 4, None)
     (export / "metadata.json").write_text(json.dumps({"seed": "four"}))
     assert _source_stage(export, 0) == (None, None)
     (export / "metadata.json").write_text("{not json")
@@ -398,6 +398,53 @@ def test_a_stage_on_another_rung_starts_every_vehicle_afresh_and_selects_on_that
         assert [h["rung"] for h in hist] == ["late", "flight"], name
         # the late chunk's selection is not ranked against the flight chunk's: the flight one is selected
         assert meta["best_evaluation"]["timesteps"] == 2048, name
+
+
+def test_training_draws_are_checked_by_field_and_compile_the_environment_a_flight_grade_one_needs():
+    from rventry_agents.jax_env import structure_dispersion, training_draws
+
+    own = load_config({"env": {"rung": "wide"}}).env
+    assert own.draws is None and training_draws(own) == "wide" == structure_dispersion(own)
+    wider = load_config({"env": {"rung": "flight", "draws": {"lift": 0.12, "drag": 0.12}}}).env
+    assert training_draws(wider) == {"lift": 0.12, "drag": 0.12}
+    assert structure_dispersion(wider) == "flight"  # the selection set's errors are compiled structure
+    # only the training draws carry flight-grade errors: the environment is compiled for them
+    assert structure_dispersion(load_config({"env": {"rung": "wide", "draws": "flight"}}).env) == "flight"
+    with pytest.raises(ConfigError, match=r"\[env\] draws: unknown dispersion field\(s\) \['lyft'\]"):
+        load_config({"env": {"draws": {"lyft": 0.1}}})
+    with pytest.raises(ConfigError, match=r"\[env\] draws: dispersion drag must be a number, got 'x'"):
+        load_config({"env": {"draws": {"drag": "x"}}})
+    with pytest.raises(ConfigError, match=r"\[env\] draws: .*'wider'"):
+        load_config({"env": {"draws": "wider"}})
+
+
+@pytest.mark.slow
+def test_a_stage_that_changes_the_training_draws_alone_flies_them_and_selects_on_the_rungs_own(tmp_path):
+    """A stage on the same rung with wider aerodynamic draws: every vehicle starts afresh from them,
+    the training episodes fly C_L and C_D factors inside their half-widths (the rung draws none),
+    and the selection set stays the rung's own."""
+    pytest.importorskip("rejax")
+    from flax import serialization
+
+    from rventry_agents.scratch import Trainer, train_scratch
+    from rventry_env.task import SCALAR_FIELDS, Dispersion
+
+    draws = {"lift": 0.3, "drag": 0.2}
+    staged = json.loads(json.dumps(SMALL))
+    staged["stages"] = [{"from_timesteps": 1024, "env": {"draws": draws}}]
+    lines = []
+    train_scratch(staged, out=tmp_path / "run", timesteps=2048, progress=lines.append)
+    assert ("stage 1 from 1,024 steps, every vehicle started afresh on the late rung with training draws "
+            "{lift = 0.3, drag = 0.2}") in lines  # fmt: skip
+    saved = serialization.msgpack_restore((tmp_path / "run" / "checkpoint" / "train_state.msgpack").read_bytes())
+    scales = np.asarray(_saved_field(saved["env_state"], "scales"))  # density, C_L, C_D, mass factors
+    assert scales.shape[-1] == 4 and np.all(np.abs(scales[..., 1] - 1.0) <= 0.3 + 1e-6)
+    assert np.all(np.abs(scales[..., 2] - 1.0) <= 0.2 + 1e-6) and np.all(scales[..., [0, 3]] == 1.0)
+    assert np.all(scales[..., 1] != 1.0)  # every vehicle in flight drew its own, none kept the rung's
+    trainer = Trainer(load_config(staged).stage_configs()[1][1], tmp_path / "trainer", 0)
+    d = Dispersion.parse(draws)
+    np.testing.assert_allclose(trainer.params.dispersion, [*(getattr(d, f) for f in SCALAR_FIELDS), d.mass])
+    np.testing.assert_array_equal(trainer.select_params.dispersion, np.zeros(10))  # the late rung's: none
 
 
 @pytest.mark.slow
