@@ -42,12 +42,12 @@ def structure_dispersion(env):
     """The dispersion the training environment is compiled for: the rung's, unless only the
     training draws carry flight-grade errors (profiles, sensors, navigation), which are compiled
     structure; a flight-grade environment flies plain draws with those errors off."""
+    from rventry_env.envs.functional import _flight_grade
     from rventry_env.evaluation.rungs import rung
     from rventry_env.task import Dispersion
 
     def flight_grade(d) -> bool:
-        errors = Dispersion.parse(d).flight
-        return errors is not None and not errors.is_zero
+        return _flight_grade(Dispersion.parse(d))
 
     own = rung(env.rung).dispersion
     return env.draws if env.draws is not None and flight_grade(env.draws) and not flight_grade(own) else own
