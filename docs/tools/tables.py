@@ -736,6 +736,13 @@ def orbit_sweep_table(sweep: dict) -> str:
 BUDGET = ("train.total_timesteps", "train.max_wall_s")  # how long a run was allowed, not how it trained
 
 
+def _wall_range(walls_s: list[float]) -> str:
+    """Wall times as a range: in seconds under 10 minutes (a quick start's are minutes apart by seconds), else minutes."""
+    unit, scale = ("s", 1.0) if max(walls_s) < 600 else ("min", 60.0)
+    lo, hi = (f"{w / scale:.0f}" for w in (min(walls_s), max(walls_s)))
+    return f"{lo} {unit}" if lo == hi else f"{lo}-{hi} {unit}"
+
+
 def ladder_table(doc: dict) -> str:
     """Each learner on each rung of the ladder: success over training seeds (rliable's IQM), with the
     steps and wall time a seed took."""
@@ -745,14 +752,15 @@ def ladder_table(doc: dict) -> str:
         runs = e["runs"]
         trained = sorted({r.get("trained_on", e["rung"]) for r in runs})
         learner = e["learner"] + ("" if trained == [e["rung"]] else f", trained on `{'`, `'.join(trained)}`")
-        walls = [r["wall_s"] / 60 for r in runs]
+        walls = [r["wall_s"] for r in runs]
         rows.append([learner, f"`{e['rung']}`", str(e["seeds"]), " / ".join(f"{r['evaluation']['success']:.2f}" for r in runs),
                      f"{e['iqm']:.2f} [{e['iqm_ci'][0]:.2f}, {e['iqm_ci'][1]:.2f}]",
                      " / ".join(f"{r['timesteps'] / 1e6:.3g}M" for r in runs),
-                     f"{min(walls):.0f}-{max(walls):.0f} min" if len(walls) > 1 else f"{walls[0]:.0f} min"])  # fmt: skip
+                     _wall_range(walls)])  # fmt: skip
     episodes = sorted({r["evaluation"]["episodes"] for e in doc["entries"] for r in e["runs"]})
     return "\n".join([md(header, rows), "", f"Each success rate over {' or '.join(map(str, episodes))} held-out episodes "
-                      f"(seeds from {doc['evaluation_seed']}); wall times on a shared two-core machine.", "",
+                      f"(seeds from {doc['evaluation_seed']}); wall times as each run measured them on a two-core machine, most of them beside another "
+                      "run (each run's load average is in its provenance in the record).", "",
                       source("docs/results/ladder.json", command="python studies/ladder.py")])  # fmt: skip
 
 
