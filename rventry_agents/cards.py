@@ -18,7 +18,9 @@ CARDS = (
     AgentCard("ppo-scratch", "it is PPO learned from scratch with a reverse curriculum, no teacher: it lands the whole "
               "flight on the standard set, not yet the wide and flight-grade sets"),
     AgentCard("ppo-scratch-wide", "it is ppo-scratch trained further on the wide set, still without a teacher: the "
-              "from-scratch policy that lands the most of the wide and flight-grade sets"),
+              "from-scratch policy that lands the most of the wide set"),
+    AgentCard("ppo-scratch-flight", "it is ppo-scratch-wide trained further on the flight-grade set, still without a "
+              "teacher: the from-scratch policy that lands the most of the flight-grade set"),
     AgentCard("ppo-plain", "it is what off-the-shelf RL learns from scratch on the raw reward: a baseline, not a law "
               "to fly", "plain PPO", 30),
 )  # fmt: skip

@@ -101,13 +101,16 @@ class JaxPolicy(Law):
 
 
 _DATA = Path(__file__).resolve().parent / "data"
-# agent name -> shipped run: the staged recipe on `standard` (ppo_scratch.toml), and the same run with
-# one stage more on `wide` (ppo_scratch_wide.toml)
-SHIPPED = {"ppo-scratch": _DATA / "ppo_scratch", "ppo-scratch-wide": _DATA / "ppo_scratch_wide"}
+# agent name -> shipped run: the staged recipe on `standard` (ppo_scratch.toml), the same run with
+# one stage more on `wide` (ppo_scratch_wide.toml), and that one with one stage more on `flight`
+# (ppo_scratch_flight.toml)
+SHIPPED = {"ppo-scratch": _DATA / "ppo_scratch", "ppo-scratch-wide": _DATA / "ppo_scratch_wide",
+           "ppo-scratch-flight": _DATA / "ppo_scratch_flight"}
 
 
 def load_shipped(name: str = "ppo-scratch", task: EntryTask | None = None) -> JaxPolicy:
-    """A policy trained in JAX and shipped with this package (entry points ``ppo-scratch``, ``ppo-scratch-wide``)."""
+    """A policy trained in JAX and shipped with this package (entry points ``ppo-scratch``, ``ppo-scratch-wide``,
+    ``ppo-scratch-flight``)."""
     if name not in SHIPPED:
         raise ValueError(f"no shipped JAX-trained policy named {name!r}; shipped: {', '.join(SHIPPED)}")
     if not (SHIPPED[name] / "policy.npz").is_file():
