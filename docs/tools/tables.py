@@ -755,7 +755,8 @@ def ladder_table(doc: dict) -> str:
         walls = [r["wall_s"] for r in runs]
         rows.append([learner, f"`{e['rung']}`", str(e["seeds"]), " / ".join(f"{r['evaluation']['success']:.2f}" for r in runs),
                      f"{e['iqm']:.2f} [{e['iqm_ci'][0]:.2f}, {e['iqm_ci'][1]:.2f}]",
-                     " / ".join(f"{r['timesteps'] / 1e6:.3g}M" for r in runs),
+                     " / ".join(f"{r['timesteps'] / 1e6:,.0f}M" if r["timesteps"] >= 1e9 else f"{r['timesteps'] / 1e6:.3g}M"
+                                for r in runs),
                      _wall_range(walls)])  # fmt: skip
     episodes = sorted({r["evaluation"]["episodes"] for e in doc["entries"] for r in e["runs"]})
     return "\n".join([md(header, rows), "", f"Each success rate over {' or '.join(map(str, episodes))} held-out episodes "
