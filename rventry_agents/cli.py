@@ -79,7 +79,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     sc.add_argument("--seed", type=seed, help="random seed (default: the config's)")
     sc.add_argument("--out", default="runs/ppo_scratch", help="output directory (default runs/ppo_scratch)")
     sc.add_argument("--config", help="TOML config (default rventry_agents/ppo_scratch.toml)")
-    sc.add_argument("--max-wall-s", type=positive_float, help="stop after the chunk that ends past this wall time (s)")
+    sc.add_argument("--max-wall-s", type=positive_float, help="stop after the chunk that ends past this wall time (s): "
+                    "a resumed run's segments together, a run from --init-from its own time alone")
     sc.add_argument("--resume", action="store_true", help="go on with the interrupted run in --out from its checkpoint")
     sc.add_argument("--init-from", metavar="RUN",
                     help="start from another run's checkpoint (its training state, window and history) under this "

@@ -343,7 +343,8 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
 
     :param timesteps: override ``[train] total_timesteps``; :param seed: ``[train] seed``;
     :param max_wall_s: stop after the chunk that ends past this wall time (s), everything written
-        (``[train] max_wall_s``); a resumed run counts its earlier segments' time.
+        (``[train] max_wall_s``); a resumed run counts its earlier segments' time, a run from another
+        run's checkpoint or export its own time alone (not its source's).
     :param resume: go on with the interrupted run in ``out`` from its last checkpoint.
     :param init_from: a run folder whose checkpoint this run starts from: its training state, its
         curriculum's window, its history and its steps and wall time (which the budget counts), under
@@ -441,12 +442,18 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         if rec.get("best"):
             Checkpoint.keep_selected(out)
         budget = cfg.train.max_wall_s
-        if budget is not None and rec["wall_s"] >= budget:
+        if budget is not None and own_wall(rec["wall_s"], trainer.init_from) >= budget:
             break
     meta = _metadata(cfg, trainer, history, best, rates, steps)
     write_json(out / "metadata.json", meta)
     plot_learning_curve(history, out / "learning_curve.png", f"PPO from scratch (rejax) on the {cfg.env.rung} rung")
     return meta
+
+
+def own_wall(wall_s: float, init_from: dict | None) -> float:
+    """The run's own wall time: a run's records count on from its source's (a run from another run's
+    checkpoint or export), and its budget (``--max-wall-s``) counts from where it started, resumed or not."""
+    return wall_s - float((init_from or {}).get("wall_s", 0.0))
 
 
 def _restored(point, trainer: Trainer):

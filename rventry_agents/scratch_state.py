@@ -100,8 +100,8 @@ class Checkpoint:
         self.init_from = init_from  # where the run that wrote it started, if from another run's checkpoint
 
     def origin(self) -> dict:
-        """This checkpoint as the start of another run: its folder, steps and window (and its own start)."""
-        out = {"run": str(self.out), "timesteps": self.steps, "window_s": self.window}
+        """This checkpoint as the start of another run: its folder, steps, window and wall time (and its own start)."""
+        out = {"run": str(self.out), "timesteps": self.steps, "window_s": self.window, "wall_s": self.wall_s}
         return out if self.init_from is None else {**out, "init_from": self.init_from}
 
     @staticmethod
@@ -246,9 +246,9 @@ class PolicyStart:
                               f"({type(exc).__name__}: {exc})") from None  # fmt: skip
 
     def origin(self) -> dict:
-        """This policy as the start of another run: its folder, the run it was selected in, steps and window."""
+        """This policy as the start of another run: its folder, the run it was selected in, steps, window and wall time."""
         p = self.meta.get("provenance", {})
-        out = {"policy": str(self.out), "timesteps": self.steps, "window_s": self.window}
+        out = {"policy": str(self.out), "timesteps": self.steps, "window_s": self.window, "wall_s": self.wall_s}
         if self.meta.get("shipped_from"):
             out["run"] = self.meta["shipped_from"]
         if "selected_at_timesteps" in p:

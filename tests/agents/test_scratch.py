@@ -594,7 +594,8 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     other = tmp_path / "other"
     meta = train_scratch(stepped, out=other, timesteps=3072, init_from=out, progress=lambda s: None)
     assert [h["timesteps"] for h in json.loads((other / "evaluations.json").read_text())] == [1024, 2048, 3072]
-    start = {"run": str(out), "timesteps": 2048, "window_s": window}
+    source_wall = json.loads((out / "checkpoint" / "state.json").read_text())["wall_s"]
+    start = {"run": str(out), "timesteps": 2048, "window_s": window, "wall_s": source_wall}
     assert meta["provenance"]["init_from"] == start and meta["config"]["curriculum"]["step_weighted"]
     assert json.loads((other / "checkpoint" / "state.json").read_text())["init_from"] == start  # kept on resume
     # its exploration noise started again where its config says (the source's was e^-1), and trained a chunk from there
@@ -627,6 +628,7 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     meta = train_scratch(held, out=tmp_path / "held", timesteps=4096, init_from=exported, progress=lambda s: None)
     selected = json.loads((exported / "metadata.json").read_text())["provenance"]["selected_at_timesteps"]
     assert meta["provenance"]["init_from"] == {"policy": str(exported), "timesteps": 2048, "window_s": window,
+                                               "wall_s": json.loads((exported / "metadata.json").read_text())["wall_s"],
                                                "selected_at_timesteps": selected}  # fmt: skip
     with np.load(exported / "policy.npz") as a, np.load(tmp_path / "held" / "policy.npz") as b:
         assert sorted(a.files) == sorted(b.files) and all(np.array_equal(a[k], b[k]) for k in a.files)
@@ -727,7 +729,7 @@ def test_the_selected_state_is_the_checkpoint_it_was_copied_from_and_a_run_start
         kept = Checkpoint.keep_selected(run)
         point = read_start(kept)
         assert isinstance(point, Checkpoint) and point.steps == steps and point.history == history
-        assert point.origin() == {"run": str(kept), "timesteps": steps, "window_s": 40.0}
+        assert point.origin() == {"run": str(kept), "timesteps": steps, "window_s": 40.0, "wall_s": 1.5 * steps}
         assert (kept / "checkpoint" / "train_state.msgpack").read_bytes() == (
             run / "checkpoint" / "train_state.msgpack").read_bytes()
         # what a run from it enters as the stage before: the selected chunk's own
@@ -792,6 +794,7 @@ def test_a_run_starts_from_an_exported_policy_with_its_actor_its_statistics_and_
     origin = start.origin()
     assert origin["selected_at_timesteps"] == meta["provenance"]["selected_at_timesteps"] < steps
     assert origin["window_s"] == meta["final_window_s"] and origin["init_from"] == meta["provenance"]["init_from"]
+    assert origin["wall_s"] == meta["wall_s"]
     trainer.env.export(tmp_path / "again.npz", trainer.algo, ts)
     with np.load(SHIPPED["ppo-scratch"] / "policy.npz") as a, np.load(tmp_path / "again.npz") as b:
         assert sorted(a.files) == sorted(b.files)
@@ -925,3 +928,16 @@ def test_the_shipped_config_is_the_shipped_policys_recipe():
     for config in (last, recorded):
         config["train"] = {k: v for k, v in config["train"].items() if k not in budget}
     assert last == recorded
+
+
+def test_a_run_from_another_runs_state_spends_its_wall_budget_on_its_own_time():
+    """``--max-wall-s`` of a run started from another run's checkpoint or export counts from that start:
+    the records go on from the source's wall time (the chain's cost), the budget does not, resumed or not."""
+    from rventry_agents.scratch import own_wall
+
+    source = {"run": "runs/wide", "timesteps": 859_832_320, "window_s": 1033.0, "wall_s": 12_230.0}
+    assert own_wall(12_278.0, source) == pytest.approx(48.0)
+    assert own_wall(12_278.0, {**source, "init_from": {"wall_s": 5_000.0}}) == pytest.approx(48.0)  # the nearest start
+    assert own_wall(48.0, None) == 48.0  # a run from scratch: all of it its own
+    # a start recorded before starts named their wall time: counted as before, from the records
+    assert own_wall(12_278.0, {k: v for k, v in source.items() if k != "wall_s"}) == 12_278.0
