@@ -263,8 +263,10 @@ def test_ctrl_c_on_a_parallel_mpc_evaluation_exits_at_once_writing_nothing(tmp_p
     cmd = [sys.executable, "-m", "rventry_env.cli", "evaluate", "--agent", "mpc", "--episodes", "8", "--workers", "2",
            "--dispersion", "standard", "--json", str(report), "--plots", str(plots)]  # fmt: skip
     env = {**os.environ, "MPLCONFIGDIR": str(tmp_path / "mpl")}
+    # started as from a terminal's shell, Ctrl-C not ignored: a process started with SIGINT ignored keeps
+    # ignoring it (POSIX; Python installs no KeyboardInterrupt then), and a test runner's worker may be one
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)  # fmt: skip
+                            start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
     deadline = time.monotonic() + 180
     workers = []
     while time.monotonic() < deadline and len(workers) < 2:
