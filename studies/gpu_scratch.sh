@@ -33,6 +33,8 @@ timeout 150 $PY benchmarks/jax_backend.py --skip accuracy speed numpy-substeps a
 echo "throughput measured by $((SECONDS - T0)) s"
 sed 's/^num_envs = 8192$/num_envs = 32768/; s/^resets = 256$/resets = 1024/; s/^chunk_timesteps = 67_108_864$/chunk_timesteps = 268_435_456/' \
   rventry_agents/ppo_scratch_gpu.toml > /tmp/gpu_scratch/e32768.toml
+grep -q "^num_envs = 32768$" /tmp/gpu_scratch/e32768.toml && grep -q "^chunk_timesteps = 268_435_456$" /tmp/gpu_scratch/e32768.toml \
+  || { echo "rventry_agents/ppo_scratch_gpu.toml no longer holds the lines the 32,768-vehicle variant changes"; exit 1; }
 cp rventry_agents/ppo_scratch_gpu.toml /tmp/gpu_scratch/e8192.toml
 BUDGET=$((TOTAL - (SECONDS - T0) - 50))  # the last chunk, the records and the packing after it
 echo "each run stops after the chunk that ends past ${BUDGET} s; the two share the GPU"

@@ -941,3 +941,19 @@ def test_a_run_from_another_runs_state_spends_its_wall_budget_on_its_own_time():
     assert own_wall(48.0, None) == 48.0  # a run from scratch: all of it its own
     # a start recorded before starts named their wall time: counted as before, from the records
     assert own_wall(12_278.0, {k: v for k, v in source.items() if k != "wall_s"}) == 12_278.0
+
+
+def test_the_gpu_recipe_is_the_progress_recipe_with_more_vehicles():
+    """``ppo_scratch_gpu.toml`` repeats ``ppo_scratch_progress.toml`` (the loader has no include): every
+    section and stage the same but the vehicles, their fresh starts a step, the chunk (128 updates, as
+    on two cores) and the budget."""
+    gpu = load_config(DEFAULT_CONFIG.parent / "ppo_scratch_gpu.toml").to_dict()
+    progress = load_config(DEFAULT_CONFIG.parent / "ppo_scratch_progress.toml").to_dict()
+    sized = {"env": ("num_envs", "resets"), "train": ("total_timesteps", "chunk_timesteps")}
+    for section, keys in sized.items():
+        for config in (gpu, progress):
+            config[section] = {k: v for k, v in config[section].items() if k not in keys}
+    assert gpu == progress
+    cfg = load_config(DEFAULT_CONFIG.parent / "ppo_scratch_gpu.toml")
+    assert cfg.train.chunk_timesteps == 128 * cfg.env.num_envs * cfg.ppo.num_steps
+    assert cfg.env.resets * 32 == cfg.env.num_envs
