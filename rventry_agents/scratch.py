@@ -223,6 +223,78 @@ def _with_optimizers(ts, algo):
                       critic_ts=ts.critic_ts.replace(tx=fresh["critic_ts"].tx))  # fmt: skip
 
 
+def falling_adam(learning_rate: float, learning_rate_end: float, first: int, last: int, max_grad_norm: float):
+    """rejax PPO's optimizer (each gradient's elements clipped to ``max_grad_norm``, then Adam) with
+    its learning rate falling linearly from ``learning_rate`` at Adam's update ``first`` to
+    ``learning_rate_end`` at update ``last``, and held there after. Its state has the form of
+    rejax's (``optax.adam``'s: the moments and their count, then an empty state), so a checkpoint
+    of either goes on under the other; with the two rates equal it is rejax's, update for update."""
+    import jax
+    import jax.numpy as jnp
+    import optax
+
+    adam = optax.scale_by_adam()
+    span = max(last - first, 1)
+
+    def init(params):
+        return adam.init(params), optax.EmptyState()
+
+    def update(updates, state, params=None):
+        moments, empty = state
+        k = jnp.clip((moments.count - first) / span, 0.0, 1.0)
+        lr = learning_rate + (learning_rate_end - learning_rate) * k
+        updates, moments = adam.update(updates, moments, params)
+        return jax.tree_util.tree_map(lambda u: -lr * u, updates), (moments, empty)
+
+    return optax.chain(optax.clip(max_grad_norm), optax.GradientTransformation(init, update))
+
+
+def updates_between(cfg: ScratchConfig, start: int, end: int) -> int:
+    """Adam's updates (of the actor's, or the critic's) in training from step ``start`` to ``end``
+    under ``cfg``: an update per minibatch, ``num_minibatches`` an epoch, ``num_epochs`` a rollout
+    of ``num_envs`` x ``num_steps`` steps."""
+    p = cfg.ppo
+    return (end - start) // (cfg.env.num_envs * p.num_steps) * p.num_epochs * p.num_minibatches
+
+
+def adam_count(ts) -> int:
+    """The count of Adam's updates in the training state (the actor's)."""
+    import optax
+
+    return int(optax.tree_utils.tree_get(ts.actor_ts.opt_state, "count"))
+
+
+def _falling(ts, cfg: ScratchConfig, lr_from: int, steps: int, changes: str = ""):
+    """The training state under ``cfg``'s falling learning rate (``[ppo] learning_rate_end``), its
+    fall started at step ``lr_from`` (the run stands at ``steps``), and ``changes`` with the fall
+    named (for the progress line); both as they were where the rate is constant."""
+    p = cfg.ppo
+    if p.learning_rate_end is None:
+        return ts, changes
+    first = adam_count(ts) - updates_between(cfg, lr_from, steps)
+    last = first + updates_between(cfg, lr_from, cfg.train.total_timesteps)
+    tx = falling_adam(p.learning_rate, p.learning_rate_end, first, last, p.max_grad_norm)
+    changes += (f", learning rate {learning_rate_at(cfg, lr_from, steps):.3g} falling to {p.learning_rate_end:.3g} "
+                f"by {cfg.train.total_timesteps:,d} steps")  # fmt: skip
+    return ts.replace(actor_ts=ts.actor_ts.replace(tx=tx), critic_ts=ts.critic_ts.replace(tx=tx)), changes
+
+
+def learning_rate_at(cfg: ScratchConfig, lr_from: int, steps: int) -> float:
+    """The learning rate of the next update at ``steps`` under ``cfg``, its fall started at ``lr_from``."""
+    p = cfg.ppo
+    if p.learning_rate_end is None:
+        return p.learning_rate
+    span = max(updates_between(cfg, lr_from, cfg.train.total_timesteps), 1)
+    k = min(max(updates_between(cfg, lr_from, steps) / span, 0.0), 1.0)
+    return p.learning_rate + (p.learning_rate_end - p.learning_rate) * k
+
+
+def _sets_learning_rate(stage) -> bool:
+    """Whether a stage gives the learning rate or its fall (and so starts the fall afresh)."""
+    ppo = stage.changes.get("ppo", {})
+    return "learning_rate" in ppo or "learning_rate_end" in ppo
+
+
 def _next_stage(trainer: Trainer, cfg: ScratchConfig) -> Trainer:
     """A trainer for the next stage's ``cfg``, where ``trainer`` stood: its curriculum's window, its
     start, the count of compilations."""
@@ -389,6 +461,13 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     first = _stage_records(history, stage) if resume else len(history)  # this stage's chunks, for what the next waits on
     average = _restored_average(point, ts, history, trainer.cfg.env.rung)
     ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
+    # where the learning rate's fall started: here (the run's first step, a checkpoint's, a stage's
+    # entered here that gives the rate), else a resumed run's record
+    last = history[-1] if resume and history else {}
+    passed = cfg.stages[last.get("stage", 0):stage]  # the stages a resumed run enters here
+    fresh_fall = "learning_rate_from" not in last or any(map(_sets_learning_rate, passed))
+    lr_from = steps if fresh_fall else last["learning_rate_from"]
+    ts, changes = _falling(ts, trainer.cfg, lr_from, steps, changes)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
@@ -407,6 +486,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
             stage, first = stage + 1, len(history)  # the next stage starts here
             trainer = _next_stage(trainer, stages[stage][1])
             ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)
+            lr_from = steps if _sets_learning_rate(cfg.stages[stage - 1]) else lr_from
+            ts, changes = _falling(ts, trainer.cfg, lr_from, steps, changes)
             before = stages[stage - 1][1]
             ts, changes = _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping,
                                            draws_before=before.env.draws)  # fmt: skip
@@ -427,6 +508,9 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         if cfg.stages:
             rec["stage"] = stage
         rec["rung"] = trainer.cfg.env.rung
+        if trainer.cfg.ppo.learning_rate_end is not None:
+            rec["learning_rate"] = learning_rate_at(trainer.cfg, lr_from, steps)
+            rec["learning_rate_from"] = lr_from
         average = _average_flown(trainer, ts, rec, average)
         history.append(rec)
         if best is None or chunk_rank(rec) > chunk_rank(best):
@@ -448,6 +532,21 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     write_json(out / "metadata.json", meta)
     plot_learning_curve(history, out / "learning_curve.png", f"PPO from scratch (rejax) on the {cfg.env.rung} rung")
     return meta
+
+
+def last_state(run: str | Path):
+    """(trainer, training state, steps) of ``run``'s last checkpoint, under the stage the run was in
+    (its curriculum's window as the run left it), for a study of where the run stands."""
+    from rventry_agents.scratch_state import Checkpoint
+
+    run = Path(run)
+    cfg = load_config(json.loads((run / "config.json").read_text()))
+    point = Checkpoint.read(run)
+    stage_cfg = cfg.stage_configs()[_stage_now(cfg, point.steps, point.history)][1]
+    trainer = Trainer(stage_cfg, run, stage_cfg.train.seed)
+    ts = point.restore(_initial_state(trainer.algo, stage_cfg, stage_cfg.train.seed))[0]
+    trainer.curriculum.window = point.window
+    return trainer, ts, point.steps
 
 
 def own_wall(wall_s: float, init_from: dict | None) -> float:
@@ -480,13 +579,14 @@ def save_milestone(out: Path, trainer: Trainer, ts, rec: dict) -> Path:
             "task": trainer.task.record(), "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": rec["timesteps"],
             "wall_s": rec["wall_s"], "config": cfg.to_dict(), "window_s": c["window_s"], "frontier": c["frontier"],
             "probes": rec.get("probes", {}),
-            "provenance": _provenance(trainer, rec["timesteps"], milestone=f"landed {c['frontier_success']:.2f} of the starts "
-                                      f"{FRONTIER_DEPTH * c['window_s']:.0f}-{c['window_s']:.0f} s before impact"),
+            "provenance": policy_provenance(trainer, rec["timesteps"],
+                                            milestone=f"landed {c['frontier_success']:.2f} of the starts "
+                                            f"{FRONTIER_DEPTH * c['window_s']:.0f}-{c['window_s']:.0f} s before impact"),
         })  # fmt: skip
     return folder
 
 
-def _provenance(trainer: Trainer, steps: int, **extra) -> dict:
+def policy_provenance(trainer: Trainer, steps: int, **extra) -> dict:
     """What a policy of this run is: the learner, its start, curriculum, shaping, actions, rung, steps
     and seed, and the run whose checkpoint it started from, if any."""
     cfg = trainer.cfg
@@ -673,8 +773,8 @@ def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, r
         "actions": cfg.env.actions, "rung": cfg.env.rung, "seed": cfg.train.seed, "timesteps": steps,
         "wall_s": history[-1]["wall_s"] if history else 0.0, "env_steps_per_s": rate, "device": str(jax.devices()[0]),
         "train_compilations": len(trainer.traces), "package_version": __version__,
-        "provenance": _provenance(trainer, steps, selected_at_timesteps=best["timesteps"] if best else None,
-                                  **({"selected_policy": "the average of the chunks' actors"} if best and _by_average(best) else {})),
+        "provenance": policy_provenance(trainer, steps, selected_at_timesteps=best["timesteps"] if best else None,
+                                        **({"selected_policy": "the average of the chunks' actors"} if best and _by_average(best) else {})),
         "best_evaluation": best, "final_window_s": trainer.curriculum.window,
     }  # fmt: skip
 

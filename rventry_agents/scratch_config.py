@@ -147,7 +147,12 @@ class PPOSection(RejaxPPOSection):
     false`` holds the policy as it is (the actor and its observation statistics) while the critic
     and the reward statistics learn: the critic's warm-up of a run started from a policy alone (a
     ``policy.npz`` without its critic), whose new critic would otherwise steer the policy's first
-    updates with values it has not learned yet."""
+    updates with values it has not learned yet. ``learning_rate_end``: the learning rate (actor's
+    and critic's) falls linearly, update by update, from ``learning_rate`` where the stage it is set
+    in starts to this at ``[train] total_timesteps`` (the first stage starts at the run's first step,
+    or at the step of the checkpoint the run starts from); not given: constant. A later stage that
+    gives ``learning_rate`` or ``learning_rate_end`` starts the fall afresh from its own first step,
+    and a later stage that gives neither goes on with it from where it stands."""
 
     num_minibatches: int = setting(8, ge=1)
     num_epochs: int = setting(4, ge=1)
@@ -155,6 +160,7 @@ class PPOSection(RejaxPPOSection):
     log_std_init: float = setting(-1.0, lt=2)
     restart_exploration: bool = False
     train_actor: bool = True
+    learning_rate_end: float | None = setting(None, ge=0)
 
 
 @dataclass(frozen=True, kw_only=True)

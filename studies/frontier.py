@@ -20,31 +20,16 @@ along the shipped reference ``--from``-``--to`` s before impact, with the curric
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from rventry_agents.commands import clipped_outputs
+from rventry_agents.scratch import last_state
 from rventry_env.util.provenance import start_run
 
 PERCENTILES = (10, 50, 90)
-
-
-def restore(run: Path):
-    """(trainer, training state, steps) of ``run``'s last checkpoint, under the stage it was in."""
-    from rventry_agents.scratch import Trainer, _initial_state, _stage_now
-    from rventry_agents.scratch_config import load_config
-    from rventry_agents.scratch_state import Checkpoint
-
-    cfg = load_config(json.loads((run / "config.json").read_text()))
-    point = Checkpoint.read(run)
-    stage_cfg = cfg.stage_configs()[_stage_now(cfg, point.steps, point.history)][1]
-    trainer = Trainer(stage_cfg, run, stage_cfg.train.seed)
-    ts = point.restore(_initial_state(trainer.algo, stage_cfg, stage_cfg.train.seed))[0]
-    trainer.curriculum.window = point.window
-    return trainer, ts, point.steps
 
 
 def fly(trainer, ts, lo: float, hi: float, episodes: int, seed: int = 0) -> dict:
@@ -144,7 +129,7 @@ def main() -> None:
         ap.error(f"--from and --to must satisfy 0 < from < to, got {args.lo:g} and {args.hi:g}")
     if args.episodes < 1:
         ap.error(f"--episodes must be at least 1, got {args.episodes}")
-    trainer, ts, steps = restore(args.run)
+    trainer, ts, steps = last_state(args.run)
     log_std = np.asarray(ts.actor_ts.params["params"]["action_log_std"])
     r = summarize(trainer, fly(trainer, ts, args.lo, args.hi, args.episodes, args.seed), steps, args.lo, args.hi,
                   log_std)

@@ -24,12 +24,12 @@ def test_the_frontier_study_flies_what_the_runs_probe_flies_and_splits_the_miss_
     pytest.importorskip("rejax")
     import jax
 
-    from rventry_agents.scratch import train_scratch
+    from rventry_agents.scratch import last_state, train_scratch
 
     study = load_script("studies/frontier")
     out = tmp_path / "run"
     train_scratch(json.loads(json.dumps(SMALL)), out=out, timesteps=1024, progress=lambda s: None)
-    trainer, ts, steps = study.restore(out)
+    trainer, ts, steps = last_state(out)
     assert steps == 1024 and trainer.env.actions == "circular-commands"
     lo, hi = 30.0, 45.0
     o = study.fly(trainer, ts, lo, hi, 16, seed=3)
@@ -56,3 +56,30 @@ def test_the_frontier_study_flies_what_the_runs_probe_flies_and_splits_the_miss_
     assert np.all(np.asarray(o["steps"]) > 0) and np.all(np.isfinite(np.asarray(o["output_mean"])))
     text = study.report(r)
     assert "bank output" in text and "read on the circle: not clipped" in text and "steps past its clip" in text
+    # the last chunk's policy exported (studies/last_policy.py): here the run's one chunk, the one it selected
+    exported = load_script("studies/last_policy").export_last(out, tmp_path / "last")
+    assert exported["timesteps"] == 1024 and exported["provenance"]["chunk"].startswith("the run's last")
+    with np.load(out / "policy.npz") as selected, np.load(tmp_path / "last" / "policy.npz") as last:
+        assert sorted(selected.files) == sorted(last.files)
+        for key in selected.files:
+            np.testing.assert_array_equal(selected[key], last[key], err_msg=key)
+
+
+def test_the_curves_study_reads_a_runs_best_last_and_lowest_chunks_and_writes_its_plot_with_them(tmp_path):
+    """studies/curves.py: the best chunk is the first of equals (as the run's selection ranks them),
+    the lowest point leaves out the stage's first chunks, the plot and the record are written together."""
+    study = load_script("studies/curves")
+    run = tmp_path / "run"
+    run.mkdir()
+    success = [0.7, 0.0, 0.5, 0.9, 0.6, 0.3, 0.9, 0.8, 0.4, 0.7, 0.6, 0.5]
+    hist = [{"timesteps": 1000 * (i + 1), "select": {"success_rate": s}} for i, s in enumerate(success)]
+    (run / "evaluations.json").write_text(json.dumps(hist))
+    r = study.summary(*study.curve(run, start=1000))  # the first chunk left out: a stage from its step
+    assert r["chunks"] == 11 and r["best"] == 0.9 and r["best_at"] == 4000
+    assert r["last"] == 0.5 and r["last_at"] == 12000
+    assert r["last10_mean"] == pytest.approx(np.mean(success[2:])) and r["last10_min"] == 0.3
+    assert r["min_after_settling"] == 0.4  # 0.0 and 0.3 lie in the first five chunks
+    with pytest.raises(ValueError, match="no chunk past 12,000 steps"):
+        study.curve(run, start=12000)
+    study.plot({"a s1": study.curve(run)}, tmp_path / "c.png", "t")
+    assert (tmp_path / "c.png").stat().st_size > 1000

@@ -957,3 +957,97 @@ def test_the_gpu_recipe_is_the_progress_recipe_with_more_vehicles():
     cfg = load_config(DEFAULT_CONFIG.parent / "ppo_scratch_gpu.toml")
     assert cfg.train.chunk_timesteps == 128 * cfg.env.num_envs * cfg.ppo.num_steps
     assert cfg.env.resets * 32 == cfg.env.num_envs
+
+
+def test_a_falling_learning_rate_is_rejax_adam_at_each_updates_rate_and_keeps_its_state_form():
+    """``falling_adam``: with the two rates equal, rejax PPO's optimizer update for update, to the bit;
+    falling, Adam's own step scaled by the rate of that update's count, linear from ``first`` to
+    ``last`` and held after; its state of the form rejax's has (so a checkpoint of either restores)."""
+    import jax
+    import jax.numpy as jnp
+    import optax
+
+    from rventry_agents.scratch import falling_adam
+
+    params = {"w": jnp.linspace(-1.0, 1.0, 6, dtype=jnp.float32).reshape(2, 3)}
+    grads = [jax.tree_util.tree_map(lambda p, i=i: jnp.sin(7.0 * p + i), params) for i in range(8)]
+    plain = optax.chain(optax.clip(0.5), optax.adam(1e-4))
+    same = falling_adam(1e-4, 1e-4, 0, 10, 0.5)
+    assert jax.tree_util.tree_structure(plain.init(params)) == jax.tree_util.tree_structure(same.init(params))
+    a, b = plain.init(params), same.init(params)
+    for g in grads:
+        ua, a = plain.update(g, a, params)
+        ub, b = same.update(g, b, params)
+        np.testing.assert_array_equal(np.asarray(ua["w"]), np.asarray(ub["w"]))
+    # falling from 1e-4 at update 2 to 2e-5 at update 6: Adam's step times each update's rate
+    fall, adam = falling_adam(1e-4, 2e-5, 2, 6, 0.5), optax.chain(optax.clip(0.5), optax.scale_by_adam())
+    f, d = fall.init(params), adam.init(params)
+    for count, g in enumerate(grads):
+        uf, f = fall.update(g, f, params)
+        ud, d = adam.update(g, d, params)
+        rate = 1e-4 + (2e-5 - 1e-4) * min(max((count - 2) / 4, 0.0), 1.0)
+        np.testing.assert_allclose(np.asarray(uf["w"]), -rate * np.asarray(ud["w"]), rtol=1e-6)
+
+
+def test_a_falling_learning_rate_is_checked_and_counted_in_adams_updates():
+    """``[ppo] learning_rate_end`` is refused by name where it is no rate; the updates between two steps
+    are the minibatches of the rollouts between them, and the rate between is linear in them."""
+    from rventry_agents.scratch import learning_rate_at, updates_between
+
+    with pytest.raises(ConfigError, match="learning_rate_end"):
+        load_config({**SMALL, "ppo": {**SMALL["ppo"], "learning_rate_end": -1e-5}})
+    cfg = load_config({**SMALL, "ppo": {**SMALL["ppo"], "learning_rate_end": 0.0},
+                       "train": {**SMALL["train"], "total_timesteps": 5 * 1024}})  # fmt: skip
+    # 32 vehicles x 32 steps a rollout, 4 epochs of 4 minibatches each
+    assert updates_between(cfg, 1024, 3072) == 2 * 4 * 4
+    assert learning_rate_at(cfg, 1024, 1024) == pytest.approx(3e-4)
+    assert learning_rate_at(cfg, 1024, 3072) == pytest.approx(1.5e-4)
+    assert learning_rate_at(cfg, 1024, 5120) == pytest.approx(0.0)
+    assert learning_rate_at(load_config(SMALL), 1024, 3072) == pytest.approx(3e-4)  # not given: constant
+
+
+@pytest.mark.slow
+def test_a_falling_learning_rate_runs_from_the_stage_that_sets_it_straight_through_or_resumed(tmp_path):
+    """A stage that sets ``learning_rate_end`` starts the fall at its first step, a later stage that
+    changes something else goes on with it, and a run stopped after each chunk and resumed trains the
+    same state to the byte, its records naming each chunk's rate."""
+    pytest.importorskip("rejax")
+    from rventry_agents.scratch import adam_count, train_scratch, updates_between
+    from rventry_agents.scratch_state import read_start
+
+    staged = json.loads(json.dumps(SMALL))
+    staged["train"]["total_timesteps"] = 4096
+    staged["stages"] = [{"from_timesteps": 1024, "ppo": {"learning_rate_end": 1e-5}},
+                        {"from_timesteps": 2048, "ppo": {"ent_coef": 0.01}}]  # fmt: skip
+    train_scratch(staged, out=tmp_path / "straight", progress=lambda s: None)
+    for n in range(4):  # a chunk a segment: the budget ends each after its first chunk
+        train_scratch(staged, out=tmp_path / "stopped", resume=n > 0, max_wall_s=1e-9, progress=lambda s: None)
+    def flown(run):  # the record without its clock
+        return [{k: v for k, v in h.items() if k not in ("wall_s", "chunk_s")}
+                for h in json.loads((tmp_path / run / "evaluations.json").read_text())]  # fmt: skip
+
+    record = flown("straight")
+    assert [h["timesteps"] for h in record] == [1024, 2048, 3072, 4096]
+    assert "learning_rate" not in record[0]  # the first stage's rate is constant
+    assert [h["learning_rate_from"] for h in record[1:]] == [1024, 1024, 1024]
+    np.testing.assert_allclose([h["learning_rate"] for h in record[1:]],
+                               [3e-4 + (1e-5 - 3e-4) * k / 3 for k in (1, 2, 3)], rtol=1e-9)  # fmt: skip
+    assert flown("stopped") == record
+    assert (tmp_path / "stopped" / "checkpoint" / "train_state.msgpack").read_bytes() == (
+        tmp_path / "straight" / "checkpoint" / "train_state.msgpack").read_bytes()
+    cfg = load_config(staged)
+    ts = read_start(tmp_path / "straight").restore(_small_template(cfg))[0]
+    assert adam_count(ts) == updates_between(cfg, 0, 4096)
+    # the fall reaches the updates: the same stages at a constant rate train another state
+    staged["stages"][0]["ppo"] = {"learning_rate": 3e-4}
+    train_scratch(staged, out=tmp_path / "constant", progress=lambda s: None)
+    assert (tmp_path / "constant" / "checkpoint" / "train_state.msgpack").read_bytes() != (
+        tmp_path / "straight" / "checkpoint" / "train_state.msgpack").read_bytes()
+    assert "learning_rate" not in flown("constant")[-1]
+
+
+def _small_template(cfg):
+    from rventry_agents.scratch import Trainer, _initial_state
+
+    trainer = Trainer(cfg, None, cfg.train.seed)
+    return _initial_state(trainer.algo, trainer.cfg, cfg.train.seed)
