@@ -8,7 +8,8 @@ script plots them against the training steps (from ``--from`` on: a stage starte
 run's state at that step) in ``OUT.png``, and writes ``OUT.json`` with, for each run: the best
 chunk (the one the run selects) and its step, the last chunk, the mean and the lowest of the last
 10 chunks, and the lowest after the first 5 (a fall within the stage). Labels group runs whose
-names share the text before the last space (``"constant s2"``, ``"constant s3"``: one colour).
+names share the text before the last space (``"constant s2"``, ``"constant s3"``: one colour,
+a line style each).
 """
 
 from __future__ import annotations
@@ -56,8 +57,11 @@ def plot(curves: dict, path: Path, title: str) -> None:
     groups = sorted({label.rsplit(" ", 1)[0] for label in curves})
     colours = {g: f"C{i}" for i, g in enumerate(groups)}
     fig, ax = plt.subplots(figsize=(9, 4.5))
+    members: dict[str, int] = {}
     for label, (steps, success) in curves.items():
-        ax.plot(steps / 1e6, success, color=colours[label.rsplit(" ", 1)[0]], lw=1.2, label=label)
+        group = label.rsplit(" ", 1)[0]
+        k = members[group] = members.get(group, -1) + 1  # each run of a group its own line style
+        ax.plot(steps / 1e6, success, color=colours[group], ls=("-", "--", ":", "-.")[k % 4], lw=1.2, label=label)
     ax.set_xlabel("training steps (millions)")
     ax.set_ylabel("success on the selection set")
     ax.set_ylim(-0.02, 1.02)
