@@ -461,12 +461,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     first = _stage_records(history, stage) if resume else len(history)  # this stage's chunks, for what the next waits on
     average = _restored_average(point, ts, history, trainer.cfg.env.rung)
     ts, changes = _starting(ts, trainer, point, history, source, stages, stage if resume else None)
-    # where the learning rate's fall started: here (the run's first step, a checkpoint's, a stage's
-    # entered here that gives the rate), else a resumed run's record
-    last = history[-1] if resume and history else {}
-    passed = cfg.stages[last.get("stage", 0):stage]  # the stages a resumed run enters here
-    fresh_fall = "learning_rate_from" not in last or any(map(_sets_learning_rate, passed))
-    lr_from = steps if fresh_fall else last["learning_rate_from"]
+    lr_from = _fall_from(cfg, history if resume else [], stage, steps)
     ts, changes = _falling(ts, trainer.cfg, lr_from, steps, changes)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
@@ -484,13 +479,10 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         c = trainer.curriculum
         if stage < len(cfg.stages) and cfg.stages[stage].due(steps, history[first:], c.window, c.complete):
             stage, first = stage + 1, len(history)  # the next stage starts here
-            trainer = _next_stage(trainer, stages[stage][1])
-            ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, stages[stage - 1][1].train.seed)
-            lr_from = steps if _sets_learning_rate(cfg.stages[stage - 1]) else lr_from
-            ts, changes = _falling(ts, trainer.cfg, lr_from, steps, changes)
             before = stages[stage - 1][1]
-            ts, changes = _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping,
-                                           draws_before=before.env.draws)  # fmt: skip
+            trainer = _next_stage(trainer, stages[stage][1])
+            lr_from = steps if _sets_learning_rate(cfg.stages[stage - 1]) else lr_from
+            ts, changes = _stage_entered(ts, trainer, before, lr_from, steps)
             best = _best(history, trainer.cfg.env.rung)
             average = average if trainer.cfg.env.rung == before.env.rung else None  # a rung's own chunks averaged
             waited = cfg.stages[stage - 1].waits()
@@ -508,9 +500,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
         if cfg.stages:
             rec["stage"] = stage
         rec["rung"] = trainer.cfg.env.rung
-        if trainer.cfg.ppo.learning_rate_end is not None:
-            rec["learning_rate"] = learning_rate_at(trainer.cfg, lr_from, steps)
-            rec["learning_rate_from"] = lr_from
+        _record_rate(rec, trainer.cfg, lr_from, steps)
         average = _average_flown(trainer, ts, rec, average)
         history.append(rec)
         if best is None or chunk_rank(rec) > chunk_rank(best):
@@ -532,6 +522,33 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     write_json(out / "metadata.json", meta)
     plot_learning_curve(history, out / "learning_curve.png", f"PPO from scratch (rejax) on the {cfg.env.rung} rung")
     return meta
+
+
+def _fall_from(cfg: ScratchConfig, history: list[dict], stage: int, steps: int) -> int:
+    """The step where the learning rate's fall started: here (the run's first step, a checkpoint's, a
+    stage's entered here that gives the rate), else the resumed run's record (``history`` is a resumed
+    run's own, empty otherwise)."""
+    last = history[-1] if history else {}
+    passed = cfg.stages[last.get("stage", 0):stage]  # the stages a resumed run enters here
+    fresh_fall = "learning_rate_from" not in last or any(map(_sets_learning_rate, passed))
+    return steps if fresh_fall else last["learning_rate_from"]
+
+
+def _stage_entered(ts, trainer: Trainer, before: ScratchConfig, lr_from: int, steps: int):
+    """(state, changes) on entering the stage of ``trainer`` from the one configured by ``before``: the
+    optimizers the new settings need, the rate's fall from ``lr_from``, vehicles drawn afresh where the
+    rung, its draws or the shaping change."""
+    ts, changes = _entered(_with_optimizers(ts, trainer.algo), trainer.cfg, before.train.seed)
+    ts, changes = _falling(ts, trainer.cfg, lr_from, steps, changes)
+    return _vehicles_afresh(ts, trainer, before.env.rung, changes, shaping_before=before.shaping,
+                            draws_before=before.env.draws)  # fmt: skip
+
+
+def _record_rate(rec: dict, cfg: ScratchConfig, lr_from: int, steps: int) -> None:
+    """The learning rate at ``steps`` and where its fall started, in a falling rate's chunk record."""
+    if cfg.ppo.learning_rate_end is not None:
+        rec["learning_rate"] = learning_rate_at(cfg, lr_from, steps)
+        rec["learning_rate_from"] = lr_from
 
 
 def last_state(run: str | Path):
