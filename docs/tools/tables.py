@@ -475,6 +475,28 @@ def jax_cpu_table(bench: dict, ppo: dict) -> str:
                       source("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json")])
 
 
+def scratch_scan_table(doc: dict) -> str:
+    """The from-scratch learner's training throughput against its batch shape (``benchmarks/scratch_scan.py``)."""
+    rows, base = [], next(r for r in doc["variants"] if r["name"] == "shipped" and not r["one_core"])
+    for r in doc["variants"]:
+        changed = ", ".join(f"{sec}.{k} = {v}" for sec, fields in r["changes"].items() for k, v in fields.items())
+        rows.append([f"`{r['name']}`", changed or "as shipped", "one (taskset)" if r["one_core"] else "two",
+                     f"{r['train_env_steps_per_s']:,.0f}", f"{r['wall_env_steps_per_s']:,.0f}",
+                     f"**{r['wall_env_steps_per_s'] / base['wall_env_steps_per_s']:.2f}x**",
+                     f"{r['updates_per_million_steps']:.0f}"])  # fmt: skip
+    m = doc["provenance"]["machine"]
+    note = (f"Each variant the shipped config's first sections (`rventry_agents/ppo_scratch.toml`, no stages) with the "
+            f"settings named changed, {doc['chunks']} chunks in a fresh process, one variant at a time on a "
+            f"{m['cores']}-core {m['cpu']} (load average {m['load_average_start'][0]:.1f} at the start, "
+            f"{m['load_average_end'][0]:.1f} at the end). Training: the learner's own env-steps/s, the median chunk "
+            "after the first, its evaluations excluded; wall clock: the median chunk's whole time, the curriculum's "
+            "frontier, the selection set and the probes included, which is what a budget in hours pays.")  # fmt: skip
+    header = ["variant", "settings changed", "cores", "training env-steps/s", "wall-clock env-steps/s", "wall, against shipped",
+              "updates a million steps"]  # fmt: skip
+    return "\n".join([md(header, rows), "", note, "",
+                      source("docs/results/bench_scratch_scan.json", command="python benchmarks/scratch_scan.py --json PATH")])
+
+
 def _per_s(v: float) -> str:
     """Vehicle-steps/s as the GPU table writes them: millions, or 1e9 from a billion up."""
     return f"{v / 1e9:.2f}e9" if v >= 1e9 else f"{v / 1e6:.0f}M"
@@ -1573,6 +1595,7 @@ TABLES: tuple[Table, ...] = (
           terminal_alpha_tables, ("docs/benchmarks/guidance.md",)),
     Table("jax-cpu", ("docs/results/bench_jax_cpu.json", "docs/results/bench_jax_ppo_cpu.json"), jax_cpu_table,
           ("docs/benchmarks/jax.md",)),
+    Table("scratch-scan", ("docs/results/bench_scratch_scan.json",), scratch_scan_table, ("docs/benchmarks/jax.md",)),
     Table("jax-gpu", ("docs/results/bench_jax_h200.json", "docs/results/bench_jax_h100.json",
                       "docs/results/bench_jax_h100_kernels.json"), jax_gpu_table, ("docs/benchmarks/jax.md",)),
     Table("rounds-dagger", ("rventry_agents/data/dagger/rounds.json",), rounds_table("rventry_agents/data/dagger/rounds.json"),
