@@ -7,7 +7,8 @@ else of the benchmark running beside it. It prints, per variant:
 * env-steps/s of training (the median over the chunks after the first, which compiles; the
   learner's own figure, its evaluations excluded);
 * env-steps/s of the wall clock, the curriculum's frontier and the selection set included (the
-  median chunk's whole time), which is what a training budget in hours pays;
+  median of one chunk's training and one chunk's evaluations, after the first two of each, which
+  compile), which is what a training budget in hours pays;
 * updates a million env-steps (epochs x minibatches per rollout), which says how much learning a
   step buys: a variant that is faster per step by taking fewer updates is not faster per update.
 
@@ -114,14 +115,17 @@ def run_variant(name: str, one_core: bool, changes: dict, chunks: int, workdir: 
     wall = time.perf_counter() - t0
     meta = json.loads((out / "metadata.json").read_text())
     history = json.loads((out / "evaluations.json").read_text())
-    walls = np.diff([0.0] + [h["wall_s"] for h in history])[1:]  # every chunk's whole time but the first's
+    # a chunk's record is taken after its training and before its evaluations, so the difference of two
+    # records' wall times is one evaluation and one chunk of training: the first two (the first chunk's
+    # compilation, then the evaluation programs' compilation in the first evaluations) are left out
+    walls = np.diff([h["wall_s"] for h in history])[1:]
     steps = cfg["train"]["chunk_timesteps"]
     p = cfg["ppo"]
     rollout = cfg["env"]["num_envs"] * p["num_steps"]
     return {
         "name": name, "one_core": one_core, "changes": changes, "chunks": len(history), "chunk_timesteps": steps,
         "train_env_steps_per_s": meta["env_steps_per_s"],
-        "wall_env_steps_per_s": steps / float(np.median(walls)) if len(walls) else None,
+        "wall_env_steps_per_s": steps / float(np.median(walls)),
         "first_chunk_s": history[0]["wall_s"] if history else None,
         "updates_per_million_steps": p["num_epochs"] * p["num_minibatches"] * 1e6 / rollout,
         "minibatch": rollout // p["num_minibatches"], "process_s": wall, "device": meta["device"],
@@ -131,11 +135,12 @@ def run_variant(name: str, one_core: bool, changes: dict, chunks: int, workdir: 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("variants", nargs="*", default=list(DEFAULT_VARIANTS), help="NAME[@1][:SECTION.KEY=VALUE,...]")
-    ap.add_argument("--chunks", type=int, default=3, help="chunks a variant trains (the first compiles; default 3)")
+    ap.add_argument("--chunks", type=int, default=4,
+                    help="chunks a variant trains (the first two cycles compile and are not timed; default 4)")
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args()
-    if args.chunks < 2:
-        ap.error("--chunks must be at least 2: the first chunk compiles and is not timed")
+    if args.chunks < 3:
+        ap.error("--chunks must be at least 3: the first two cycles compile and are not timed")
     parsed = [parse_variant(v) for v in args.variants]
     for _, _, changes in parsed:
         variant_config(changes, args.chunks)  # every variant checked before the first trains

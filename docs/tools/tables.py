@@ -489,8 +489,9 @@ def scratch_scan_table(doc: dict) -> str:
             f"settings named changed, {doc['chunks']} chunks in a fresh process, one variant at a time on a "
             f"{m['cores']}-core {m['cpu']} (load average {m['load_average_start'][0]:.1f} at the start, "
             f"{m['load_average_end'][0]:.1f} at the end). Training: the learner's own env-steps/s, the median chunk "
-            "after the first, its evaluations excluded; wall clock: the median chunk's whole time, the curriculum's "
-            "frontier, the selection set and the probes included, which is what a budget in hours pays.")  # fmt: skip
+            "after the first, its evaluations excluded; wall clock: the median of one chunk's training and the "
+            "evaluations before it (the curriculum's frontier, the selection set and the probes), the first two "
+            "left out as they compile, which is what a budget in hours pays.")  # fmt: skip
     header = ["variant", "settings changed", "cores", "training env-steps/s", "wall-clock env-steps/s", "wall, against shipped",
               "updates a million steps"]  # fmt: skip
     return "\n".join([md(header, rows), "", note, "",
