@@ -91,13 +91,13 @@ def variant_config(changes: dict, chunks: int) -> dict:
         if section not in base:
             raise SystemExit(f"no section [{section}] in the config (it has {sorted(base)})")
         base[section] = {**base[section], **fields}
-    cfg = load_config(base)  # checked here, before anything runs
-    return {**cfg.to_dict(), "train": {**cfg.to_dict()["train"], "total_timesteps": chunks * cfg.train.chunk_timesteps}}
+    plain = load_config(base).to_dict()  # checked here, before anything runs
+    return {**plain, "train": {**plain["train"], "total_timesteps": chunks * plain["train"]["chunk_timesteps"]}}
 
 
-def run_variant(name: str, one_core: bool, changes: dict, chunks: int, workdir: Path) -> dict:
-    """Train the variant in a fresh process; its figures."""
-    cfg = variant_config(changes, chunks)
+def run_variant(name: str, one_core: bool, changes: dict, cfg: dict, workdir: Path) -> dict:
+    """Train the variant (``changes``, as :func:`variant_config` made ``cfg`` of them) in a fresh process;
+    its figures."""
     out = workdir / name
     shutil.rmtree(out, ignore_errors=True)
     code = (
@@ -126,7 +126,7 @@ def run_variant(name: str, one_core: bool, changes: dict, chunks: int, workdir: 
         "name": name, "one_core": one_core, "changes": changes, "chunks": len(history), "chunk_timesteps": steps,
         "train_env_steps_per_s": meta["env_steps_per_s"],
         "wall_env_steps_per_s": steps / float(np.median(walls)),
-        "first_chunk_s": history[0]["wall_s"] if history else None,
+        "first_chunk_s": history[0]["wall_s"],
         "updates_per_million_steps": p["num_epochs"] * p["num_minibatches"] * 1e6 / rollout,
         "minibatch": rollout // p["num_minibatches"], "process_s": wall, "device": meta["device"],
     }  # fmt: skip
@@ -141,16 +141,15 @@ def main():
     args = ap.parse_args()
     if args.chunks < 3:
         ap.error("--chunks must be at least 3: the first two cycles compile and are not timed")
-    parsed = [parse_variant(v) for v in args.variants]
-    for _, _, changes in parsed:
-        variant_config(changes, args.chunks)  # every variant checked before the first trains
+    # every variant read and checked before the first trains
+    parsed = [(*variant, variant_config(variant[2], args.chunks)) for variant in map(parse_variant, args.variants)]
     start_run()
     record: dict = {"chunks": args.chunks, "variants": []}
     rows = record["variants"]
     with tempfile.TemporaryDirectory(prefix="scratch_scan_") as tmp:
-        for i, (name, one_core, changes) in enumerate(parsed, 1):
+        for i, (name, one_core, changes, cfg) in enumerate(parsed, 1):
             print(f"[{i}/{len(parsed)}] {name}{' (one core)' if one_core else ''}: {changes or 'as shipped'}", flush=True)
-            row = run_variant(name, one_core, changes, args.chunks, Path(tmp))
+            row = run_variant(name, one_core, changes, cfg, Path(tmp))
             rows.append(row)
             print(f"    training {row['train_env_steps_per_s']:,.0f} env-steps/s, wall clock {row['wall_env_steps_per_s']:,.0f} "
                   f"env-steps/s (evaluations included), {row['updates_per_million_steps']:.0f} updates a million steps",
