@@ -177,6 +177,8 @@ def _agent(cfg: ScratchConfig, env, params, chunk: int):
         total_timesteps=chunk, eval_freq=chunk, skip_initial_evaluation=True,
         agent_kwargs={"hidden_layer_sizes": tuple(p.hidden_layer_sizes), "activation": p.activation},
     )  # fmt: skip
+    if p.critic_hidden_layer_sizes is not None:  # the critic of its own widths, the actor's activation
+        algo = algo.replace(critic=algo.critic.clone(hidden_layer_sizes=tuple(p.critic_hidden_layer_sizes)))
     return algo.replace(eval_callback=lambda algo, ts, rng: ())
 
 
@@ -468,7 +470,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     if not resume:
         write_json(out / "config.json", cfg.to_dict())
     if source is not None:
-        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config{changes}")
+        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config"
+                 f"{_stage_said(cfg, stage)}{changes}")
     elif changes:
         progress(f"stage {stage} from {steps:,d} steps{changes}")
     trainer.with_window()
@@ -684,6 +687,18 @@ def _stage_now(cfg: ScratchConfig, steps: int, history: list[dict]) -> int:
     """The stage a run of ``cfg`` is in at ``steps``: as the steps say, or as its record of the chunks
     flown (``history``) says where a stage that waits on the training's progress has started."""
     return max(cfg.stage_at(steps), history[-1].get("stage", 0) if history else 0)
+
+
+def _stage_said(cfg: ScratchConfig, stage: int) -> str:
+    """Which of ``cfg``'s stages a run started from another run's state enters, in words ("" where
+    ``cfg`` has none). The steps alone place it (:meth:`ScratchConfig.stage_at`): a stage that waits
+    on the training's progress starts on this run's own chunks, wherever the source had come to."""
+    if not cfg.stages:
+        return ""
+    said = f", in its stage {stage} of {len(cfg.stages)}" + (" (its first sections)" if stage == 0 else "")
+    if stage < len(cfg.stages) and cfg.stages[stage].on_progress:
+        said += f", stage {stage + 1} to start on this run's own chunks once {cfg.stages[stage].waits()}"
+    return said
 
 
 def _stage_records(history: list[dict], stage: int) -> int:

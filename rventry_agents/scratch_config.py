@@ -138,9 +138,11 @@ class ShapingSection(Section):
 
 @dataclass(frozen=True, kw_only=True)
 class PPOSection(RejaxPPOSection):
-    """``[ppo]``: rejax PPO's settings and the networks (actor and critic alike), with this learner's
-    defaults, and the exploration noise's starting log standard deviation; the rewards are always
-    normalized. ``restart_exploration``: a run started from another run's checkpoint
+    """``[ppo]``: rejax PPO's settings and the networks, with this learner's defaults, and the
+    exploration noise's starting log standard deviation; the rewards are always normalized.
+    ``hidden_layer_sizes`` sizes the actor, and the critic too unless ``critic_hidden_layer_sizes``
+    gives the critic its own (a small policy, cheap to fly and to update, beside a value function
+    wide enough for the terminal terms' sharp values). ``restart_exploration``: a run started from another run's checkpoint
     (``init_from``) sets the noise's log standard deviation back to ``log_std_init`` (the learned
     one has often shrunk by then to where the policy barely explores the curriculum's new starts);
     a fresh run starts there anyway, and a resumed run goes on with its own. ``train_actor =
@@ -157,6 +159,8 @@ class PPOSection(RejaxPPOSection):
     num_minibatches: int = setting(8, ge=1)
     num_epochs: int = setting(4, ge=1)
     hidden_layer_sizes: tuple[int, ...] = widths((64, 64))
+    critic_hidden_layer_sizes: tuple[int, ...] | None = setting(
+        None, ge=1, nonempty=True, what="a list of layer widths (whole numbers >= 1)")
     log_std_init: float = setting(-1.0, lt=2)
     restart_exploration: bool = False
     train_actor: bool = True
@@ -193,7 +197,8 @@ class TrainSection(Section):
 # what a stage may not change: what sizes the training state (the network, the environments, the
 # actions), the compiled chunk, the budget and the selection set every chunk is ranked on
 STAGE_FIXED = {"env": ("actions", "num_envs", "dtype", "resets"),
-               "ppo": ("hidden_layer_sizes", "activation", "normalize_observations", "num_steps", "num_minibatches"),
+               "ppo": ("hidden_layer_sizes", "critic_hidden_layer_sizes", "activation", "normalize_observations",
+                       "num_steps", "num_minibatches"),
                "train": ("total_timesteps", "chunk_timesteps", "max_wall_s", "select_episodes", "select_seed")}  # fmt: skip
 
 

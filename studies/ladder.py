@@ -152,6 +152,8 @@ def _jax(args) -> None:
                     "shaping": c.get("shaping", {}).get("potential", "none"), "actions": c["env"]["actions"],
                     "network": c["ppo"]["hidden_layer_sizes"], "gamma": c["ppo"]["gamma"],
                     "num_envs": c["env"]["num_envs"]}  # fmt: skip
+        if c["ppo"].get("critic_hidden_layer_sizes"):  # a critic of its own widths
+            settings["critic_network"] = c["ppo"]["critic_hidden_layer_sizes"]
         entries.append(_entry(args.learner, rung, runs, settings))
     _write(Path(args.json), entries)
 

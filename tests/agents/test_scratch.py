@@ -71,6 +71,8 @@ def test_stages_change_the_config_from_their_step_on_each_on_top_of_the_last_and
            r"\[stages\]\[0\] \[ppo\] unknown key 'learnin_rate'; did you mean 'learning_rate'": [
                {"from_timesteps": CHUNK, "ppo": {"learnin_rate": 1e-4}}],
            r"env.num_envs cannot change in a stage": [{"from_timesteps": CHUNK, "env": {"num_envs": 64}}],
+           r"ppo.critic_hidden_layer_sizes cannot change in a stage": [
+               {"from_timesteps": CHUNK, "ppo": {"critic_hidden_layer_sizes": [64, 64]}}],
            r"'lr': a stage changes keys of the sections": [{"from_timesteps": CHUNK, "lr": 1e-4}],
            r"\[stages\]\[0\] a stage names where it starts: one or more of from_timesteps, when_stalled_chunks": [
                {"ppo": {"learning_rate": 1e-4}}],
@@ -85,6 +87,54 @@ def test_stages_change_the_config_from_their_step_on_each_on_top_of_the_last_and
     recipe.write_text("[[stages]]\nfrom_timesteps = 4_194_304\nppo = {clip_eps = 0}\n")
     with pytest.raises(ConfigError, match=r"recipe.toml: \[stages\]\[0\] \[ppo\] clip_eps"):
         load_config(recipe)
+
+
+def test_the_critic_takes_its_own_widths_where_given_and_the_actors_else():
+    """``[ppo] critic_hidden_layer_sizes`` sizes the critic alone: the actor keeps
+    ``hidden_layer_sizes``, and without it the critic has the actor's widths (rejax's own)."""
+    pytest.importorskip("rejax")
+    import jax
+
+    from rventry_agents.scratch import Trainer, _initial_state
+    from rventry_env.core.backend import jax_x64
+
+    def kernels(ts, net: str) -> list[tuple[int, ...]]:
+        params = ts.actor_ts.params if net == "actor" else ts.critic_ts.params
+        flat = jax.tree_util.tree_flatten_with_path(params)[0]
+        return sorted(tuple(leaf.shape) for path, leaf in flat if "kernel" in jax.tree_util.keystr(path))
+
+    n = None  # the observation's width, from the actor's first layer
+    for critic, want in ((None, [(16, 16), (16, 1)]), ([24, 8], [(24, 8), (8, 1)])):
+        raw = json.loads(json.dumps(SMALL))
+        if critic is not None:
+            raw["ppo"]["critic_hidden_layer_sizes"] = critic
+        cfg = load_config(raw)
+        with jax_x64(False):
+            ts = _initial_state(Trainer(cfg, None, 0).algo, cfg, 0)
+        actor, value = kernels(ts, "actor"), kernels(ts, "critic")
+        n = n or next(a for a, b in actor if b == 16 and a != 16)
+        assert sorted(actor) == sorted([(n, 16), (16, 16), (16, 2)]), actor
+        assert value == sorted([(n, want[0][0]), *want]), value
+        assert jax.tree_util.tree_all(jax.tree_util.tree_map(lambda x: bool(np.all(np.isfinite(x))), ts.critic_ts.params))
+    with pytest.raises(ConfigError, match=r"\[ppo\] critic_hidden_layer_sizes must be a list of layer widths"):
+        load_config({"ppo": {"critic_hidden_layer_sizes": [0, 8]}})
+
+
+def test_a_run_from_another_runs_state_says_which_stage_it_enters_and_what_the_next_waits_on():
+    """The steps alone place a run started with ``init_from`` among its config's stages; the line
+    that starts it names the stage, and the condition of the next one that waits on this run's own
+    chunks (a source far into its own stages does not carry them over)."""
+    from rventry_agents.scratch import _stage_said
+
+    assert _stage_said(load_config({}), 0) == ""
+    staged = load_config({"stages": [{"from_timesteps": 2 * CHUNK, "ppo": {"learning_rate": 1e-4}},
+                                     {"when_stalled_chunks": 16, "curriculum": {"step_weighted": True}},
+                                     {"when_select_success": 0.5, "ppo": {"learning_rate": 3e-5}}]})  # fmt: skip
+    assert [staged.stage_at(n) for n in (0, 2 * CHUNK, 100 * CHUNK)] == [0, 1, 1]
+    assert _stage_said(staged, 0) == ", in its stage 0 of 3 (its first sections)"
+    assert _stage_said(staged, 1) == (", in its stage 1 of 3, stage 2 to start on this run's own chunks once the "
+                                      "window stood for 16 chunks")  # fmt: skip
+    assert _stage_said(staged, 3) == ", in its stage 3 of 3"
 
 
 def _chunk(steps: int, window: float, moved: bool = False, success: float = 0.0, stage: int = 0) -> dict:
