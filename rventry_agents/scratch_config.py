@@ -141,8 +141,8 @@ class PPOSection(RejaxPPOSection):
     """``[ppo]``: rejax PPO's settings and the networks, with this learner's defaults, and the
     exploration noise's starting log standard deviation; the rewards are always normalized.
     ``hidden_layer_sizes`` sizes the actor, and the critic too unless ``critic_hidden_layer_sizes``
-    gives the critic its own (a small policy, cheap to fly and to update, beside a value function
-    wide enough for the terminal terms' sharp values). ``restart_exploration``: a run started from another run's checkpoint
+    gives the critic its own (a small policy, cheap to fly and to update, beside a wider value
+    function). ``restart_exploration``: a run started from another run's checkpoint
     (``init_from``) sets the noise's log standard deviation back to ``log_std_init`` (the learned
     one has often shrunk by then to where the policy barely explores the curriculum's new starts);
     a fresh run starts there anyway, and a resumed run goes on with its own. ``train_actor =
