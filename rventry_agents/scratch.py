@@ -469,11 +469,8 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
     if not resume:
         write_json(out / "config.json", cfg.to_dict())
-    if source is not None:
-        progress(f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config"
-                 f"{_stage_said(cfg, stage)}{changes}")
-    elif changes:
-        progress(f"stage {stage} from {steps:,d} steps{changes}")
+    if line := _start_line(cfg, source, point, stage, steps, changes):
+        progress(line)
     trainer.with_window()
     t0, rates = time.perf_counter(), []
     best = _best(history, trainer.cfg.env.rung)
@@ -687,6 +684,16 @@ def _stage_now(cfg: ScratchConfig, steps: int, history: list[dict]) -> int:
     """The stage a run of ``cfg`` is in at ``steps``: as the steps say, or as its record of the chunks
     flown (``history``) says where a stage that waits on the training's progress has started."""
     return max(cfg.stage_at(steps), history[-1].get("stage", 0) if history else 0)
+
+
+def _start_line(cfg: ScratchConfig, source: Path | None, point, stage: int, steps: int, changes: str) -> str:
+    """The progress line a run starts with ("" where it has nothing to say): where a run from another
+    run's state (``source``, read as ``point``) starts and under which stage, or what a resumed run's
+    stage changed on entering."""
+    if source is not None:
+        return (f"starting from {source} at {steps:,d} steps, window {point.window:.0f} s, under this config"
+                f"{_stage_said(cfg, stage)}{changes}")
+    return f"stage {stage} from {steps:,d} steps{changes}" if changes else ""
 
 
 def _stage_said(cfg: ScratchConfig, stage: int) -> str:

@@ -115,7 +115,7 @@ def test_the_critic_takes_its_own_widths_where_given_and_the_actors_else():
         n = n or next(a for a, b in actor if b == 16 and a != 16)
         assert sorted(actor) == sorted([(n, 16), (16, 16), (16, 2)]), actor
         assert value == sorted([(n, want[0][0]), *want]), value
-        assert jax.tree_util.tree_all(jax.tree_util.tree_map(lambda x: bool(np.all(np.isfinite(x))), ts.critic_ts.params))
+        assert all(np.all(np.isfinite(x)) for x in jax.tree_util.tree_leaves(ts.critic_ts.params))
     with pytest.raises(ConfigError, match=r"\[ppo\] critic_hidden_layer_sizes must be a list of layer widths"):
         load_config({"ppo": {"critic_hidden_layer_sizes": [0, 8]}})
 
@@ -124,7 +124,9 @@ def test_a_run_from_another_runs_state_says_which_stage_it_enters_and_what_the_n
     """The steps alone place a run started with ``init_from`` among its config's stages; the line
     that starts it names the stage, and the condition of the next one that waits on this run's own
     chunks (a source far into its own stages does not carry them over)."""
-    from rventry_agents.scratch import _stage_said
+    from pathlib import Path
+
+    from rventry_agents.scratch import _stage_said, _start_line
 
     assert _stage_said(load_config({}), 0) == ""
     staged = load_config({"stages": [{"from_timesteps": 2 * CHUNK, "ppo": {"learning_rate": 1e-4}},
@@ -135,6 +137,12 @@ def test_a_run_from_another_runs_state_says_which_stage_it_enters_and_what_the_n
     assert _stage_said(staged, 1) == (", in its stage 1 of 3, stage 2 to start on this run's own chunks once the "
                                       "window stood for 16 chunks")  # fmt: skip
     assert _stage_said(staged, 3) == ", in its stage 3 of 3"
+    point = type("Point", (), {"window": 146.4})()
+    assert _start_line(staged, Path("runs/a/selected"), point, 1, 2 * CHUNK, ", learning rate 1e-4") == (
+        "starting from runs/a/selected at 8,388,608 steps, window 146 s, under this config, in its stage 1 of 3, "
+        "stage 2 to start on this run's own chunks once the window stood for 16 chunks, learning rate 1e-4")
+    assert _start_line(staged, None, None, 2, 0, "") == ""  # a resumed run whose stage changed nothing
+    assert _start_line(staged, None, None, 2, 0, ", x") == "stage 2 from 0 steps, x"
 
 
 def _chunk(steps: int, window: float, moved: bool = False, success: float = 0.0, stage: int = 0) -> dict:
