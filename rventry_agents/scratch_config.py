@@ -159,8 +159,7 @@ class PPOSection(RejaxPPOSection):
     num_minibatches: int = setting(8, ge=1)
     num_epochs: int = setting(4, ge=1)
     hidden_layer_sizes: tuple[int, ...] = widths((64, 64))
-    critic_hidden_layer_sizes: tuple[int, ...] | None = setting(
-        None, ge=1, nonempty=True, what="a list of layer widths (whole numbers >= 1)")
+    critic_hidden_layer_sizes: tuple[int, ...] | None = widths(None)
     log_std_init: float = setting(-1.0, lt=2)
     restart_exploration: bool = False
     train_actor: bool = True
