@@ -83,3 +83,27 @@ def test_the_curves_study_reads_a_runs_best_last_and_lowest_chunks_and_writes_it
         study.curve(run, start=12000)
     study.plot({"a s1": study.curve(run)}, tmp_path / "c.png", "t")
     assert (tmp_path / "c.png").stat().st_size > 1000
+
+
+def test_the_curves_study_reads_where_a_curriculum_first_took_each_window_and_refuses_a_run_without_one(tmp_path):
+    """studies/curves.py --window: each window's first chunk (its step and wall time), the chunks of a
+    stage past ``start`` alone, and a clear error for a chunk with no curriculum window."""
+    study = load_script("studies/curves")
+    run = tmp_path / "run"
+    run.mkdir()
+    window = [60.0, 60.0, 75.0, 75.0, 75.0, 94.0, 117.0, 117.0]
+    hist = [{"timesteps": 1000 * (i + 1), "wall_s": 10.0 * (i + 1), "select": {"success_rate": 0.0},
+             "curriculum": {"window_s": w}} for i, w in enumerate(window)]  # fmt: skip
+    (run / "evaluations.json").write_text(json.dumps(hist))
+    steps, w, first = study.windows(run)
+    assert steps.tolist() == [1000.0 * (i + 1) for i in range(8)] and w.tolist() == window
+    assert [(f["window_s"], f["timesteps"], f["wall_s"]) for f in first] == [
+        (60.0, 1000, 10.0), (75.0, 3000, 30.0), (94.0, 6000, 60.0), (117.0, 7000, 70.0)]
+    _, _, first = study.windows(run, start=3000)  # a stage from that step: its first chunk is a window's first
+    assert [(f["window_s"], f["timesteps"]) for f in first] == [(75.0, 4000), (94.0, 6000), (117.0, 7000)]
+    study.plot({"a s1": study.curve(run)}, tmp_path / "w.png", "t", windows={"a s1": study.windows(run)[:2]})
+    assert (tmp_path / "w.png").stat().st_size > 1000
+    hist[4]["curriculum"] = None  # a stage without the curriculum
+    (run / "evaluations.json").write_text(json.dumps(hist))
+    with pytest.raises(ValueError, match="no curriculum window in the chunk at 5,000 steps"):
+        study.windows(run)
