@@ -31,23 +31,25 @@ LAST = 10  # the chunks the end of a run is read over
 SETTLE = 5  # the first chunks of a stage, left out of its lowest point
 
 
+def chunks(run: Path, start: int = 0) -> list[dict]:
+    """``run``'s evaluation after each of its chunks past ``start`` (at least one)."""
+    rows = [h for h in json.loads((run / "evaluations.json").read_text()) if h["timesteps"] > start]
+    if not rows:
+        raise ValueError(f"{run}: no chunk past {start:,d} steps")
+    return rows
+
+
 def curve(run: Path, start: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(steps, selection success) of each of ``run``'s chunks past ``start``."""
-    hist = json.loads((run / "evaluations.json").read_text())
-    pts = [(h["timesteps"], h["select"]["success_rate"]) for h in hist if h["timesteps"] > start]
-    if not pts:
-        raise ValueError(f"{run}: no chunk past {start:,d} steps")
-    steps, success = (np.asarray(v, float) for v in zip(*pts))
-    return steps, success
+    rows = chunks(run, start)
+    steps = np.asarray([h["timesteps"] for h in rows], float)
+    return steps, np.asarray([h["select"]["success_rate"] for h in rows], float)
 
 
 def windows(run: Path, start: int = 0) -> tuple[np.ndarray, np.ndarray, list[dict]]:
     """(steps, window in s) of each of ``run``'s chunks past ``start``, and each window's first chunk:
     ``{"window_s", "timesteps", "wall_s"}``, the window the chunk after it trains on."""
-    hist = json.loads((run / "evaluations.json").read_text())
-    rows = [h for h in hist if h["timesteps"] > start]
-    if not rows:
-        raise ValueError(f"{run}: no chunk past {start:,d} steps")
+    rows = chunks(run, start)
     missing = [h["timesteps"] for h in rows if not (h.get("curriculum") or {}).get("window_s")]
     if missing:
         raise ValueError(f"{run}: no curriculum window in the chunk at {missing[0]:,d} steps (a run without "
@@ -118,7 +120,8 @@ def main() -> None:
     ap.add_argument("--window", action="store_true", help="also plot the curriculum's window after each chunk")
     args = ap.parse_args()
     if args.title is None:
-        args.title = ("the curriculum's window and " if args.window else "") + "the selection set's success after each chunk"
+        what = "the selection set's success after each chunk"
+        args.title = f"the curriculum's window and {what}" if args.window else what
     curves, rows, wins = {}, {}, {}
     for item in args.runs:
         label, sep, run = item.partition("=")
