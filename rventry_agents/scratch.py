@@ -47,6 +47,7 @@ import numpy as np
 
 from rventry_agents.config import ConfigError
 from rventry_agents.scratch_config import ScratchConfig, load_config
+from rventry_env.envs.reward import RewardWeights
 from rventry_env.util.files import output_set, write_json
 
 FRONTIER_DEPTH = 0.85  # the frontier: starts between this share of the window and all of it
@@ -73,10 +74,24 @@ def make_shaping(cfg: ScratchConfig):
             fade = fade_energies(sh.fade_s)
         except ValueError as exc:
             raise ConfigError(f"[shaping] fade_s: {exc}") from None
+    late = {}
+    if sh.terminal:  # the reward's own weights of the terms named, none of the others
+        named = {f: getattr(cfg.reward, f) if term in sh.terminal else 0.0 for term, f in TERMINAL_TERMS.items()}
+        try:
+            energies = fade_energies(sh.terminal_s)
+        except ValueError as exc:
+            raise ConfigError(f"[shaping] terminal_s: {exc}") from None
+        late = {"terminal": RewardWeights(**named), "terminal_energies": energies,
+                "final_speed": make_task(cfg).problem.final_speed}  # fmt: skip
     if sh.potential == "range":
-        return PotentialShaping("range", cfg.ppo.gamma, sh.weight, fade_energies=fade)
+        return PotentialShaping("range", cfg.ppo.gamma, sh.weight, fade_energies=fade, **late)
     energies, ranges = energy_range_profile()
-    return PotentialShaping("energy", cfg.ppo.gamma, sh.weight, energies=energies, ranges=ranges, fade_energies=fade)
+    return PotentialShaping("energy", cfg.ppo.gamma, sh.weight, energies=energies, ranges=ranges, fade_energies=fade,
+                            **late)  # fmt: skip
+
+
+# [shaping] terminal's terms: the RewardWeights field that weights each
+TERMINAL_TERMS = {"miss": "miss_per_km", "vertical": "vertical_per_deg", "speed": "speed_per_mps", "alpha": "alpha_per_deg"}
 
 
 class Curriculum:
@@ -664,7 +679,9 @@ def _vehicles_afresh(ts, trainer: Trainer, rung_before: str | None, changes: str
     if new_shaping:
         said.append("without shaping" if shaping.potential == "none"
                     else f"under the {shaping.potential} potential ({shaping.weight:g} per km"
-                    + (f", fading over the reference's last {shaping.fade_s:g} s)" if shaping.fade_s else ")"))  # fmt: skip
+                    + (f", fading over the reference's last {shaping.fade_s:g} s" if shaping.fade_s else "")
+                    + (f", the terminal {', '.join(shaping.terminal)} over its last {shaping.terminal_s:g} s"
+                       if shaping.terminal else "") + ")")  # fmt: skip
     return ts, changes + ", every vehicle started afresh " + " ".join(said)
 
 

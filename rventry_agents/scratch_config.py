@@ -124,16 +124,29 @@ class ShapingSection(Section):
     """``[shaping]``: potential-based shaping (:mod:`rventry_env.envs.shaping`), ``"none"`` to leave the
     reward as it is; ``weight`` is the reward per km of the potential. ``fade_s``: the potential fades
     out linearly in specific energy over the shipped reference's last ``fade_s`` seconds, from its
-    whole weight at the reference's energy then to none at its impact energy (0: no fade)."""
+    whole weight at the reference's energy then to none at its impact energy (0: no fade).
+    ``terminal``: the terminal terms (``"miss"``, ``"vertical"``, ``"speed"``, ``"alpha"``) that the
+    potential takes on over the reference's last ``terminal_s`` seconds, rising linearly in energy from
+    none to the ``[reward]`` section's weight at its impact energy, read on the current state as if
+    the flight ended there (none by default)."""
 
     potential: Literal["none", "range", "energy"] = "none"
     weight: float = setting(0.2, gt=0)
     fade_s: float = setting(0.0, ge=0)
+    terminal: tuple[Literal["miss", "vertical", "speed", "alpha"], ...] = ()
+    terminal_s: float = setting(0.0, ge=0)
 
     def __post_init__(self):
         super().__post_init__()
         if self.fade_s and self.potential == "none":
             raise ConfigError(f"[shaping] fade_s ({self.fade_s:g}) fades a potential, and potential = 'none' has none")
+        if bool(self.terminal) != bool(self.terminal_s):
+            raise ConfigError(f"[shaping] terminal ({list(self.terminal)}) and terminal_s ({self.terminal_s:g}) go "
+                              "together: the terms and the seconds over which the potential takes them on")  # fmt: skip
+        if self.terminal and self.potential == "none":
+            raise ConfigError("[shaping] terminal adds the terminal terms to a potential, and potential = 'none' has none")
+        if len(set(self.terminal)) != len(self.terminal):
+            raise ConfigError(f"[shaping] terminal names a term twice: {list(self.terminal)}")
 
 
 @dataclass(frozen=True, kw_only=True)

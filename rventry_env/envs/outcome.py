@@ -58,13 +58,19 @@ def terminal_metrics(x: tuple, c_ae, task: EntryTask, target_e, radius: float, n
     cos = -b1 . a1 = 2 (eB2^2 + eB3^2) - 1 = 1 - 2 (eB1^2 + etaB^2), i.e.
     2 asin(sqrt(eB1^2 + etaB^2)); zero exactly when eB1 = etaB = 0 (Table tab:Ex2-BCs).
     """
+    return metrics_at(x, c_ae, task.problem.final_speed, target_e, radius, ns)
+
+
+def metrics_at(x: tuple, c_ae, final_speed: float, target_e, radius: float, ns) -> TerminalMetrics:
+    """:func:`terminal_metrics` of any state ``x``, as if the flight ended there, with the task's
+    impact speed ``final_speed`` (m/s): what a potential that knows the terminal terms reads."""
     theta = surface_angle(target_in_a(c_ae, target_e), ns)
     s = ns.sqrt(ns.fmin(x[6] * x[6] + x[9] * x[9], 1.0))
     vertical = 2.0 * ns.arctan2(s, ns.sqrt(ns.fmax(1.0 - s * s, 0.0)))
     return TerminalMetrics(
         radius * theta / 1000.0,
         vertical * (180.0 / math.pi),
-        x[5] - task.problem.final_speed,
+        x[5] - final_speed,
         x[10] * (180.0 / math.pi),
     )
 
@@ -135,6 +141,7 @@ __all__ = [
     "TerminalMetrics",
     "Outcome",
     "terminal_metrics",
+    "metrics_at",
     "terminal_penalty",
     "path_violation",
     "episode_outcome",

@@ -35,6 +35,20 @@ dive that the task's terminal terms judge (miss, speed, angle from vertical), to
 alone: on the shipped reference the last minute runs the profile from 90 km to none while the
 energy falls by two thirds. :func:`rventry_env.reference.shaping.fade_energies` gives the energies
 of the reference's last seconds.
+
+Either potential may take on the terminal terms at the end of the flight (``terminal``: weights
+of :class:`~rventry_env.envs.reward.RewardWeights`, the reward's own or some of them, and
+``terminal_energies = (e_none, e_whole)``): -g(e) times the terminal penalty of the current state,
+read as if the flight ended there (:func:`rventry_env.envs.outcome.metrics_at`: its range to the
+target, its angle from vertical, its speed against the impact speed, its alpha), with
+g = clip((e_none - e) / (e_none - e_whole), 0, 1) rising from none at e_none to whole at e_whole.
+Below e_whole the potential is the terminal penalty itself, so over the last seconds each step
+pays what it took off (or put on) the miss and the dive, where the unshaped reward pays all of it
+at the impact. It is a function of the state, so it changes no optimal policy either; the critic
+it helps is the one that must learn the dive, the condition a late flight loses first. It is a
+prior for the last seconds alone: along the shipped reference the angle from vertical falls from
+88 deg 60 s before the impact to 42 deg 10 s before it and to none at it, so a longer rise
+charges the optimal dive itself on the way down (and repays it at the impact).
 """
 
 from __future__ import annotations
@@ -45,6 +59,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rventry_env.core.targeting import specific_energy, surface_angle, target_in_a
+from rventry_env.envs.outcome import metrics_at, terminal_penalty
+from rventry_env.envs.reward import RewardWeights
 
 POTENTIALS = ("range", "energy")
 
@@ -60,6 +76,11 @@ class PotentialShaping:
     :param ranges: ``"energy"``: the range to go (m) at each of them.
     :param fade_energies: ``(e_full, e_zero)``, J/kg with e_full > e_zero >= 0: the potential fades
         linearly in specific energy from its whole weight at e_full to none at e_zero (None: no fade).
+    :param terminal: the weights of the terminal terms taken on at the end (their miss, vertical,
+        speed and alpha weights; None: none).
+    :param terminal_energies: with ``terminal``: ``(e_none, e_whole)``, J/kg with e_none > e_whole >= 0,
+        the terminal terms' weight rising linearly in specific energy from none to whole.
+    :param final_speed: with ``terminal``: the task's impact speed (m/s) its speed term reads against.
     """
 
     potential: str
@@ -68,6 +89,9 @@ class PotentialShaping:
     energies: np.ndarray | None = None
     ranges: np.ndarray | None = None
     fade_energies: tuple[float, float] | None = None
+    terminal: RewardWeights | None = None
+    terminal_energies: tuple[float, float] | None = None
+    final_speed: float | None = None
 
     def __post_init__(self):
         if self.potential not in POTENTIALS:
@@ -98,22 +122,47 @@ class PotentialShaping:
                 raise ValueError(f"shaping fade_energies (e_full, e_zero) must be finite with e_full > e_zero >= 0 J/kg, "
                                  f"got {fade!r}")  # fmt: skip
             object.__setattr__(self, "fade_energies", (full, zero))
+        if self.terminal is not None:
+            if not isinstance(self.terminal, RewardWeights):
+                raise ValueError(f"shaping terminal must be RewardWeights (the terminal terms' weights), "
+                                 f"got {type(self.terminal).__name__}")  # fmt: skip
+            try:
+                none, whole = (float(v) for v in self.terminal_energies)
+            except (TypeError, ValueError):
+                raise ValueError(f"shaping terminal_energies must be two numbers (e_none, e_whole) in J/kg, "
+                                 f"got {self.terminal_energies!r}") from None  # fmt: skip
+            if not (math.isfinite(none) and math.isfinite(whole) and none > whole >= 0):
+                raise ValueError(f"shaping terminal_energies (e_none, e_whole) must be finite with e_none > e_whole "
+                                 f">= 0 J/kg, got {self.terminal_energies!r}")  # fmt: skip
+            object.__setattr__(self, "terminal_energies", (none, whole))
+            v = self.final_speed
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"shaping terminal needs final_speed, the task's impact speed (m/s) > 0, got {v!r}")
+            object.__setattr__(self, "final_speed", float(v))
+        elif self.final_speed is not None or self.terminal_energies is not None:
+            raise ValueError("shaping final_speed and terminal_energies are read by the terminal terms alone, "
+                             "and terminal is None")  # fmt: skip
         object.__setattr__(self, "gamma", float(g))
         object.__setattr__(self, "weight", float(w))
 
     def phi(self, x, c_ae, target_e, mu: float, radius: float, ns):
         """The potential of states ``x`` (components; C_AE at them ``c_ae``) flying to ``target_e``."""
         range_to_go_m = radius * surface_angle(target_in_a(c_ae, target_e), ns)
-        e = specific_energy(x, mu, radius) if self.potential == "energy" or self.fade_energies else None
+        late = self.terminal is not None
+        e = specific_energy(x, mu, radius) if self.potential == "energy" or self.fade_energies or late else None
         if self.potential == "range":
             off_m = range_to_go_m
         else:
             off_m = ns.fabs(range_to_go_m - ns.interp(e, self.energies, self.ranges))
         phi = -self.weight * off_m / 1000.0
-        if self.fade_energies is None:
+        if self.fade_energies is not None:
+            full, zero = self.fade_energies
+            phi = phi * ns.fmin(ns.fmax((e - zero) / (full - zero), 0.0), 1.0)
+        if not late:
             return phi
-        full, zero = self.fade_energies
-        return phi * ns.fmin(ns.fmax((e - zero) / (full - zero), 0.0), 1.0)
+        none, whole = self.terminal_energies
+        g = ns.fmin(ns.fmax((none - e) / (none - whole), 0.0), 1.0)
+        return phi - g * terminal_penalty(metrics_at(x, c_ae, self.final_speed, target_e, radius, ns), self.terminal, ns)
 
     def reward(self, phi_before, phi_after, terminal, ns):
         """F = gamma Phi(s') - Phi(s), with Phi(s') = 0 where the step ended the episode for good."""
@@ -122,7 +171,8 @@ class PotentialShaping:
     def key(self) -> tuple:
         """The shaping's value, arrays included: equal shapings pay equal rewards (an unpickled copy too)."""
         arrays = tuple(None if a is None else (a.shape, a.tobytes()) for a in (self.energies, self.ranges))
-        return (self.potential, self.gamma, self.weight, self.fade_energies, *arrays)
+        return (self.potential, self.gamma, self.weight, self.fade_energies, self.terminal, self.terminal_energies,
+                self.final_speed, *arrays)
 
     def __eq__(self, other):
         return isinstance(other, PotentialShaping) and self.key() == other.key()
@@ -136,6 +186,11 @@ class PotentialShaping:
             out["profile_points"] = int(self.energies.size)
         if self.fade_energies is not None:
             out["fade_energies_j_per_kg"] = list(self.fade_energies)
+        if self.terminal is not None:
+            w = self.terminal
+            out["terminal"] = {"miss_per_km": w.miss_per_km, "vertical_per_deg": w.vertical_per_deg,
+                               "speed_per_mps": w.speed_per_mps, "alpha_per_deg": w.alpha_per_deg,
+                               "energies_j_per_kg": list(self.terminal_energies), "final_speed_mps": self.final_speed}  # fmt: skip
         return out
 
 

@@ -48,6 +48,23 @@ def test_the_shipped_config_loads_and_a_misspelled_key_is_refused_by_name(tmp_pa
     fading = make_shaping(load_config({"shaping": {"potential": "range", "fade_s": 60.0}}))
     assert fading.potential == "range" and fading.fade_energies == fade_energies(60.0)
     assert make_shaping(load_config({"shaping": {"potential": "range"}})).fade_energies is None
+    with pytest.raises(ConfigError, match=r"\[shaping\] terminal \(\['vertical'\]\) and terminal_s \(0\) go together"):
+        load_config({"shaping": {"potential": "energy", "terminal": ["vertical"]}})
+    with pytest.raises(ConfigError, match=r"\[shaping\] terminal adds the terminal terms to a potential"):
+        load_config({"shaping": {"terminal": ["vertical"], "terminal_s": 20.0}})
+    with pytest.raises(ConfigError, match="terminal names a term twice"):
+        load_config({"shaping": {"potential": "range", "terminal": ["miss", "miss"], "terminal_s": 20.0}})
+    with pytest.raises(ConfigError, match="terminal"):
+        load_config({"shaping": {"potential": "range", "terminal": ["dive"], "terminal_s": 20.0}})
+    with pytest.raises(ConfigError, match=r"\[shaping\] terminal_s: a fade must last"):
+        make_shaping(load_config({"shaping": {"potential": "range", "terminal": ["miss"], "terminal_s": 1500.0}}))
+    # the terms named, at the [reward] section's weights, and none of the others
+    late = make_shaping(load_config({"shaping": {"potential": "energy", "fade_s": 60.0, "terminal": ["vertical", "miss"],
+                                                 "terminal_s": 20.0}, "reward": {"vertical_per_deg": 5.0}}))  # fmt: skip
+    w = late.terminal
+    assert (w.miss_per_km, w.vertical_per_deg, w.speed_per_mps, w.alpha_per_deg) == (0.2, 5.0, 0.0, 0.0)
+    assert late.terminal_energies == (fade_energies(20.0)[0], fade_energies(60.0)[1])
+    assert late.final_speed == 1219.0
     starts = Curriculum(load_config({"curriculum": {"step_weighted": True}})).starts(600.0)
     assert starts.step_weighted and starts.before_end_s == (19.0, 599.0)
 
