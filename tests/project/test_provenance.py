@@ -58,6 +58,6 @@ def test_every_script_records_its_provenance_and_edits_no_import_path(script):
 
 def test_no_scripts_folder_is_left_and_the_split_is_documented():
     assert not (ROOT / "scripts").exists()
-    assert len(SCRIPTS) == 24
+    assert len(SCRIPTS) == 25
     doc = (ROOT / "docs" / "howto" / "development.md").read_text()
     assert "benchmarks/" in doc and "studies/" in doc
