@@ -68,20 +68,17 @@ def make_shaping(cfg: ScratchConfig):
     from rventry_env.envs.shaping import PotentialShaping
     from rventry_env.reference.shaping import energy_range_profile, fade_energies
 
-    fade = None
-    if sh.fade_s:
+    def reference_energies(key: str):  # the reference's energies over its last [shaping] `key` seconds
         try:
-            fade = fade_energies(sh.fade_s)
+            return fade_energies(getattr(sh, key))
         except ValueError as exc:
-            raise ConfigError(f"[shaping] fade_s: {exc}") from None
+            raise ConfigError(f"[shaping] {key}: {exc}") from None
+
+    fade = reference_energies("fade_s") if sh.fade_s else None
     late = {}
     if sh.terminal:  # the reward's own weights of the terms named, none of the others
         named = {f: getattr(cfg.reward, f) if term in sh.terminal else 0.0 for term, f in TERMINAL_TERMS.items()}
-        try:
-            energies = fade_energies(sh.terminal_s)
-        except ValueError as exc:
-            raise ConfigError(f"[shaping] terminal_s: {exc}") from None
-        late = {"terminal": RewardWeights(**named), "terminal_energies": energies,
+        late = {"terminal": RewardWeights(**named), "terminal_energies": reference_energies("terminal_s"),
                 "final_speed": make_task(cfg).problem.final_speed}  # fmt: skip
     if sh.potential == "range":
         return PotentialShaping("range", cfg.ppo.gamma, sh.weight, fade_energies=fade, **late)

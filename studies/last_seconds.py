@@ -32,13 +32,6 @@ EVAL_SEED = 1000  # the ladder's held-out seeds
 QUANTITIES = ("altitude_km", "speed_mps", "from_vertical_deg", "alpha_deg")
 
 
-def from_vertical_deg(x: np.ndarray) -> np.ndarray:
-    """The angle of the velocity from straight down (deg) of states ``x`` (..., 12): 2 asin(|(eB1, etaB)|),
-    the vertical-impact error's own formula (rventry_env.envs.outcome)."""
-    s = np.sqrt(np.minimum(x[..., 6] ** 2 + x[..., 9] ** 2, 1.0))
-    return np.degrees(2.0 * np.arcsin(s))
-
-
 def read_flight(t: np.ndarray, x: np.ndarray, radius: float, before_s=BEFORE_S) -> dict:
     """One flight's states (``t`` (n,), ``x`` (n, 12); rows past the flight's end NaN) at ``before_s``
     seconds before its last recorded state, linearly interpolated in time; NaN before the flight's start."""
@@ -50,8 +43,11 @@ def read_flight(t: np.ndarray, x: np.ndarray, radius: float, before_s=BEFORE_S) 
         raise ValueError("a flight needs at least two finite recorded states")
     t, x = t[ok], x[ok]
     at = t[-1] - np.asarray(before_s, dtype=float)
-    values = {"altitude_km": (x[:, 0] - radius) / 1000.0, "speed_mps": x[:, 5], "from_vertical_deg": from_vertical_deg(x),
-              "alpha_deg": np.degrees(x[:, 10])}  # fmt: skip
+    from rventry_env.core.backend import NUMPY
+    from rventry_env.envs.outcome import angle_from_vertical  # the vertical-impact error's own formula
+
+    values = {"altitude_km": (x[:, 0] - radius) / 1000.0, "speed_mps": x[:, 5],
+              "from_vertical_deg": np.degrees(angle_from_vertical(x.T, NUMPY)), "alpha_deg": np.degrees(x[:, 10])}  # fmt: skip
     out = {k: np.where(at >= t[0], np.interp(at, t, v), np.nan) for k, v in values.items()}
     out["duration_s"] = float(t[-1] - t[0])
     return out
@@ -138,15 +134,14 @@ def main(argv=None) -> None:
     ref = reference_flight()
     reference = {"before_s": list(BEFORE_S), "duration_s": ref["duration_s"], **{q: ref[q].tolist() for q in QUANTITIES}}
     results = {}
+    k = BEFORE_S.index(60.0)  # the time the printed lines read
     for label, agent in zip(labels, args.agents):
         flights, outcome = fly(agent, args.rung, args.episodes)
         results[label] = {"agent": agent, "outcome": outcome, "flights": summarize(flights)}
         s = results[label]["flights"]
-        k = BEFORE_S.index(60.0)
         print(f"{label}: success {outcome['success']:.2f}, flights {s['duration_s']['p50']:.0f} s; 60 s before "
               f"impact {s['altitude_km']['p50'][k]:.1f} km, {s['speed_mps']['p50'][k]:.0f} m/s, "
               f"{s['from_vertical_deg']['p50'][k]:.1f} deg from vertical (medians)")  # fmt: skip
-    k = BEFORE_S.index(60.0)
     print(f"reference: {reference['duration_s']:.0f} s; 60 s before impact {reference['altitude_km'][k]:.1f} km, "
           f"{reference['speed_mps'][k]:.0f} m/s, {reference['from_vertical_deg'][k]:.1f} deg from vertical")  # fmt: skip
     out = Path(args.out)

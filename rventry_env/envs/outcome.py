@@ -65,14 +65,19 @@ def metrics_at(x: tuple, c_ae, final_speed: float, target_e, radius: float, ns) 
     """:func:`terminal_metrics` of any state ``x``, as if the flight ended there, with the task's
     impact speed ``final_speed`` (m/s): what a potential that knows the terminal terms reads."""
     theta = surface_angle(target_in_a(c_ae, target_e), ns)
-    s = ns.sqrt(ns.fmin(x[6] * x[6] + x[9] * x[9], 1.0))
-    vertical = 2.0 * ns.arctan2(s, ns.sqrt(ns.fmax(1.0 - s * s, 0.0)))
     return TerminalMetrics(
         radius * theta / 1000.0,
-        vertical * (180.0 / math.pi),
+        angle_from_vertical(x, ns) * (180.0 / math.pi),
         x[5] - final_speed,
         x[10] * (180.0 / math.pi),
     )
+
+
+def angle_from_vertical(x: tuple, ns):
+    """The angle (rad) between the velocity of states ``x`` and straight down, 2 asin(sqrt(eB1^2 + etaB^2))
+    (see :func:`terminal_metrics`)."""
+    s = ns.sqrt(ns.fmin(x[6] * x[6] + x[9] * x[9], 1.0))
+    return 2.0 * ns.arctan2(s, ns.sqrt(ns.fmax(1.0 - s * s, 0.0)))
 
 
 def terminal_penalty(m: TerminalMetrics, w: RewardWeights, ns):
@@ -142,6 +147,7 @@ __all__ = [
     "Outcome",
     "terminal_metrics",
     "metrics_at",
+    "angle_from_vertical",
     "terminal_penalty",
     "path_violation",
     "episode_outcome",

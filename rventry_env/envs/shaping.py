@@ -113,28 +113,13 @@ class PotentialShaping:
             object.__setattr__(self, "energies", e)
             object.__setattr__(self, "ranges", r)
         if self.fade_energies is not None:
-            fade = self.fade_energies
-            try:
-                full, zero = (float(v) for v in fade)
-            except (TypeError, ValueError):
-                raise ValueError(f"shaping fade_energies must be two numbers (e_full, e_zero) in J/kg, got {fade!r}") from None
-            if not (math.isfinite(full) and math.isfinite(zero) and full > zero >= 0):
-                raise ValueError(f"shaping fade_energies (e_full, e_zero) must be finite with e_full > e_zero >= 0 J/kg, "
-                                 f"got {fade!r}")  # fmt: skip
-            object.__setattr__(self, "fade_energies", (full, zero))
+            object.__setattr__(self, "fade_energies", _energy_pair(self.fade_energies, "fade_energies", "e_full", "e_zero"))
         if self.terminal is not None:
             if not isinstance(self.terminal, RewardWeights):
                 raise ValueError(f"shaping terminal must be RewardWeights (the terminal terms' weights), "
                                  f"got {type(self.terminal).__name__}")  # fmt: skip
-            try:
-                none, whole = (float(v) for v in self.terminal_energies)
-            except (TypeError, ValueError):
-                raise ValueError(f"shaping terminal_energies must be two numbers (e_none, e_whole) in J/kg, "
-                                 f"got {self.terminal_energies!r}") from None  # fmt: skip
-            if not (math.isfinite(none) and math.isfinite(whole) and none > whole >= 0):
-                raise ValueError(f"shaping terminal_energies (e_none, e_whole) must be finite with e_none > e_whole "
-                                 f">= 0 J/kg, got {self.terminal_energies!r}")  # fmt: skip
-            object.__setattr__(self, "terminal_energies", (none, whole))
+            pair = _energy_pair(self.terminal_energies, "terminal_energies", "e_none", "e_whole")
+            object.__setattr__(self, "terminal_energies", pair)
             v = self.final_speed
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"shaping terminal needs final_speed, the task's impact speed (m/s) > 0, got {v!r}")
@@ -156,12 +141,10 @@ class PotentialShaping:
             off_m = ns.fabs(range_to_go_m - ns.interp(e, self.energies, self.ranges))
         phi = -self.weight * off_m / 1000.0
         if self.fade_energies is not None:
-            full, zero = self.fade_energies
-            phi = phi * ns.fmin(ns.fmax((e - zero) / (full - zero), 0.0), 1.0)
+            phi = phi * _rise(e, *self.fade_energies, ns)  # whole above e_full, none below e_zero
         if not late:
             return phi
-        none, whole = self.terminal_energies
-        g = ns.fmin(ns.fmax((none - e) / (none - whole), 0.0), 1.0)
+        g = _rise(e, *self.terminal_energies[::-1], ns)  # none above e_none, whole below e_whole
         return phi - g * terminal_penalty(metrics_at(x, c_ae, self.final_speed, target_e, radius, ns), self.terminal, ns)
 
     def reward(self, phi_before, phi_after, terminal, ns):
@@ -192,6 +175,23 @@ class PotentialShaping:
                                "speed_per_mps": w.speed_per_mps, "alpha_per_deg": w.alpha_per_deg,
                                "energies_j_per_kg": list(self.terminal_energies), "final_speed_mps": self.final_speed}  # fmt: skip
         return out
+
+
+def _energy_pair(pair, field: str, first: str, second: str) -> tuple[float, float]:
+    """``pair`` as two floats (first, second) J/kg with first > second >= 0, or a ValueError naming ``field``."""
+    try:
+        a, b = (float(v) for v in pair)
+    except (TypeError, ValueError):
+        raise ValueError(f"shaping {field} must be two numbers ({first}, {second}) in J/kg, got {pair!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b) and a > b >= 0):
+        raise ValueError(f"shaping {field} ({first}, {second}) must be finite with {first} > {second} >= 0 J/kg, "
+                         f"got {pair!r}")  # fmt: skip
+    return a, b
+
+
+def _rise(e, to: float, frm: float, ns):
+    """A weight linear in energy ``e``: 0 at ``frm``, 1 at ``to``, clipped to [0, 1] past them (either order)."""
+    return ns.fmin(ns.fmax((e - frm) / (to - frm), 0.0), 1.0)
 
 
 def check_shaping(shaping) -> PotentialShaping | None:
