@@ -21,6 +21,8 @@ CARDS = (
               "from-scratch policy that lands the most of the wide set"),
     AgentCard("ppo-scratch-flight", "it is ppo-scratch-wide trained further on the flight-grade set, still without a "
               "teacher: the from-scratch policy that lands the most of the flight-grade set"),
+    AgentCard("ppo-scratch-2h", "it is PPO learned from scratch in two hours on one CPU core, from one config file and "
+              "step 0, no teacher: it lands the standard set, not yet the wide and flight-grade sets"),
     AgentCard("ppo-plain", "it is what off-the-shelf RL learns from scratch on the raw reward: a baseline, not a law "
               "to fly", "plain PPO", 30),
 )  # fmt: skip

@@ -103,14 +103,15 @@ class JaxPolicy(Law):
 _DATA = Path(__file__).resolve().parent / "data"
 # agent name -> shipped run: the staged recipe on `standard` (ppo_scratch.toml), the same run with
 # one stage more on `wide` (ppo_scratch_wide.toml), and that one with one stage more on `flight`
-# (ppo_scratch_flight.toml)
+# (ppo_scratch_flight.toml); and one run of the landing recipe (ppo_scratch_landing.toml), one config from
+# step 0 in two hours of its own clock
 SHIPPED = {"ppo-scratch": _DATA / "ppo_scratch", "ppo-scratch-wide": _DATA / "ppo_scratch_wide",
-           "ppo-scratch-flight": _DATA / "ppo_scratch_flight"}
+           "ppo-scratch-flight": _DATA / "ppo_scratch_flight", "ppo-scratch-2h": _DATA / "ppo_scratch_2h"}
 
 
 def load_shipped(name: str = "ppo-scratch", task: EntryTask | None = None) -> JaxPolicy:
     """A policy trained in JAX and shipped with this package (entry points ``ppo-scratch``, ``ppo-scratch-wide``,
-    ``ppo-scratch-flight``)."""
+    ``ppo-scratch-flight``, ``ppo-scratch-2h``)."""
     if name not in SHIPPED:
         raise ValueError(f"no shipped JAX-trained policy named {name!r}; shipped: {', '.join(SHIPPED)}")
     if not (SHIPPED[name] / "policy.npz").is_file():
