@@ -9,7 +9,7 @@ run's state at that step) in ``OUT.png``, and writes ``OUT.json`` with, for each
 chunk (the one the run selects) and its step, the last chunk, the mean and the lowest of the last
 10 chunks, and the lowest after the first 5 (a fall within the stage). Labels group runs whose
 names share the text before the last space (``"constant s2"``, ``"constant s3"``: one colour,
-a line style each).
+a line style each, with a marker from a group's fifth run on).
 
 With ``--window`` a second panel plots the reverse curriculum's window (how far before impact its
 starts reach) after each chunk, and the record gives, for each run, the step and the wall time at
@@ -87,8 +87,9 @@ def plot(curves: dict, path: Path, title: str, windows: dict | None = None) -> N
     members: dict[str, int] = {}
     for label, (steps, success) in curves.items():
         group = label.rsplit(" ", 1)[0]
-        k = members[group] = members.get(group, -1) + 1  # each run of a group its own line style
-        style = {"color": colours[group], "ls": ("-", "--", ":", "-.")[k % 4], "lw": 1.2}
+        k = members[group] = members.get(group, -1) + 1  # each run of a group its own line style, past four a marker
+        style = {"color": colours[group], "ls": ("-", "--", ":", "-.")[k % 4], "lw": 1.2,
+                 "marker": ("", "o", "s", "^")[(k // 4) % 4], "markevery": 0.06, "ms": 3.5}
         ax.plot(steps / 1e6, success, label=label, **style)
         if windows:
             w_steps, window = windows[label]
