@@ -110,8 +110,7 @@ SHIPPED = {"ppo-scratch": _DATA / "ppo_scratch", "ppo-scratch-wide": _DATA / "pp
 
 
 def load_shipped(name: str = "ppo-scratch", task: EntryTask | None = None) -> JaxPolicy:
-    """A policy trained in JAX and shipped with this package (entry points ``ppo-scratch``, ``ppo-scratch-wide``,
-    ``ppo-scratch-flight``, ``ppo-scratch-2h``)."""
+    """A policy trained in JAX and shipped with this package (the entry points named in ``SHIPPED``)."""
     if name not in SHIPPED:
         raise ValueError(f"no shipped JAX-trained policy named {name!r}; shipped: {', '.join(SHIPPED)}")
     if not (SHIPPED[name] / "policy.npz").is_file():

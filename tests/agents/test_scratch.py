@@ -924,23 +924,29 @@ def test_the_shipped_policy_restored_flies_its_selection_set_as_recorded(tmp_pat
         assert abs(rank - n / 2) <= 0.02 * n, (median, recorded[median], got[median], rank)
 
 
+def _held_out_success(law, rung_name: str, episodes: int) -> float:
+    """``law``'s success rate on ``episodes`` of the rung's episodes from seed 1000, apart from
+    training's and selection's seeds."""
+    from rventry_env.evaluation.rollout import rollout
+    from rventry_env.evaluation.rungs import rung
+
+    r = rung(rung_name)
+    return float(np.mean(rollout(law, episodes, seed=1000, dispersion=r.dispersion, starts=r.starts()).is_success))
+
+
 def test_the_shipped_from_scratch_policy_lands_the_whole_flight_and_says_what_it_is():
     """``ppo-scratch`` is the selected policy of a from-scratch run: no teacher, no demonstrations, a
     reverse curriculum to the whole flight. On held-out episodes of the standard set it lands about
     nine in ten (docs/results/ladder.json); 20 of them here, seeds apart from training's and
     selection's."""
     from rventry_env.evaluation.agents import agent_cards, load_agent
-    from rventry_env.evaluation.rollout import rollout
-    from rventry_env.evaluation.rungs import rung
 
     law = load_agent("ppo-scratch")
     meta = law.metadata
     assert meta["provenance"]["start"] == "scratch" and meta["provenance"]["algorithm"] == "PPO (rejax), from scratch"
     assert meta["config"]["curriculum"]["kind"] == "reverse" and meta["final_window_s"] > 1000
     assert "from scratch" in agent_cards()["ppo-scratch"].why
-    standard = rung("standard")
-    batch = rollout(law, 20, seed=1000, dispersion=standard.dispersion, starts=standard.starts())
-    assert np.mean(batch.is_success) >= 0.75
+    assert _held_out_success(law, "standard", 20) >= 0.75
 
 
 def test_the_wide_policy_lands_the_wide_and_flight_sets_better_than_the_standard_one_on_the_same_episodes():
@@ -949,8 +955,6 @@ def test_the_wide_policy_lands_the_wide_and_flight_sets_better_than_the_standard
     more than ``ppo-scratch`` (`wide` 0.98 against 0.86, `flight` 0.81 against 0.64; 0.985 and 0.795
     on 200, docs/results/wide_stage/long/heldout.json), `flight` without a `flight` draw in training."""
     from rventry_env.evaluation.agents import agent_cards, load_agent
-    from rventry_env.evaluation.rollout import rollout
-    from rventry_env.evaluation.rungs import rung
 
     law = load_agent("ppo-scratch-wide")
     prov = law.metadata["provenance"]
@@ -958,9 +962,7 @@ def test_the_wide_policy_lands_the_wide_and_flight_sets_better_than_the_standard
     assert "wide" in agent_cards()["ppo-scratch-wide"].why
     standard_policy = load_agent("ppo-scratch")
     for name, least, margin in (("wide", 0.95, 0.08), ("flight", 0.75, 0.1)):
-        r = rung(name)
-        rates = [np.mean(rollout(policy, 100, seed=1000, dispersion=r.dispersion, starts=r.starts()).is_success)
-                 for policy in (law, standard_policy)]  # fmt: skip
+        rates = [_held_out_success(policy, name, 100) for policy in (law, standard_policy)]
         assert rates[0] >= least and rates[0] >= rates[1] + margin, (name, rates)
 
 
@@ -969,8 +971,6 @@ def test_the_flight_policy_lands_the_flight_set_better_than_the_wide_one_on_the_
     scratch: on the same 100 held-out episodes it lands more of `flight` (0.88 against 0.81; 0.88 on 200,
     docs/results/ppo_scratch_flight_flight200.json) and loses nothing of `wide` (1.00 against 0.98)."""
     from rventry_env.evaluation.agents import agent_cards, load_agent
-    from rventry_env.evaluation.rollout import rollout
-    from rventry_env.evaluation.rungs import rung
 
     law = load_agent("ppo-scratch-flight")
     prov = law.metadata["provenance"]
@@ -978,9 +978,7 @@ def test_the_flight_policy_lands_the_flight_set_better_than_the_wide_one_on_the_
     assert "flight" in agent_cards()["ppo-scratch-flight"].why
     wide_policy = load_agent("ppo-scratch-wide")
     for name, least, margin in (("wide", 0.97, -0.01), ("flight", 0.85, 0.05)):
-        r = rung(name)
-        rates = [np.mean(rollout(policy, 100, seed=1000, dispersion=r.dispersion, starts=r.starts()).is_success)
-                 for policy in (law, wide_policy)]  # fmt: skip
+        rates = [_held_out_success(policy, name, 100) for policy in (law, wide_policy)]
         assert rates[0] >= least and rates[0] >= rates[1] + margin, (name, rates)
 
 
@@ -990,8 +988,6 @@ def test_the_two_hour_policy_is_the_landing_recipe_from_step_0_and_lands_the_sta
     selected inside the recipe's two hours of its own clock. Held out it lands 0.955 of 200 `standard`
     episodes (docs/results/ladder.json); 20 of them here, and the nominal flight."""
     from rventry_env.evaluation.agents import agent_cards, load_agent
-    from rventry_env.evaluation.rollout import rollout
-    from rventry_env.evaluation.rungs import rung
 
     law = load_agent("ppo-scratch-2h")
     meta, prov = law.metadata, law.metadata["provenance"]
@@ -1004,9 +1000,8 @@ def test_the_two_hour_policy_is_the_landing_recipe_from_step_0_and_lands_the_sta
     assert best["select"]["success_rate"] >= 0.95
     assert "two hours" in agent_cards()["ppo-scratch-2h"].why
     for name, least in (("standard", 0.9), ("nominal", 1.0)):
-        r = rung(name)
-        batch = rollout(law, 20, seed=1000, dispersion=r.dispersion, starts=r.starts())
-        assert np.mean(batch.is_success) >= least, (name, np.mean(batch.is_success))
+        rate = _held_out_success(law, name, 20)
+        assert rate >= least, (name, rate)
 
 
 def test_the_shipped_config_is_the_shipped_policys_recipe():
