@@ -14,7 +14,13 @@ along the shipped reference ``--from``-``--to`` s before impact, with the curric
   the output lay past the bounds its action map clips it to (``rventry_agents.commands``). A
   Gaussian policy whose mean lies there has no gradient on that output: every sample flies the
   bound, whatever the noise;
-* the exploration noise (the actor's log standard deviations).
+* the exploration noise (the actor's log standard deviations);
+* what the network's first layer sees: the inputs as the actor reads them (scaled by the run's
+  observation statistics where it normalizes them, the features themselves where not), the
+  features whose first input lies furthest out, and the share of the first layer's units past
+  saturation (|pre-activation| > 2, where tanh's slope is under 0.071) over each episode. Starts
+  whose inputs lie many standard deviations out of what the statistics have counted put the policy
+  where it extrapolates, and saturated units pass little gradient to learn there.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from rventry_agents.scratch import last_state
 from rventry_env.util.provenance import start_run
 
 PERCENTILES = (10, 50, 90)
+SATURATED = 2.0  # |pre-activation| past which a tanh unit's slope is under 0.071
 
 
 def fly(trainer, ts, lo: float, hi: float, episodes: int, seed: int = 0) -> dict:
@@ -43,23 +50,33 @@ def fly(trainer, ts, lo: float, hi: float, episodes: int, seed: int = 0) -> dict
     env, algo = trainer.env, trainer.algo
     params = trainer.params._replace(starts=env.base.start_params(trainer.curriculum.starts_between(lo, hi)))
     clipped = jnp.asarray(clipped_outputs(env.actions))
+    first = ts.actor_ts.params["params"]["features"]["Dense_0"]
+
+    def inputs(obs):  # what the actor reads (as raw_action normalizes it)
+        return algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
+
+    def saturated(obs):
+        return jnp.mean(jnp.abs(inputs(obs) @ first["kernel"] + first["bias"]) > SATURATED)
 
     def one(k):
         obs, state = env.reset(k, params)
         _, _, _, _, info0 = env.step_env(k, state, jnp.zeros(2), params)  # the info's structure
+        first_inputs = inputs(obs)
 
         def step(c):
-            obs, state, _, info, n, total, past = c
+            obs, state, _, info, n, total, past, sat = c
             out = env.raw_action(algo, ts, obs)
+            sat = sat + saturated(obs)
             obs, state, _, done, info = env.step_env(k, state, out, params)
-            return obs, state, done, info, n + 1, total + out, past + (clipped & (jnp.abs(out) > 1.0))
+            return obs, state, done, info, n + 1, total + out, past + (clipped & (jnp.abs(out) > 1.0)), sat
 
         zeros = jnp.zeros(2, obs.dtype)
         c = jax.lax.while_loop(lambda c: jnp.logical_not(c[2]), step,
-                               (obs, state, jnp.array(False), info0, 0, zeros, zeros))  # fmt: skip
-        obs, _, _, info, n, total, past = c
+                               (obs, state, jnp.array(False), info0, 0, zeros, zeros, jnp.zeros((), obs.dtype)))  # fmt: skip
+        obs, _, _, info, n, total, past, sat = c
         return {**{key: info[key] for key in OUTCOME_KEYS}, "steps": n, "output_mean": total / n,
-                "clipped_share": past / n, "last_obs": obs}  # fmt: skip
+                "clipped_share": past / n, "last_obs": obs, "first_inputs": first_inputs,
+                "saturated_share": sat / n}  # fmt: skip
 
     run = jax.jit(jax.vmap(one))
     return jax.device_get(run(jax.random.split(jax.random.PRNGKey(seed), episodes)))
@@ -69,7 +86,7 @@ def summarize(trainer, o: dict, steps: int, lo: float, hi: float, log_std) -> di
     """The record of :func:`fly`'s episodes: task metrics, the miss split, the outputs and the
     exploration noise ``log_std``."""
     from rventry_agents.jax_env import summarize_outcomes
-    from rventry_env.envs.observation import RANGE_SCALE, feature_index
+    from rventry_env.envs.observation import RANGE_SCALE, feature_index, feature_names
 
     metrics = summarize_outcomes(o, np.zeros(len(o["steps"])), trainer.task)
     metrics.pop("mean_return")  # not flown with the training's reward statistics: not comparable
@@ -83,12 +100,16 @@ def summarize(trainer, o: dict, steps: int, lo: float, hi: float, log_std) -> di
 
     mean, share = np.asarray(o["output_mean"], float), np.asarray(o["clipped_share"], float)
     names = ("alpha", "bank")
+    size = np.median(np.abs(np.asarray(o["first_inputs"], float)), axis=0)  # per feature, over the episodes
+    furthest = {feature_names()[i]: float(size[i]) for i in np.argsort(-size)[:5]}
     return {"timesteps": steps, "starts_s": [lo, hi], "actions": trainer.env.actions, **metrics,
             "percentiles": list(PERCENTILES), "miss_along_km": pct(along), "miss_across_km": pct(across),
             "output_mean": {n: pct(mean[:, i]) for i, n in enumerate(names)},
             "clipped_share": {n: pct(share[:, i]) for i, n in enumerate(names)},
             "clipped": dict(zip(names, map(bool, clipped_outputs(trainer.env.actions)))),
-            "log_std": [float(v) for v in np.ravel(log_std)]}  # fmt: skip
+            "log_std": [float(v) for v in np.ravel(log_std)],
+            "normalized_inputs": bool(trainer.algo.normalize_observations), "first_input_p50_furthest": furthest,
+            "saturated_share": pct(o["saturated_share"])}  # fmt: skip
 
 
 def report(r: dict) -> str:
@@ -112,6 +133,11 @@ def report(r: dict) -> str:
                 else " (read on the circle: not clipped)")  # fmt: skip
         lines.append(f"{name} output: episode mean ({p}) {three(r['output_mean'][name])}{past}")
     lines.append("log std " + " ".join(f"{v:.2f}" for v in r["log_std"]))
+    scale = "standard deviations of the run's observation statistics" if r["normalized_inputs"] else "features as they are"
+    far = ", ".join(f"{k} {v:.1f}" for k, v in r["first_input_p50_furthest"].items())
+    lines.append(f"first inputs furthest out (|input| p50, {scale}): {far}")
+    lines.append(f"first-layer units past |pre-activation| {SATURATED:g}, share of each episode's steps ({p}) "
+                 f"{three(r['saturated_share'])}")
     return "\n".join(lines)
 
 

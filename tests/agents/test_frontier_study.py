@@ -56,6 +56,25 @@ def test_the_frontier_study_flies_what_the_runs_probe_flies_and_splits_the_miss_
     assert np.all(np.asarray(o["steps"]) > 0) and np.all(np.isfinite(np.asarray(o["output_mean"])))
     text = study.report(r)
     assert "bank output" in text and "read on the circle: not clipped" in text and "steps past its clip" in text
+    # the first inputs are the first observations as the actor reads them, scaled by the run's statistics
+    keys = jax.random.split(jax.random.PRNGKey(3), 16)
+    params = trainer.params._replace(starts=trainer.env.base.start_params(trainer.curriculum.starts_between(lo, hi)))
+    obs0 = np.stack([np.asarray(trainer.env.reset(k, params)[0], float) for k in keys])
+    rms = ts.obs_rms_state
+    z = (obs0 - np.asarray(rms.mean, float)) / np.sqrt(np.asarray(rms.var, float) + 1e-8)
+    np.testing.assert_allclose(np.asarray(o["first_inputs"], float), z, rtol=1e-4, atol=1e-4)
+    furthest = r["first_input_p50_furthest"]
+    assert len(furthest) == 5 and list(furthest.values()) == sorted(furthest.values(), reverse=True)
+    assert max(furthest.values()) == pytest.approx(np.max(np.median(np.abs(z), axis=0)), rel=1e-4)
+    assert r["normalized_inputs"] and 0.0 <= r["saturated_share"][0] <= r["saturated_share"][2] <= 1.0
+    assert "standard deviations of the run's observation statistics" in text and "past |pre-activation| 2" in text
+    # a first layer scaled up a million times saturates every unit whose input is not exactly zero
+    big = jax.tree_util.tree_map(lambda a: a, ts.actor_ts.params)
+    layer = big["params"]["features"]["Dense_0"]
+    layer["kernel"], layer["bias"] = layer["kernel"] * 1e6, layer["bias"] * 0 + 1e6
+    loud = study.fly(trainer, ts.replace(actor_ts=ts.actor_ts.replace(params=big)), lo, hi, 4, seed=3)
+    assert np.all(np.asarray(loud["saturated_share"]) == 1.0)
+    assert np.all(np.asarray(o["saturated_share"]) < 1.0)
     # the last chunk's policy exported (studies/last_policy.py): here the run's one chunk, the one it selected
     exported = load_script("studies/last_policy").export_last(out, tmp_path / "last")
     assert exported["timesteps"] == 1024 and exported["provenance"]["chunk"].startswith("the run's last")
