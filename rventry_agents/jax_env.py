@@ -122,7 +122,7 @@ class TrainingEnv(_environment_base()):
     # ------------------------------------------------------------------ evaluation and export
     def raw_action(self, algo, ts, obs):
         """The actor's mean for one observation, normalized as in training, before any clip."""
-        z = algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
+        z = actor_inputs(algo, ts, obs)
         return algo.actor.apply(ts.actor_ts.params, z[None], method=lambda m, o: m.action_mean(m.features(o)))[0]
 
     def mean_action(self, algo, ts, obs):
@@ -174,6 +174,13 @@ class TrainingEnv(_environment_base()):
         return export_actor(path, ts.actor_ts.params, mean, var, activation, self.actions, self.command_time_s)
 
 
+def actor_inputs(algo, ts, obs):
+    """What the actor of the training state ``ts`` reads for ``obs``: the observation in standard
+    deviations of the run's observation statistics where ``algo`` normalizes them (as in training),
+    the features as they are where not."""
+    return algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
+
+
 def summarize_outcomes(o: dict, ret, task) -> dict:
     """The task metrics of a batch of episodes' outcomes (arrays by :data:`OUTCOME_KEYS`): the
     success rate, the median miss, vertical error and impact-speed error (signed, the speed less the
@@ -194,4 +201,4 @@ def summarize_outcomes(o: dict, ret, task) -> dict:
     }  # fmt: skip
 
 
-__all__ = ["OUTCOME_KEYS", "TrainingEnv", "make_training_env", "summarize_outcomes"]
+__all__ = ["OUTCOME_KEYS", "TrainingEnv", "actor_inputs", "make_training_env", "summarize_outcomes"]

@@ -58,10 +58,11 @@ def deterministic_act(algo, ts):
     """The policy's mean action (clipped to the bounds), observations normalized as in training."""
     import jax.numpy as jnp
 
+    from rventry_agents.jax_env import actor_inputs
+
     def act(obs):
-        if algo.normalize_observations:
-            obs = algo.normalize_obs(ts.obs_rms_state, obs)
-        mean = algo.actor.apply(ts.actor_ts.params, obs[None], method=lambda m, o: m.action_mean(m.features(o)))
+        mean = algo.actor.apply(ts.actor_ts.params, actor_inputs(algo, ts, obs)[None],
+                                method=lambda m, o: m.action_mean(m.features(o)))  # fmt: skip
         return jnp.clip(mean[0], -1.0, 1.0)
 
     return act

@@ -45,23 +45,20 @@ def fly(trainer, ts, lo: float, hi: float, episodes: int, seed: int = 0) -> dict
     import jax
     import jax.numpy as jnp
 
-    from rventry_agents.jax_env import OUTCOME_KEYS
+    from rventry_agents.jax_env import OUTCOME_KEYS, actor_inputs
 
     env, algo = trainer.env, trainer.algo
     params = trainer.params._replace(starts=env.base.start_params(trainer.curriculum.starts_between(lo, hi)))
     clipped = jnp.asarray(clipped_outputs(env.actions))
     first = ts.actor_ts.params["params"]["features"]["Dense_0"]
 
-    def inputs(obs):  # what the actor reads (as raw_action normalizes it)
-        return algo.normalize_obs(ts.obs_rms_state, obs) if algo.normalize_observations else obs
-
     def saturated(obs):
-        return jnp.mean(jnp.abs(inputs(obs) @ first["kernel"] + first["bias"]) > SATURATED)
+        return jnp.mean(jnp.abs(actor_inputs(algo, ts, obs) @ first["kernel"] + first["bias"]) > SATURATED)
 
     def one(k):
         obs, state = env.reset(k, params)
         _, _, _, _, info0 = env.step_env(k, state, jnp.zeros(2), params)  # the info's structure
-        first_inputs = inputs(obs)
+        first_inputs = actor_inputs(algo, ts, obs)
 
         def step(c):
             obs, state, _, info, n, total, past, sat = c
