@@ -33,7 +33,7 @@ from rventry_env.util.args import positive_int
 from rventry_env.util.files import check_writable
 from rventry_env.util.provenance import start_run, write_record
 
-LAWS = ("learned", "dagger-flight", "dagger", "ppo-residual", "lqr", "lqr-est", "mpc")  # `learned`: today `ppo`
+LAWS = ("learned", "dagger-flight", "dagger", "ppo-residual", "lqr", "lqr-est", "mpc")  # `learned`: the record says which
 
 
 def learned_name() -> str | None:

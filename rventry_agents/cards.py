@@ -5,11 +5,13 @@ from __future__ import annotations
 
 from rventry_env.evaluation.agents import AgentCard
 
-# `learned` is the best learned policy on the flight set (PPO fine-tuning of `dagger-flight`, the flight-set
-# student, shown beside it); `dagger`, the student of `mpc` built for the standard and wide sets
+# `learned` is the learned policy that lands the most of the flight set (today `ppo-scratch-flight`, learned
+# from scratch); `dagger-flight`, the flight-set student of `mpc-flight`, and `dagger`, the student of `mpc`
+# built for the standard and wide sets, are shown beside it
 CARDS = (
-    AgentCard("learned", "it is the learned policy built for flight-grade uncertainty, and keeps its teacher's "
-              "margins (load relief, q floor), which cost nominal precision and cost"),
+    AgentCard("learned", "it is the learned policy that lands the most of the flight-grade set, learned from scratch "
+              "without a teacher; trained to land rather than to fly the optimum, it gives up nominal precision "
+              "and cost"),
     AgentCard("ppo", "it is PPO fine-tuning of the flight-set student, flown with its q floor"),
     AgentCard("dagger-flight", "it flies mpc-flight's flight-grade margins at a network's cost per decision",
               "DAgger of mpc-flight", 10),

@@ -140,7 +140,10 @@ class Curriculum:
         """Move the window back where the policy lands from its frontier; whether it moved."""
         if self.c.kind != "reverse" or self.complete or frontier_success < self.c.advance_at:
             return False
-        self.window = min(self.window * self.c.growth, self.limit)
+        grown = self.window * self.c.growth
+        if self.c.max_step_s is not None:
+            grown = min(grown, self.window + self.c.max_step_s)
+        self.window = min(grown, self.limit)
         return True
 
 

@@ -75,7 +75,8 @@ class CurriculumSection(Section):
     ``kind = "reverse"`` starts them within ``latest_s`` .. W seconds before the reference's impact,
     W growing by ``growth`` (up to the rung's own earliest start) whenever the deterministic policy
     lands ``advance_at`` of ``frontier_episodes`` started near W (a reverse curriculum, Florensa et
-    al. 2017); ``"uniform"`` starts them anywhere up to the rung's earliest start at once (DeepMimic's
+    al. 2017), and by at most ``max_step_s`` seconds at a time where that is given (the steps of a
+    constant ratio grow with W: 1.25 takes a window at 873 s to the whole flight at 1,033 s in one); ``"uniform"`` starts them anywhere up to the rung's earliest start at once (DeepMimic's
     reference-state initialisation); ``"none"``: only the rung's own starts. ``probability`` is the
     share of training episodes started this way; the others start as the rung does. ``far_weight``
     k makes the start density grow as (s - latest_s)^k toward the window's far end, where the
@@ -91,6 +92,7 @@ class CurriculumSection(Section):
     first_window_s: float = setting(60.0, gt=0)
     latest_s: float = setting(20.0, ge=1)
     growth: float = setting(1.25, gt=1)
+    max_step_s: float | None = setting(None, gt=0)
     advance_at: float = setting(0.5, gt=0, le=1)
     frontier_episodes: int = setting(128, ge=1)
     far_weight: float = setting(0.0, ge=0)

@@ -185,7 +185,9 @@ SET_ROWS = {
         ("`mpc`", "docs/results/bench_sets.json", ("sets", "flight", "laws", "mpc")),
         ("`mpc-flight`", "docs/results/mpc_flight_flight200.json", ("summary",)),
         ("`dagger-flight`", "docs/results/dagger_flight_flight200.json", ("summary",)),
-        ("`learned` (`ppo`)", "docs/results/ppo_q_floor/ppo_flight.json", ("summary",)),
+        ("`ppo`", "docs/results/ppo_q_floor/ppo_flight.json", ("summary",)),
+        ("`ppo-scratch-flight` (`learned`)", "docs/results/scratch_vs_imitation/ppo-scratch-flight_flight_seed0.json",
+         ("summary",)),
     ),
     "peer": (
         ("`reference`", "docs/results/bench_sets.json", ("sets", "peer", "laws", "reference")),
@@ -195,7 +197,7 @@ SET_ROWS = {
         ("`mpc`", "docs/results/bench_sets.json", ("sets", "peer", "laws", "mpc")),
         ("`mpc-flight`", "docs/results/bench_sets_mpc_flight.json", ("sets", "peer", "laws", "mpc-flight")),
         ("`mpc-peer`", "docs/results/mpc_peer_peer50.json", ("summary",)),
-        ("`learned` (`ppo`)", "docs/results/ppo_q_floor/ppo_peer.json", ("summary",)),
+        ("`ppo`", "docs/results/ppo_q_floor/ppo_peer.json", ("summary",)),
     ),
     "peer-0.1": (
         ("`reference`", "docs/results/bench_sets.json", ("sets", "peer-0.1", "laws", "reference")),
@@ -204,7 +206,7 @@ SET_ROWS = {
         ("`dagger`", "docs/results/bench_sets.json", ("sets", "peer-0.1", "laws", "learned")),
         ("`mpc`", "docs/results/bench_sets.json", ("sets", "peer-0.1", "laws", "mpc")),
         ("`mpc-flight`", "docs/results/mpc_flight_peer-0.1_100.json", ("summary",)),
-        ("`learned` (`ppo`)", "docs/results/ppo_q_floor/ppo_peer-0.1.json", ("summary",)),
+        ("`ppo`", "docs/results/ppo_q_floor/ppo_peer-0.1.json", ("summary",)),
     ),
 }
 
@@ -314,11 +316,11 @@ EFFECT_COLUMNS = (
     ("`lqr`", "docs/results/bench_effects.json", "lqr"),
     ("`dagger` (student of `mpc`)", "docs/results/bench_effects.json", "learned"),  # `learned` was `dagger` then
     ("`dagger-flight`", "docs/results/bench_effects_dagger_flight.json", "dagger-flight"),
-    ("`learned` (`ppo`)", "docs/results/bench_effects_ppo.json", "learned"),
+    ("`ppo`", "docs/results/bench_effects_ppo.json", "learned"),
 )
 # the whole `flight` set on the same seeds, from the laws' 200-episode evaluations where one was kept
 EFFECT_WHOLE = {"`dagger-flight`": "docs/results/dagger_flight_flight200.json",
-                "`learned` (`ppo`)": "docs/results/ppo_q_floor/ppo_flight.json"}
+                "`ppo`": "docs/results/ppo_q_floor/ppo_flight.json"}
 EFFECT_GLOSS = {"entry state, C_L/C_D, mass": "entry state, C_L/C_D 5 %, mass",
                 "NRLMSIS climatology": "NRLMSIS climatology (departure from its mean)"}
 
@@ -370,7 +372,7 @@ FOOTPRINT_ROWS = (
     ("`dagger`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "learned")) for s in ("standard", "flight")}),
     ("`dagger-flight`", {s: ("docs/results/bench_footprint_dagger_flight.json", ("sets", s, "laws", "dagger-flight"))
                          for s in ("standard", "flight")}),
-    ("`learned` (`ppo`)", {s: ("docs/results/bench_footprint_ppo.json", ("sets", s, "laws", "learned"))
+    ("`ppo`", {s: ("docs/results/bench_footprint_ppo.json", ("sets", s, "laws", "learned"))
                            for s in ("standard", "flight")}),
     ("`ppo-plain`", {s: ("docs/results/bench_footprint.json", ("sets", s, "laws", "ppo-plain")) for s in ("standard", "flight")}),
 )  # fmt: skip
@@ -788,20 +790,40 @@ def ladder_table(doc: dict) -> str:
                       source("docs/results/ladder.json", command="python studies/ladder.py")])  # fmt: skip
 
 
+# the README's ladder at a glance: plain learners, the shipped staged policy and the one-config recipes, each
+# by the start of its learner's name in the ladder (the full ladder, every learner, is on the results page)
+README_LADDER = (
+    ("SB3 PPO, plain", "SB3 PPO (plain)"),
+    ("rejax PPO, plain (no curriculum, trained on the rung or a later start)", "rejax PPO, attitude commands"),
+    ("rejax PPO, the staged recipe, then stages on `wide` and `flight`, shipped as `ppo-scratch-flight`",
+     "rejax PPO, the staged recipe, then a stage on wide and one on flight"),
+    ("rejax PPO, the landing recipe, one config from step 0, two hours", "rejax PPO, the landing recipe (GAE lambda 0.99"),
+    ("the same, with the features as the environment scales them",
+     "rejax PPO, the landing recipe with the features as the environment scales them"),
+    ("the same, with the window moved back by at most 60 s a step (95 minutes)",
+     "rejax PPO, the landing recipe with the window moved back by at most 60 s"),
+)  # fmt: skip
+
+
 def ladder_summary(doc: dict) -> str:
-    """The ladder at a glance, one line per rung (the README keeps one results table): each learner's
-    success, IQM over its training seeds."""
+    """The ladder at a glance (the README keeps one results table): for the plain learners, the shipped
+    staged policy and the one-config recipes, each rung's success, IQM over the training seeds."""
     from rventry_env.evaluation.rungs import RUNGS
 
-    by_rung: dict[str, list[str]] = {}
-    for e in doc["entries"]:
-        trained = sorted({r.get("trained_on", e["rung"]) for r in e["runs"]})
-        where = "" if trained == [e["rung"]] else f", trained on `{'`, `'.join(trained)}`"
-        by_rung.setdefault(e["rung"], []).append(f"{e['learner']}{where}: {e['iqm']:.2f} ({e['seeds']} seed{'s' if e['seeds'] != 1 else ''})")
-    lines = [f"- `{r}`: " + "; ".join(by_rung[r]) for r in RUNGS if r in by_rung]
+    lines = []
+    for label, prefix in README_LADDER:
+        entries = [e for e in doc["entries"] if e["learner"].startswith(prefix)]
+        learners = {e["learner"] for e in entries}
+        if len(learners) != 1:
+            raise ValueError(f"the ladder has {len(learners)} learners named {prefix!r}...: the README shows one")
+        by_rung = {e["rung"]: e for e in entries}
+        seeds = sorted({e["seeds"] for e in entries})
+        cells = [f"`{r}` {by_rung[r]['iqm']:.2f}" for r in RUNGS if r in by_rung]
+        lines.append(f"- {label} ({'/'.join(map(str, seeds))} seed{'s' if seeds != [1] else ''}): " + ", ".join(cells))
     episodes = sorted({r["evaluation"]["episodes"] for e in doc["entries"] for r in e["runs"]})
     return "\n".join([*lines, "", f"Success IQM over training seeds on {' or '.join(map(str, episodes))} held-out "
-                       "episodes of each rung; every run with its steps and wall time is in "
+                       "episodes of each rung (the staged recipe's seeds are those of its last stage). Every learner, every "
+                       "run with its steps and wall time, and the intervals are in "
                        "[the ladder](docs/benchmarks/learned_policies.md#the-ladder)."])  # fmt: skip
 
 
@@ -921,6 +943,66 @@ def observation_bounds_table(doc: dict) -> str:
     return "\n".join([md(header, rows), "", "Seeds 0-999 per set and law, vector env, the features before clipping; "
                       "`zero`: zero rates (alpha and bank held where they start).", "",
                       source(OBSERVATION_BOUNDS, command=command)])  # fmt: skip
+
+
+
+# ------------------------------------------------------------------ learned from scratch against imitation
+# `learned` on held-out `flight` draws beside the policies built by imitation and their teacher: for each set of
+# draws, each law's report and, where one was flown on the same draws, studies/compare_episodes.py's pairing of
+# `ppo-scratch-flight` with it (A: ppo-scratch-flight, B: the law)
+SCRATCH_VS = "docs/results/scratch_vs_imitation"
+SCRATCH_VS_DRAWS = {  # first seed -> law -> its `rventry evaluate` report on 200 `flight` episodes from that seed
+    0: {"ppo-scratch-flight": f"{SCRATCH_VS}/ppo-scratch-flight_flight_seed0.json",
+        "ppo": "docs/results/ppo_q_floor/ppo_flight.json", "dagger-flight": "docs/results/dagger_flight_flight200.json",
+        "mpc-flight": "docs/results/mpc_flight_flight200.json"},
+    1000: {"ppo-scratch-flight": "docs/results/ppo_scratch_flight_flight200.json",
+           "ppo": f"{SCRATCH_VS}/ppo_flight_seed1000.json", "dagger-flight": f"{SCRATCH_VS}/dagger-flight_flight_seed1000.json"},
+}  # fmt: skip
+SCRATCH_VS_LAWS = ("ppo-scratch-flight", "ppo", "dagger-flight", "mpc-flight")
+
+
+def scratch_vs_records() -> tuple[str, ...]:
+    reports = [p for laws in SCRATCH_VS_DRAWS.values() for p in laws.values()]
+    pairs = [f"{SCRATCH_VS}/vs_{law}_seed{seed}.json" for seed, laws in SCRATCH_VS_DRAWS.items() for law in laws
+             if law != "ppo-scratch-flight"]  # fmt: skip
+    return (*reports, *pairs)
+
+
+def scratch_vs_imitation_table(*docs) -> str:
+    """``ppo-scratch-flight`` (``learned``) against ``ppo``, ``dagger-flight`` and ``mpc-flight`` on the same held-out
+    ``flight`` draws: each law's success, and the episodes only one of the two lands, with the sign test on them."""
+    paths = scratch_vs_records()
+    records = dict(zip(paths, docs))
+    seeds = list(SCRATCH_VS_DRAWS)
+    for seed, laws in SCRATCH_VS_DRAWS.items():
+        for law, path in laws.items():
+            d = records[path]
+            if d["seed"] != seed or d["dispersion_set"] != "flight" or d["n_episodes"] != 200:
+                raise ValueError(f"{path}: expected 200 flight episodes from seed {seed}, got {d['n_episodes']} "
+                                 f"{d['dispersion_set']} episodes from seed {d['seed']}")  # fmt: skip
+    rows = []
+    for law in SCRATCH_VS_LAWS:
+        row = [f"`{law}`" + (" (`learned`)" if law == "ppo-scratch-flight" else "")]
+        for seed in seeds:
+            path = SCRATCH_VS_DRAWS[seed].get(law)
+            if path is None:
+                row += ["not flown", ""]
+                continue
+            summary = records[path]["summary"]
+            row.append(_bold_ci(summary) if law == "ppo-scratch-flight" else ci(summary))
+            if law == "ppo-scratch-flight":
+                row.append("")
+                continue
+            pair = records[f"{SCRATCH_VS}/vs_{law}_seed{seed}.json"]
+            if list(pair["labels"]) != ["ppo-scratch-flight", law] or pair["paired"]["episodes"] != 200:
+                raise ValueError(f"{SCRATCH_VS}/vs_{law}_seed{seed}.json does not pair ppo-scratch-flight with {law} "
+                                 "on 200 episodes")  # fmt: skip
+            c = pair["paired"]
+            row.append(f"{c['only_a']} / {c['only_b']}, p = {c['sign_test_p']:.2g}")
+        rows.append(row)
+    header = ["law", *(x for seed in seeds for x in (f"seeds {seed}-{seed + 199}: success [95 % CI]",
+                                                     "only `ppo-scratch-flight` / only this law lands, sign test"))]
+    return "\n".join([md(header, rows), "", source(*paths)])
 
 
 # ------------------------------------------------------------------ the students held out
@@ -1348,6 +1430,7 @@ DECISION_LAWS = {
     "dagger-flight": ("the flight-set student: one network, its estimator and its load relief", "1 ms", 1e-3),
     "dagger": ("one network, its estimator and its load relief", "1 ms", 1e-3),
     "ppo-residual": ("the PPO residual with its TV-LQR", "10 us", 10e-6),
+    "ppo-scratch-flight": ("PPO from scratch: one 64x64 network; in NumPy", "10 us", 10e-6),
 }  # fmt: skip
 
 
@@ -1604,6 +1687,8 @@ TABLES: tuple[Table, ...] = (
     Table("rounds-dagger-flight", ("rventry_agents/data/dagger_flight/rounds.json",),
           rounds_table("rventry_agents/data/dagger_flight/rounds.json"), ("docs/benchmarks/learned_policies.md",)),
     Table("ladder", ("docs/results/ladder.json",), ladder_table, ("docs/benchmarks/learned_policies.md",)),
+    Table("scratch-vs-imitation", scratch_vs_records(), scratch_vs_imitation_table,
+          ("docs/benchmarks/learned_policies.md",)),
     Table("ladder-summary", ("docs/results/ladder.json",), ladder_summary, (README,)),
     Table("scratch-runs", ("docs/results/scratch_runs.json",), scratch_runs_table, ("docs/design-log/index.md",)),
     *(Table(name, paths, identify_table(paths), ("docs/benchmarks/identification.md",))

@@ -69,6 +69,31 @@ def test_the_shipped_config_loads_and_a_misspelled_key_is_refused_by_name(tmp_pa
     assert starts.step_weighted and starts.before_end_s == (19.0, 599.0)
 
 
+def _windows(curriculum: dict) -> list[float]:
+    """The windows a reverse curriculum moves through on the standard rung, its frontier landed every time."""
+    c = Curriculum(load_config({"env": {"rung": "standard"}, "curriculum": curriculum}))
+    out = [c.window]
+    while c.advance(1.0):
+        out.append(c.window)
+    assert not c.advance(1.0) and c.complete  # the whole flight: it stands there
+    return out
+
+
+def test_the_window_moves_back_by_its_ratio_and_by_at_most_max_step_s_where_given():
+    ratio = _windows({"growth": 1.25})
+    limit = ratio[-1]
+    assert limit == Curriculum(load_config({"env": {"rung": "standard"}})).limit > 1000.0  # the reference's entry
+    assert ratio[:4] == [60.0, 75.0, 93.75, 117.1875] and ratio[-2] * 1.25 > limit  # the last step is cut at the entry
+    steps = np.diff(ratio)
+    assert steps.max() > 100.0  # constant ratio: the steps grow with the window, 160 s into the whole flight
+    capped = _windows({"growth": 1.25, "max_step_s": 60.0})
+    assert capped[:4] == ratio[:4] and capped[-1] == limit  # the ratio's steps below 60 s, and the same end
+    assert np.diff(capped).max() == pytest.approx(60.0) and len(capped) > len(ratio)
+    assert all(b == pytest.approx(min(a * 1.25, a + 60.0, limit)) for a, b in zip(capped, capped[1:]))
+    with pytest.raises(ConfigError, match="max_step_s"):
+        load_config({"curriculum": {"max_step_s": 0.0}})
+
+
 CHUNK = 4_194_304
 
 
