@@ -17,12 +17,13 @@ LEARNED = "ppo-scratch-flight"
 
 
 def load_learned(name: str = "learned", task: EntryTask | None = None):
-    """The policy ``learned`` names (entry point ``rventry.agents``)."""
+    """The policy ``learned`` names (entry point ``rventry.agents``), loaded as that name's own entry point
+    loads it, whatever kind of policy it is."""
     if name != "learned":
         raise ValueError(f"load_learned loads 'learned', not {name!r}")
-    from rventry_agents.jax_policy import load_shipped
+    from rventry_env.evaluation.agents import load_agent
 
-    return load_shipped(LEARNED, task)
+    return load_agent(LEARNED, task)
 
 
 __all__ = ["LEARNED", "load_learned"]

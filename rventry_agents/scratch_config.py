@@ -76,7 +76,8 @@ class CurriculumSection(Section):
     W growing by ``growth`` (up to the rung's own earliest start) whenever the deterministic policy
     lands ``advance_at`` of ``frontier_episodes`` started near W (a reverse curriculum, Florensa et
     al. 2017), and by at most ``max_step_s`` seconds at a time where that is given (the steps of a
-    constant ratio grow with W: 1.25 takes a window at 873 s to the whole flight at 1,033 s in one); ``"uniform"`` starts them anywhere up to the rung's earliest start at once (DeepMimic's
+    constant ratio grow with W: 1.25 takes a window at 873 s to the whole flight at 1,033 s in
+    one); ``"uniform"`` starts them anywhere up to the rung's earliest start at once (DeepMimic's
     reference-state initialisation); ``"none"``: only the rung's own starts. ``probability`` is the
     share of training episodes started this way; the others start as the rung does. ``far_weight``
     k makes the start density grow as (s - latest_s)^k toward the window's far end, where the

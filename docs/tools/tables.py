@@ -958,7 +958,7 @@ SCRATCH_VS_DRAWS = {  # first seed -> law -> its `rventry evaluate` report on 20
     1000: {"ppo-scratch-flight": "docs/results/ppo_scratch_flight_flight200.json",
            "ppo": f"{SCRATCH_VS}/ppo_flight_seed1000.json", "dagger-flight": f"{SCRATCH_VS}/dagger-flight_flight_seed1000.json"},
 }  # fmt: skip
-SCRATCH_VS_LAWS = ("ppo-scratch-flight", "ppo", "dagger-flight", "mpc-flight")
+SCRATCH_VS_LAWS = tuple(dict.fromkeys(law for laws in SCRATCH_VS_DRAWS.values() for law in laws))  # rows, in order
 
 
 def scratch_vs_records() -> tuple[str, ...]:
@@ -989,16 +989,15 @@ def scratch_vs_imitation_table(*docs) -> str:
                 row += ["not flown", ""]
                 continue
             summary = records[path]["summary"]
-            row.append(_bold_ci(summary) if law == "ppo-scratch-flight" else ci(summary))
             if law == "ppo-scratch-flight":
-                row.append("")
+                row += [_bold_ci(summary), ""]
                 continue
             pair = records[f"{SCRATCH_VS}/vs_{law}_seed{seed}.json"]
             if list(pair["labels"]) != ["ppo-scratch-flight", law] or pair["paired"]["episodes"] != 200:
                 raise ValueError(f"{SCRATCH_VS}/vs_{law}_seed{seed}.json does not pair ppo-scratch-flight with {law} "
                                  "on 200 episodes")  # fmt: skip
             c = pair["paired"]
-            row.append(f"{c['only_a']} / {c['only_b']}, p = {c['sign_test_p']:.2g}")
+            row += [ci(summary), f"{c['only_a']} / {c['only_b']}, p = {c['sign_test_p']:.2g}"]
         rows.append(row)
     header = ["law", *(x for seed in seeds for x in (f"seeds {seed}-{seed + 199}: success [95 % CI]",
                                                      "only `ppo-scratch-flight` / only this law lands, sign test"))]
