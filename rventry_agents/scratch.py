@@ -30,7 +30,9 @@ data, so every chunk runs the first one's program. After each chunk the run:
 A run writes into its output directory ``policy.npz`` (the selected actor,
 :class:`~rventry_agents.jax_policy.JaxPolicy` flies it), ``evaluations.json``,
 ``learning_curve.png``, ``config.json`` and ``metadata.json`` (provenance, the task, steps,
-wall time, env-steps/s, the device, the curriculum's history).
+wall time, env-steps/s, the device, the curriculum's history, and ``runs``: the processes that
+trained it, a resumed run's after those it resumes, each with its steps, command, commit, machine
+and packages).
 """
 
 from __future__ import annotations
@@ -460,7 +462,8 @@ def train_scratch(config=None, out: str | Path = "runs/ppo_scratch", seed: int |
 
 
 def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path | None = None) -> dict:
-    from rventry_agents.scratch_state import Checkpoint, PolicyStart, plot_learning_curve, read_start, record_chunk
+    from rventry_agents.scratch_state import Checkpoint, PolicyStart, Processes, plot_learning_curve, read_start
+    from rventry_agents.scratch_state import record_chunk
 
     start = out if resume else source  # the checkpoint (or the exported policy) this run goes on from, if any
     point = None if start is None else read_start(start)
@@ -482,6 +485,7 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
     ts, changes = _falling(ts, trainer.cfg, lr_from, steps, changes)
     # a resumed run keeps its own start; a run from another's checkpoint starts there
     trainer.init_from = None if point is None else point.init_from if resume else point.origin()
+    runs = Processes(point.runs if resume else [], steps)  # this process, after those of the run it resumes
     if not resume:
         write_json(out / "config.json", cfg.to_dict())
     if line := _start_line(cfg, source, point, stage, steps, changes):
@@ -527,13 +531,13 @@ def _train(cfg: ScratchConfig, out: Path, resume: bool, progress, source: Path |
             save_milestone(out, trainer, ts, rec)
         progress(_line(rec, trainer.cfg.curriculum.advance_at))
         write_json(out / "evaluations.json", history)
-        Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps, trainer.init_from, average)
+        Checkpoint.write(out, ts, trainer.curriculum.window, history, rec["wall_s"], steps, trainer.init_from, average,
+                         runs.now(steps))  # fmt: skip
         if rec.get("best"):
             Checkpoint.keep_selected(out)
-        budget = cfg.train.max_wall_s
-        if budget is not None and own_wall(rec["wall_s"], trainer.init_from) >= budget:
+        if (budget := cfg.train.max_wall_s) is not None and own_wall(rec["wall_s"], trainer.init_from) >= budget:
             break
-    meta = _metadata(cfg, trainer, history, best, rates, steps)
+    meta = _metadata(cfg, trainer, history, best, rates, steps, runs.now(steps))
     write_json(out / "metadata.json", meta)
     plot_learning_curve(history, out / "learning_curve.png", f"PPO from scratch (rejax) on the {cfg.env.rung} rung")
     return meta
@@ -818,7 +822,8 @@ def _unmet(c: dict, bar: float) -> str:
     return f" (met: {', '.join(short)})" if short else ""
 
 
-def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, rates: list, steps: int) -> dict:
+def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, rates: list, steps: int,
+              runs: list) -> dict:  # fmt: skip
     import jax
 
     from rventry_env import __version__
@@ -831,7 +836,7 @@ def _metadata(cfg: ScratchConfig, trainer: Trainer, history: list, best: dict, r
         "train_compilations": len(trainer.traces), "package_version": __version__,
         "provenance": policy_provenance(trainer, steps, selected_at_timesteps=best["timesteps"] if best else None,
                                         **({"selected_policy": "the average of the chunks' actors"} if best and _by_average(best) else {})),
-        "best_evaluation": best, "final_window_s": trainer.curriculum.window,
+        "best_evaluation": best, "final_window_s": trainer.curriculum.window, "runs": runs,
     }  # fmt: skip
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -86,18 +87,44 @@ def record_chunk(trainer, ts, steps: int, wall_s: float, chunk_s: float) -> dict
     return rec
 
 
+class Processes:
+    """The processes that trained a run: those the checkpoint it resumes names, then this one, each
+    as its first and last step with its command, commit, machine and packages
+    (:class:`~rventry_env.util.provenance.RunRecord`). Two runs of one config retrace each other to
+    the bit on one machine and one thread count; on two, XLA may compile other instructions and
+    float32 training parts within a chunk, so a run's record says where each of its steps was
+    trained."""
+
+    def __init__(self, before: list, first_step: int):
+        from rventry_env.util.provenance import RunRecord
+
+        self.before, self.first, self.record = list(before), int(first_step), RunRecord(sys.argv)
+        self._at: tuple[int, list[dict]] | None = None
+
+    def now(self, last_step: int) -> list[dict]:
+        """The processes through ``last_step``: this one's entry is taken once a step, so the
+        checkpoint and the metadata written at one step say the same."""
+        if self._at is None or self._at[0] != last_step:
+            self._at = (last_step, [*self.before, {"timesteps": [self.first, int(last_step)], **self.record.provenance()}])
+        return self._at[1]
+
+
 AVERAGE = "average.msgpack"  # in the checkpoint: the actor's parameters averaged over chunks ([train] policy_average)
 
 
 class Checkpoint:
     """``checkpoint/``: the training state (flax's msgpack), the curriculum's window and the history,
-    and the average of the actor's parameters where the run keeps one, written whole after each
-    chunk (a new folder renamed over the old)."""
+    the average of the actor's parameters where the run keeps one, and the processes that trained
+    it (``runs``: each one's first and last step, its commit, machine and packages; a resumed run
+    adds its own to those it resumes), written whole after each chunk (a new folder renamed over
+    the old)."""
 
-    def __init__(self, out: Path, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None):
+    def __init__(self, out: Path, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None,
+                 runs: list | None = None):  # fmt: skip
         self.out, self.window, self.history, self.wall_s, self.steps = out, window, history, wall_s, steps
         self.other_vehicles = False  # whether restore started every vehicle afresh (a rung of another form)
         self.init_from = init_from  # where the run that wrote it started, if from another run's checkpoint
+        self.runs = list(runs or [])  # the processes that trained it, each with its steps, machine and code
 
     def origin(self) -> dict:
         """This checkpoint as the start of another run: its folder, steps, window and wall time (and its own start)."""
@@ -106,7 +133,7 @@ class Checkpoint:
 
     @staticmethod
     def write(out: Path, ts, window: float, history: list, wall_s: float, steps: int, init_from: dict | None = None,
-              average=None) -> None:  # fmt: skip
+              average=None, runs: list | None = None) -> None:  # fmt: skip
         from flax import serialization
 
         with _written_whole(out / CHECKPOINT) as tmp:
@@ -115,7 +142,8 @@ class Checkpoint:
             if average is not None:
                 atomic_write(tmp / AVERAGE, serialization.to_bytes(average))
             state = {"window_s": window, "wall_s": wall_s, "timesteps": steps, "history": history}
-            write_json(tmp / "state.json", state if init_from is None else {**state, "init_from": init_from})
+            state = state if init_from is None else {**state, "init_from": init_from}
+            write_json(tmp / "state.json", state if runs is None else {**state, "runs": runs})
 
     @staticmethod
     def keep_selected(out: Path) -> Path:
@@ -133,7 +161,7 @@ class Checkpoint:
         try:
             s = json.loads(path.read_text())
             return cls(out, float(s["window_s"]), list(s["history"]), float(s["wall_s"]), int(s["timesteps"]),
-                       s.get("init_from"))  # fmt: skip
+                       s.get("init_from"), s.get("runs"))  # fmt: skip
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ConfigError(f"cannot start from {out}: {path} is not a checkpoint ({type(exc).__name__}: {exc})") from None
 

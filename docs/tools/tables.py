@@ -800,7 +800,7 @@ README_LADDER = (
     ("rejax PPO, the landing recipe, one config from step 0, two hours", "rejax PPO, the landing recipe (GAE lambda 0.99"),
     ("the same, with the features as the environment scales them",
      "rejax PPO, the landing recipe with the features as the environment scales them"),
-    ("the same, with the window moved back by at most 60 s a step (95 minutes)",
+    ("the same, with the window moved back by at most 60 s a step (95 or 110 minutes)",
      "rejax PPO, the landing recipe with the window moved back by at most 60 s"),
 )  # fmt: skip
 

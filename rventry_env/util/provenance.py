@@ -7,9 +7,12 @@ JSON through :meth:`RunRecord.write`, which adds a ``"provenance"`` entry:
 
 * ``commit``: the source tree's ``git`` commit and whether it had uncommitted changes (None
   outside a checkout);
-* ``machine``: the CPU model, the cores the process may use and those the machine has, the
-  load average at the start and at the end (a shared machine's timings are read against it), and
-  ``OMP_NUM_THREADS`` as the run had it (None: unset);
+* ``machine``: the CPU model, with its family, model and stepping numbers and the vector
+  extensions it has (where the model name is a generic one, these tell two machines apart: XLA
+  compiles for the extensions it finds, and float32 training parts between two of them within a
+  chunk), the cores the process may use and those the machine has, the load average at the start
+  and at the end (a shared machine's timings are read against it), and ``OMP_NUM_THREADS`` and
+  ``XLA_FLAGS`` as the run had them (None: unset);
 * ``versions``: Python and the packages the figures depend on (None where one is not installed);
 * ``command``: the command line, and the start and end times (UTC).
 
@@ -31,7 +34,11 @@ from typing import Any
 
 from rventry_env.util.files import write_json
 
-PACKAGES = ("rventry", "numpy", "scipy", "casadi", "gymnasium", "stable-baselines3", "torch", "jax", "jaxlib")
+PACKAGES = ("rventry", "numpy", "scipy", "casadi", "gymnasium", "stable-baselines3", "torch", "jax", "jaxlib", "flax",
+            "optax", "rejax")  # fmt: skip
+# the vector extensions of /proc/cpuinfo's flags that XLA's CPU code generation reads
+VECTOR_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512dq", "avx512vl", "avx512_vnni", "avx512_bf16",
+                "amx_tile")  # fmt: skip
 SOURCE = Path(__file__).resolve().parents[2]  # the source tree's root, where this package is a checkout
 
 
@@ -57,6 +64,22 @@ def cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine()
+
+
+def cpu_identity(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict | None:
+    """The CPU's family, model and stepping numbers and the vector extensions of :data:`VECTOR_FLAGS`
+    it has, from Linux's ``cpuinfo`` (its first processor); None where there is none."""
+    try:
+        text = cpuinfo.read_text()
+    except OSError:
+        return None
+    fields: dict[str, str] = {}
+    for line in text.split("\n\n", 1)[0].splitlines():
+        key, _, value = line.partition(":")
+        fields.setdefault(key.strip(), value.strip())
+    have = set(fields.get("flags", "").split())
+    return {"family": fields.get("cpu family"), "model": fields.get("model"), "stepping": fields.get("stepping"),
+            "vector": [f for f in VECTOR_FLAGS if f in have]}  # fmt: skip
 
 
 def load_average() -> list[float] | None:
@@ -87,6 +110,7 @@ class RunRecord:
         self._t0 = time.perf_counter()
         self.load_start = load_average()
         self.commit = source_commit()
+        self.cpu = cpu_identity()
 
     def provenance(self) -> dict[str, Any]:
         """The ``"provenance"`` entry, with the load average now as the end's."""
@@ -96,9 +120,10 @@ class RunRecord:
             usable = os.cpu_count()
         return {
             "commit": self.commit,
-            "machine": {"cpu": cpu_model(), "cores_usable": usable, "cores": os.cpu_count(), "system": platform.system(),
-                        "load_average_start": self.load_start, "load_average_end": load_average(),
-                        "omp_num_threads": os.environ.get("OMP_NUM_THREADS")},
+            "machine": {"cpu": cpu_model(), "cpu_identity": self.cpu, "cores_usable": usable, "cores": os.cpu_count(),
+                        "system": platform.system(), "load_average_start": self.load_start,
+                        "load_average_end": load_average(), "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
+                        "xla_flags": os.environ.get("XLA_FLAGS")},
             "versions": package_versions(),
             "command": self.command,
             "started_utc": self.started.isoformat(timespec="seconds"),
@@ -134,4 +159,4 @@ def write_record(path: str | Path, data: dict, indent: int | None = 1) -> Path:
     return (_CURRENT or start_run()).write(path, data, indent=indent)
 
 
-__all__ = ["RunRecord", "start_run", "current_provenance", "write_record", "source_commit", "cpu_model", "load_average", "package_versions", "PACKAGES"]
+__all__ = ["RunRecord", "start_run", "current_provenance", "write_record", "source_commit", "cpu_model", "cpu_identity", "load_average", "package_versions", "PACKAGES"]

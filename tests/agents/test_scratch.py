@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 
 import numpy as np
@@ -675,9 +676,20 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
         out / "checkpoint" / "train_state.msgpack").read_bytes()
     assert (kept_dir / "config.json").read_text() == (out / "config.json").read_text()
     # resume to the full budget: the history goes on from the first chunk
+    first_run = meta["runs"]
     meta = train_scratch(half, out=out, timesteps=2048, resume=True, progress=lambda s: None)
     hist = json.loads((out / "evaluations.json").read_text())
     assert [h["timesteps"] for h in hist] == [1024, 2048] and meta["timesteps"] == 2048
+    # the processes that trained it: the first, as its record said, then the resume, each with its steps and machine
+    def who(r):  # a process: its steps, command, start and code (its load and wall time as of the record's writing)
+        return r["timesteps"], r["command"], r["started_utc"], r["commit"], r["machine"]["cpu_identity"]
+
+    assert who(meta["runs"][0]) == who(first_run[0]) and len(first_run) == 1
+    assert [r["timesteps"] for r in meta["runs"]] == [[0, 1024], [1024, 2048]]
+    assert json.loads((out / "checkpoint" / "state.json").read_text())["runs"] == meta["runs"]
+    for r in meta["runs"]:
+        assert r["machine"]["cores_usable"] >= 1 and r["machine"]["xla_flags"] == os.environ.get("XLA_FLAGS")
+        assert r["versions"]["jax"] and r["versions"]["rejax"] and "started_utc" in r
     kept_at = json.loads((kept_dir / "checkpoint" / "state.json").read_text())["timesteps"]
     assert kept_at == meta["provenance"]["selected_at_timesteps"] == max(hist, key=chunk_rank)["timesteps"]
     with pytest.raises(ValueError, match="already holds a run"):
@@ -698,6 +710,7 @@ def test_a_short_run_trains_exports_a_faithful_policy_and_resumes(tmp_path):
     start = {"run": str(out), "timesteps": 2048, "window_s": window, "wall_s": source_wall}
     assert meta["provenance"]["init_from"] == start and meta["config"]["curriculum"]["step_weighted"]
     assert json.loads((other / "checkpoint" / "state.json").read_text())["init_from"] == start  # kept on resume
+    assert [r["timesteps"] for r in meta["runs"]] == [[2048, 3072]]  # its own process; its source's are the source's
     # its exploration noise started again where its config says (the source's was e^-1), and trained a chunk from there
     before, after = (h["exploration_std"] for h in json.loads((other / "evaluations.json").read_text())[1:])
     assert np.allclose(before, math.exp(-1.0), rtol=0.05) and np.allclose(after, math.exp(-2.5), rtol=0.05)
