@@ -945,7 +945,6 @@ def observation_bounds_table(doc: dict) -> str:
                       source(OBSERVATION_BOUNDS, command=command)])  # fmt: skip
 
 
-
 # ------------------------------------------------------------------ learned from scratch against imitation
 # `learned` on held-out `flight` draws beside the policies built by imitation and their teacher: for each set of
 # draws, each law's report and, where one was flown on the same draws, studies/compare_episodes.py's pairing of

@@ -55,20 +55,8 @@ def source_commit(root: Path = SOURCE) -> dict | None:
     return {"sha": sha.stdout.strip(), "dirty": bool(status.stdout.strip())}
 
 
-def cpu_model() -> str:
-    """The CPU's model name (Linux's /proc/cpuinfo; elsewhere what the platform says)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def cpu_identity(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict | None:
-    """The CPU's family, model and stepping numbers and the vector extensions of :data:`VECTOR_FLAGS`
-    it has, from Linux's ``cpuinfo`` (its first processor); None where there is none."""
+def cpuinfo_fields(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict[str, str] | None:
+    """The fields of the first processor in Linux's ``cpuinfo`` (None where there is none)."""
     try:
         text = cpuinfo.read_text()
     except OSError:
@@ -77,6 +65,21 @@ def cpu_identity(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict | None:
     for line in text.split("\n\n", 1)[0].splitlines():
         key, _, value = line.partition(":")
         fields.setdefault(key.strip(), value.strip())
+    return fields
+
+
+def cpu_model() -> str:
+    """The CPU's model name (Linux's /proc/cpuinfo; elsewhere what the platform says)."""
+    name = (cpuinfo_fields() or {}).get("model name")
+    return name or platform.processor() or platform.machine()
+
+
+def cpu_identity(cpuinfo: Path = Path("/proc/cpuinfo")) -> dict | None:
+    """The CPU's family, model and stepping numbers and the vector extensions of :data:`VECTOR_FLAGS`
+    it has, from Linux's ``cpuinfo`` (its first processor); None where there is none."""
+    fields = cpuinfo_fields(cpuinfo)
+    if fields is None:
+        return None
     have = set(fields.get("flags", "").split())
     return {"family": fields.get("cpu family"), "model": fields.get("model"), "stepping": fields.get("stepping"),
             "vector": [f for f in VECTOR_FLAGS if f in have]}  # fmt: skip
@@ -159,4 +162,4 @@ def write_record(path: str | Path, data: dict, indent: int | None = 1) -> Path:
     return (_CURRENT or start_run()).write(path, data, indent=indent)
 
 
-__all__ = ["RunRecord", "start_run", "current_provenance", "write_record", "source_commit", "cpu_model", "cpu_identity", "load_average", "package_versions", "PACKAGES"]
+__all__ = ["RunRecord", "start_run", "current_provenance", "write_record", "source_commit", "cpu_model", "cpu_identity", "cpuinfo_fields", "load_average", "package_versions", "PACKAGES"]
